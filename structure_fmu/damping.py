@@ -1,0 +1,55 @@
+"""Damping of deformation: mass-proportional, zero for rigid-body motion (000 Sec. II.C, corrected).
+
+000 prints F_damping = -alpha M (the velocity is missing) and states in Sec. IV that the damping is zero for
+a rigid body: it acts on deformation only. We take the deformation velocity of a body as its velocity
+relative to the rigid motion of its root node's frame, v_def = (I - P) de, where P de is the velocity
+field of a rigid body moving with the root node (translation of r, angular velocity of the frame
+r_x/|r_x|, r_y, their cross product). The force F = -alpha (I - P)^T M (I - P) de is dissipative
+(power -alpha |v_def|_M^2), zero for a rigid motion, and equals -alpha M de on a clamped body.
+"""
+import numpy as np
+
+
+def _skew(v):
+    """(..., 3) -> (..., 3, 3) with skew(v) w = v x w."""
+    z = np.zeros_like(v[..., 0])
+    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+
+
+def frame_angular_velocity_map(root):
+    """W (3, 9) with omega = W d(root)/dt for the root node coordinates [r, r_x, r_y].
+
+    omega = 1/2 sum_i e_i x de_i over the frame e_1 = r_x/|r_x|, e_2 = r_y, e_3 = e_1 x e_2.
+    """
+    x, y = root[3:6], root[6:9]
+    nx = np.linalg.norm(x)
+    e1, e2 = x / nx, y
+    e3 = np.cross(e1, e2)
+    de1 = (np.eye(3) - np.outer(e1, e1)) / nx             # d e1 / d r_x
+    de3_dx = -_skew(e2) @ de1                             # d(e1 x e2)/d r_x = -[e2]x de1
+    de3_dy = _skew(e1)
+    W = np.zeros((3, 9))
+    W[:, 3:6] = 0.5 * (_skew(e1) @ de1 + _skew(e3) @ de3_dx)
+    W[:, 6:9] = 0.5 * (_skew(e2) + _skew(e3) @ de3_dy)
+    return W
+
+
+def rigid_velocity_projector(E_body):
+    """P (9m, 9m) mapping a body's coordinate rates to those of the rigid motion of its root frame."""
+    nodes = E_body.reshape(-1, 3, 3)
+    m = len(nodes)
+    W = frame_angular_velocity_map(E_body[:9])
+    P = np.zeros((m, 3, 3, 9))
+    arms = np.stack([nodes[:, 0] - nodes[0, 0], nodes[:, 1], nodes[:, 2]], axis=1)   # (m, 3, 3)
+    P[:, :, :, :] = -np.einsum("mkij,jc->mkic", _skew(arms), W)                      # omega x arm
+    P[:, 0, :, 0:3] += np.eye(3)                                                     # + dr_root/dt
+    out = np.zeros((9 * m, 9 * m))
+    out[:, :9] = P.reshape(9 * m, 9)
+    return out
+
+
+def deformation_damping_matrix(E_body, mass_body, alpha):
+    """D = alpha (I - P)^T M (I - P) for one body; the damping force is -D de."""
+    A = np.eye(len(E_body)) - rigid_velocity_projector(E_body)
+    return alpha * A.T @ mass_body @ A

@@ -1,0 +1,149 @@
+"""The structural model in reduced coordinates: M q'' + Phi_q^T lambda = F (000 Eq. 4).
+
+E = T q + P p(t) (topology.py). Since T is constant, the reduced mass matrix M_q = T^T M_E T is constant
+(000 Eq. 5) and is factorized once. Forces are computed on E and mapped by T^T; a prescribed motion
+p(t) adds -T^T M_E P p''(t).
+"""
+from dataclasses import replace
+
+import numpy as np
+from scipy.linalg import cho_factor
+
+from . import element
+from .element import cross
+from .constraints import Constraints
+from .motion import Fixed
+from .damping import deformation_damping_matrix
+from .joints import actuator_forces
+
+
+class StructureModel:
+    """Mass, forces, constraints and energy of a Topology with given tunable parameters."""
+
+    def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None):
+        self.top = topology
+        self.n = topology.n_coordinates
+        self.T, self.P = topology.maps()
+        self.dofs = topology.element_dofs()
+        self.lengths = topology.element_lengths()
+        sections = [topology.bodies[b].section for b in topology.element_body]
+        self.stiffness = np.array([s.stiffness for s in sections])
+        mu = np.array([s.mass_per_length for s in sections])
+        mu1 = np.array([s.first_moment for s in sections])
+        mu2 = np.array([s.chord_inertia for s in sections])
+        self.flexible = topology.fidelity == "flexible"
+        # constant mass matrix on E (000 Eq. 5) plus lumped masses on r
+        self.mass_E = np.zeros((self.n, self.n))
+        element_mass = element.mass_matrix(self.lengths, mu, mu1, mu2)
+        for dofs, m in zip(self.dofs, element_mass):
+            self.mass_E[np.ix_(dofs, dofs)] += m
+        gravity = np.asarray(gravity, float)
+        self.gravity_E = np.zeros(self.n)
+        np.add.at(self.gravity_E, self.dofs, element.distributed_force(self.lengths, mu, mu1, gravity))
+        for node, mass in topology.masses:
+            self.mass_E[9 * node:9 * node + 3, 9 * node:9 * node + 3] += mass * np.eye(3)
+            self.gravity_E[9 * node:9 * node + 3] += mass * gravity
+        self.mass_q = self.T.T @ self.mass_E @ self.T
+        self.mass_factor = cho_factor(self.mass_q) if self.T.shape[1] else None
+        self.mass_prescribed = self.T.T @ self.mass_E @ self.P
+        self.constraints = Constraints(topology)
+        self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
+        self.damped_bodies = []
+        if self.flexible:
+            for name, body in topology.bodies.items():
+                alpha = (body_damping or {}).get(name, body.damping)
+                if alpha > 0:
+                    idx = np.arange(9 * body.nodes[0], 9 * body.nodes[-1] + 9)
+                    self.damped_bodies.append((alpha, idx, self.mass_E[np.ix_(idx, idx)]))
+        self.loads = topology.loads
+        self._group_prescribed()
+
+    # ---------------------------------------------------------------- kinematics
+    def prescribed(self, t):
+        """p, p', p'' (stacked prescribed vectors and rates) at time t, each (3 n_prescribed,)."""
+        p, dp, ddp = (a.copy() for a in self._fixed)
+        for motion, rows, p0, is_pos in self._moving:
+            k = motion.kinematics(t)
+            u = (p0 - is_pos * motion.pivot) @ k.rotation.T
+            p[rows] = u + is_pos * (motion.pivot + k.translation)
+            dp[rows] = cross(k.omega, u) + is_pos * k.velocity
+            ddp[rows] = cross(k.alpha, u) + cross(k.omega, cross(k.omega, u)) + is_pos * k.acceleration
+        return p.ravel(), dp.ravel(), ddp.ravel()
+
+    def _group_prescribed(self):
+        """Prescribed vectors grouped by motion; the fixed ones (clamps) are computed once."""
+        top = self.top
+        p0 = np.array(top.prescribed_initial).reshape(-1, 3)
+        is_pos = np.array(top.prescribed_is_position, dtype=float).reshape(-1, 1)
+        which = np.array(top.prescribed_motion, dtype=int)
+        self._moving = []
+        for m, motion in enumerate(top.motions):
+            rows = np.flatnonzero(which == m)
+            if len(rows) and not isinstance(motion, Fixed):
+                self._moving.append((motion, rows, p0[rows], is_pos[rows]))
+        self._fixed = (p0, np.zeros_like(p0), np.zeros_like(p0))
+
+    def coordinates(self, q, dq, t):
+        """E, dE/dt, and the prescribed acceleration p'' at time t."""
+        p, dp, ddp = self.prescribed(t)
+        return self.T @ q + self.P @ p, self.T @ dq + self.P @ dp, ddp
+
+    # ---------------------------------------------------------------- forces
+    def load_factor(self, load, t):
+        if load["law"] == "cosine_ramp":   # 000 Eq. (26)
+            ts = load["ramp_time"]
+            return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
+        return 1.0
+
+    def force_E(self, E, dE, t, Q, latched, with_tangent=False):
+        """Generalized force on E: elastic, gravity, point loads, actuators, damping and external Q.
+
+        With with_tangent also returns (K_E, C_E): -dF/dE (elastic exact, actuator Gauss-Newton) and
+        -dF/d(dE) (damping, actuator).
+        """
+        F = self.gravity_E + Q
+        K = C = None
+        if self.flexible:
+            e_el = E[self.dofs]
+            np.add.at(F, self.dofs, element.elastic_force(e_el, self.lengths, self.stiffness))
+        for load in self.loads:
+            k = load["element"]
+            s = element.shape_row(load["x"], load["y"], self.lengths[k])
+            F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
+        act, _, K_act, C_act = actuator_forces(self.hinges, E, dE, latched, self.n, with_tangent)
+        F += act
+        if with_tangent:
+            K, C = K_act, C_act
+            if self.flexible:
+                jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
+                for dofs, j in zip(self.dofs, jac):
+                    K[np.ix_(dofs, dofs)] += j
+        for alpha, idx, mass in self.damped_bodies:
+            D = deformation_damping_matrix(E[idx], mass, alpha)
+            F[idx] -= D @ dE[idx]
+            if with_tangent:
+                C[np.ix_(idx, idx)] += D
+        return F, K, C
+
+    def force_q(self, q, dq, t, Q, latched):
+        """Reduced force T^T F - T^T M P p'' and the current E, dE."""
+        E, dE, ddp = self.coordinates(q, dq, t)
+        F, _, _ = self.force_E(E, dE, t, Q, latched)
+        return self.T.T @ F - self.mass_prescribed @ ddp, E, dE, ddp
+
+    # ---------------------------------------------------------------- monitors
+    def energy(self, E, dE, latched):
+        """Kinetic + elastic + gravity potential + actuator spring potential, J."""
+        kinetic = 0.5 * dE @ self.mass_E @ dE
+        elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
+            if self.flexible else 0.0
+        potential = -self.gravity_E @ E
+        angles = self.top.fold_angles(E)
+        spring = 0.0
+        for h in self.hinges:
+            theta = angles[h.name]
+            if latched.get(h.name, False):
+                spring += 0.5 * h.latch_factor * h.stiffness * (theta - h.stop_angle) ** 2 + h.torque * theta
+            else:
+                spring += 0.5 * h.stiffness * theta**2 + h.torque * theta
+        return kinetic + elastic + potential + spring

@@ -1,0 +1,88 @@
+"""Prescribed rigid motions: clamps, driven hinges (000 Eq. 27), heave/pitch laws.
+
+A law gives, at time t, the rotation R about a pivot and a translation h, with their rates:
+x(t) = pivot + R(t) (x0 - pivot) + h(t) for a material point, g(t) = R(t) g0 for a gradient vector.
+Angular velocity omega and acceleration alpha are in the global frame (rad/s, rad/s^2).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def rotation_about(axis, angle):
+    """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
+    a = np.asarray(axis, dtype=float)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    rotation: np.ndarray          # R (3, 3)
+    omega: np.ndarray             # rad/s
+    alpha: np.ndarray             # rad/s^2
+    translation: np.ndarray       # h, m
+    velocity: np.ndarray          # dh/dt, m/s
+    acceleration: np.ndarray      # d2h/dt2, m/s^2
+
+
+class Fixed:
+    """A clamp: no motion."""
+
+    pivot = np.zeros(3)
+
+    def kinematics(self, t):
+        z = np.zeros(3)
+        return Kinematics(np.eye(3), z, z, z, z, z)
+
+
+class SpinUp:
+    """Rotation about `axis` through `pivot` by the spin-up law of 000 Eq. (27).
+
+    theta = omega_s / T_s [t^2/2 + (T_s / 2 pi)^2 (cos(2 pi t / T_s) - 1)] for t < T_s,
+    theta = omega_s (t - T_s / 2) afterwards.
+    """
+
+    def __init__(self, axis, pivot, omega, ramp_time):
+        self.axis, self.pivot = np.asarray(axis, float), np.asarray(pivot, float)
+        self.omega, self.ramp_time = float(omega), float(ramp_time)
+
+    def angle(self, t):
+        """theta, dtheta/dt, d2theta/dt2 (rad, rad/s, rad/s^2)."""
+        ws, Ts = self.omega, self.ramp_time
+        if t < Ts:
+            c = 2 * np.pi / Ts
+            return (ws / Ts * (t**2 / 2 + (np.cos(c * t) - 1) / c**2),
+                    ws / Ts * (t - np.sin(c * t) / c),
+                    ws / Ts * (1 - np.cos(c * t)))
+        return ws * (t - Ts / 2), ws, 0.0
+
+    def kinematics(self, t):
+        theta, dtheta, ddtheta = self.angle(t)
+        z = np.zeros(3)
+        return Kinematics(rotation_about(self.axis, theta), dtheta * self.axis, ddtheta * self.axis, z, z, z)
+
+
+class HeavePitch:
+    """Sinusoidal heave along `heave_axis` and pitch about `pitch_axis` through `pivot`.
+
+    h(t) = heave_amplitude sin(frequency t) (m); pitch(t) = pitch_amplitude sin(frequency t + phase) (rad).
+    A constant pitch (sudden start at an angle of attack) is pitch_amplitude with frequency 0 and phase pi/2.
+    """
+
+    def __init__(self, heave_axis, pitch_axis, pivot, heave_amplitude, pitch_amplitude, frequency, phase):
+        self.heave_axis = np.asarray(heave_axis, float)
+        self.pitch_axis = np.asarray(pitch_axis, float)
+        self.pivot = np.asarray(pivot, float)
+        self.heave_amplitude, self.pitch_amplitude = float(heave_amplitude), float(pitch_amplitude)
+        self.frequency, self.phase = float(frequency), float(phase)
+
+    def kinematics(self, t):
+        w = self.frequency
+        s, c = np.sin(w * t), np.cos(w * t)
+        sp, cp = np.sin(w * t + self.phase), np.cos(w * t + self.phase)
+        a = self.pitch_amplitude
+        theta, dtheta, ddtheta = a * sp, a * w * cp, -a * w * w * sp
+        h = self.heave_amplitude * self.heave_axis
+        return Kinematics(rotation_about(self.pitch_axis, theta), dtheta * self.pitch_axis,
+                          ddtheta * self.pitch_axis, s * h, w * c * h, -w * w * s * h)

@@ -1,0 +1,196 @@
+"""StructureSolver: the structure unit's solver API (docs/solver_api.md).
+
+Owns the model, the integrator and the state; advances with its own internal steps inside a
+communication step; detects the latch; checks inputs and divergence; saves and restores its state.
+"""
+import numpy as np
+
+from .errors import InputError, SceneError, SolverDiverged
+from .integrators import RK4, GeneralizedAlpha, State
+from .model import StructureModel
+from .topology import Topology
+
+_DIVERGENCE_HINT = {
+    "rk4": "reduce structure.step below the explicit stability limit, or use structure.integrator = "
+           "\"generalized-alpha\"",
+    "generalized-alpha": "reduce structure.step, or lower structure.rho_inf to damp high frequencies",
+}
+
+
+class StructureSolver:
+    """The structural solver of one scene. See docs/solver_api.md."""
+
+    def __init__(self, scene: dict, parameters: dict | None = None):
+        self.topology = Topology.from_scene(scene)
+        structure = scene["structure"]
+        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
+        for name, value in (parameters or {}).items():
+            if name not in values:
+                raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
+            if not np.isfinite(value):
+                raise SceneError(name, value, "a finite number")
+            values[name] = float(value)
+        self.parameters = values
+        if values["structure.step"] <= 0:
+            raise SceneError("structure.step", values["structure.step"], "a time step > 0 (s)")
+        hinge_parameters = {h: {k: values[f"{h}.{k}"] for k in ("stiffness", "damping", "torque")}
+                            for h in self.topology.hinge_names}
+        for h, p in hinge_parameters.items():
+            if p["stiffness"] < 0 or p["damping"] < 0:
+                raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
+        body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
+        gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
+        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping)
+        self.step_size = values["structure.step"]
+        integrator = structure.get("integrator", "generalized-alpha")
+        if integrator == "rk4":
+            self.integrator = RK4()
+        elif integrator == "generalized-alpha":
+            rho = structure.get("rho_inf", 0.8)
+            if not isinstance(rho, (int, float)) or not 0.0 <= rho <= 1.0:
+                raise SceneError("structure.rho_inf", rho, "a spectral radius in [0, 1]")
+            self.integrator = GeneralizedAlpha(rho)
+        else:
+            raise SceneError("structure.integrator", integrator, "rk4 or generalized-alpha")
+        q0 = self.topology.initial_free()
+        n_q = len(q0)
+        n_c = self.model.constraints.count
+        self.state = State(0.0, q0, np.zeros(n_q), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
+        self._zero_Q = np.zeros(self.topology.n_coordinates)
+        self._initialized = False
+        self._check_initial_constraints()
+
+    @staticmethod
+    def tunable_parameters(scene: dict) -> dict:
+        """name -> (default, unit, description) of the scalars a system tool may change before a run."""
+        structure = scene["structure"]
+        gravity = structure.get("gravity", [0.0, 0.0, 0.0])
+        out = {"structure.step": (float(structure.get("step", 1e-4)), "s", "internal time step"),
+               "gravity_x": (float(gravity[0]), "m/s2", "gravity, x component"),
+               "gravity_y": (float(gravity[1]), "m/s2", "gravity, y component"),
+               "gravity_z": (float(gravity[2]), "m/s2", "gravity, z component")}
+        for body in structure.get("bodies", []):
+            out[f"{body['name']}.damping"] = (float(body.get("damping", 0.0)), "1/s",
+                                              "mass-proportional damping of deformation, alpha")
+        for joint in structure.get("joints", []):
+            if joint.get("type") == "hinge":
+                name = joint["name"]
+                out[f"{name}.stiffness"] = (float(joint.get("stiffness", 0.0)), "N.m/rad", "actuator stiffness K")
+                out[f"{name}.damping"] = (float(joint.get("damping", 0.0)), "N.m.s/rad", "actuator damping C")
+                out[f"{name}.torque"] = (float(joint.get("torque", 0.0)), "N.m", "actuator constant torque T_const")
+        return out
+
+    def _check_initial_constraints(self):
+        if self.model.constraints.count == 0:
+            return
+        E, _, _ = self.model.coordinates(self.state.q, self.state.dq, 0.0)
+        G = self.model.constraints.jacobian(E) @ self.model.T
+        rank = np.linalg.matrix_rank(G)
+        if rank < G.shape[0]:
+            raise SceneError("structure.joints", None,
+                             f"joints over-constrain the bodies ({G.shape[0]} constraints, rank {rank})")
+
+    # ---------------------------------------------------------------- stepping
+    @property
+    def time(self) -> float:
+        return self.state.t
+
+    def _initialize(self, Q):
+        self.state = self.integrator.initialize(self.model, self.state, Q)
+        self._initialized = True
+
+    def advance(self, t_end: float, Q=None) -> None:
+        """Take internal steps from `time` to `t_end` (s) with the generalized force Q held constant."""
+        Q = self._zero_Q if Q is None else np.asarray(Q, dtype=float)
+        if Q.shape != self._zero_Q.shape:
+            raise InputError(f"Q has {Q.size} values, the structure has {self._zero_Q.size} coordinates")
+        bad = ~np.isfinite(Q)
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise InputError(f"Q[{first + 1}] = {Q[first]} at t = {self.state.t:.6g} s: "
+                             f"{int(bad.sum())} NaN/inf value(s) in the generalized force input")
+        if self.state.q.size == 0:        # fully prescribed: no dynamics
+            self.state.t = float(t_end)
+            return
+        if not self._initialized:
+            self._initialize(Q)
+        while self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
+            h = min(self.step_size, t_end - self.state.t)
+            if t_end - (self.state.t + h) < 1e-9 * self.step_size:
+                h = t_end - self.state.t
+            previous = self.state
+            try:
+                new = self.integrator.step(self.model, previous, h, Q)
+            except np.linalg.LinAlgError as exc:
+                raise SolverDiverged(previous.t, f"singular system ({exc})",
+                                     _DIVERGENCE_HINT[self.integrator.name]) from None
+            self._check(new)
+            self._update_latches(previous, new)
+            self.state = new
+
+    def _check(self, state):
+        hint = _DIVERGENCE_HINT[self.integrator.name]
+        if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.dq))):
+            raise SolverDiverged(state.t, "the state became NaN/inf", hint)
+        residual = self.constraint_residual(state)
+        if residual > 1e-4:
+            raise SolverDiverged(state.t, f"constraint residual {residual:.3g} (limit 1e-4)", hint)
+        E, _, _ = self.model.coordinates(state.q, state.dq, state.t)
+        size = np.max(np.abs(E.reshape(-1, 3, 3)[:, 1:]))   # gradients stay O(1) in any physical motion
+        if size > 1e3:
+            raise SolverDiverged(state.t, f"gradient vectors grew to {size:.3g}", hint)
+
+    def _update_latches(self, previous, new):
+        hinges = [h for h in self.model.hinges if h.stop_angle is not None and not previous.latched.get(h.name)]
+        if not hinges:
+            return
+        old = self.topology.fold_angles(self.model.coordinates(previous.q, previous.dq, previous.t)[0])
+        now = self.topology.fold_angles(self.model.coordinates(new.q, new.dq, new.t)[0])
+        for h in hinges:
+            a, b = old[h.name] - h.stop_angle, now[h.name] - h.stop_angle
+            if a > 0 >= b:       # the fold angle reached the stop moving toward it
+                new.latched = {**new.latched, h.name: True}
+                fraction = a / (a - b) if a != b else 1.0
+                new.latch_times = {**new.latch_times, h.name: previous.t + fraction * (new.t - previous.t)}
+                if hasattr(self.integrator, "reset"):
+                    self.integrator.reset()
+
+    # ---------------------------------------------------------------- outputs
+    def _coordinates(self):
+        return self.model.coordinates(self.state.q, self.state.dq, self.state.t)
+
+    @property
+    def e(self) -> np.ndarray:
+        return self._coordinates()[0]
+
+    @property
+    def de(self) -> np.ndarray:
+        return self._coordinates()[1]
+
+    def constraint_residual(self, state=None) -> float:
+        state = state or self.state
+        if self.model.constraints.count == 0:
+            return 0.0
+        E, _, _ = self.model.coordinates(state.q, state.dq, state.t)
+        return float(np.max(np.abs(self.model.constraints.residual(E))))
+
+    def fold_angles_deg(self) -> dict:
+        return {k: float(np.degrees(v)) for k, v in self.topology.fold_angles(self.e).items()}
+
+    def monitors(self) -> dict:
+        E, dE, _ = self._coordinates()
+        return {"energy": float(self.model.energy(E, dE, self.state.latched)),
+                "constraint_residual": self.constraint_residual(),
+                "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
+                "latch_times": dict(self.state.latch_times)}
+
+    def get_state(self):
+        """Complete internal state, deep-copied. The cached Newton matrix is saved by reference (it is
+        replaced, never modified in place), so that a rolled-back step repeats bit for bit."""
+        return (self.state.copy(), self._initialized, getattr(self.integrator, "_matrix", None))
+
+    def set_state(self, saved) -> None:
+        state, initialized, matrix = saved
+        self.state, self._initialized = state.copy(), initialized
+        if hasattr(self.integrator, "_matrix"):
+            self.integrator._matrix = matrix
