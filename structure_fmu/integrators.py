@@ -105,7 +105,7 @@ class GeneralizedAlpha:
 
     name = "generalized-alpha"
 
-    def __init__(self, rho_inf=0.8, tol=1e-10, max_iterations=30):
+    def __init__(self, rho_inf=0.8, tol=1e-9, max_iterations=30):
         r = float(rho_inf)
         self.alpha_m = (2 * r - 1) / (r + 1)        # 004 Eq. (25), with alpha = rho_inf
         self.alpha_f = r / (r + 1)
@@ -147,10 +147,12 @@ class GeneralizedAlpha:
         beta_p = (1 - am) / (h * h * b * (1 - af))
         gamma_p = g / (h * b)
         t = state.t + h
-        a_new = (af * state.ddq - am * state.accel) / (1 - am)
-        dq = state.dq + h * (1 - g) * state.accel + h * g * a_new
+        # predictor: q''_{n+1} = q''_n; a_{n+1} from the recurrence 004 Eq. (24)
+        a_known = (af * state.ddq - am * state.accel) / (1 - am)
+        ddq = state.ddq.copy()
+        a_new = a_known + (1 - af) / (1 - am) * ddq
+        dq = state.dq + h * (1 - g) * state.accel + h * g * a_new          # 004 Eq. (23)
         q = state.q + h * state.dq + h * h * (0.5 - b) * state.accel + h * h * b * a_new
-        ddq = np.zeros_like(q)
         lam = state.multipliers.copy()
         cons = model.constraints
         n = len(q)
@@ -187,5 +189,5 @@ class GeneralizedAlpha:
         else:
             raise SolverDiverged(state.t, f"Newton did not converge in {self.max_iterations} iterations "
                                  f"(last correction {size:.3g})", "reduce structure.step")
-        accel = a_new + (1 - af) / (1 - am) * ddq
+        accel = a_known + (1 - af) / (1 - am) * ddq
         return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)

@@ -6,7 +6,7 @@ communication step; detects the latch; checks inputs and divergence; saves and r
 import numpy as np
 
 from .errors import InputError, SceneError, SolverDiverged
-from .integrators import RK4, GeneralizedAlpha, State
+from .integrators import RK4, GeneralizedAlpha, State, project
 from .model import StructureModel
 from .topology import Topology
 
@@ -55,10 +55,28 @@ class StructureSolver:
         q0 = self.topology.initial_free()
         n_q = len(q0)
         n_c = self.model.constraints.count
-        self.state = State(0.0, q0, np.zeros(n_q), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
+        self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
         self._initialized = False
         self._check_initial_constraints()
+
+    def _initial_rates(self):
+        """q' at t = 0: the bodies' rigid rotations about their roots (`angular_velocity`, rad/s), made
+        consistent with the prescribed motions and constraints by the mass-weighted projection."""
+        top, model = self.topology, self.model
+        E = top.initial_coordinates()
+        dE = np.zeros_like(E)
+        for name, omega in top.angular_velocity.items():
+            nodes = top.bodies[name].nodes
+            block = E.reshape(-1, 3, 3)[nodes]
+            arms = np.stack([block[:, 0] - block[0, 0], block[:, 1], block[:, 2]], axis=1)
+            dE.reshape(-1, 3, 3)[nodes] = np.cross(omega, arms)
+        q0 = top.initial_free()
+        if not q0.size:
+            return np.zeros(0)
+        _, dp, _ = model.prescribed(0.0)
+        dq, *_ = np.linalg.lstsq(model.T, dE - model.P @ dp, rcond=None)
+        return project(model, 0.0, q0, dq)[1]
 
     @staticmethod
     def tunable_parameters(scene: dict) -> dict:

@@ -83,7 +83,8 @@ def _vector(key, value, unit=False):
     return v
 
 
-_BODY_KEYS = {"name", "length", "root", "span_axis", "chord_axis", "damping", "section"}
+_BODY_KEYS = {"name", "length", "root", "span_axis", "chord_axis", "damping", "section", "angular_velocity"}
+_LOAD_KEYS = {"parameter", "body", "span", "chord", "direction", "law", "ramp_time"}
 _JOINT_KEYS = {
     "clamp": {"type", "body"},
     "pin": {"type", "body", "axis"},
@@ -115,6 +116,7 @@ class Topology:
         self.orthogonal_slots: list[tuple[int, int]] = []
         self.fixed_directions: list[tuple[int, np.ndarray]] = []   # slot . n = 0
         self.masses: list[tuple[int, float]] = []                  # (node, kg)
+        self.angular_velocity: dict[str, np.ndarray] = {}          # initial rigid rotation rate, rad/s
         self.loads: list[dict] = []
         self.fidelity = "flexible"
 
@@ -160,6 +162,8 @@ class Topology:
             top._add_body(name, specs[name], joints, n_el, motion_spec)
         top._add_constraints()
         top._add_masses_and_loads(structure)
+        if "load" in scene:
+            top._add_load_case(scene["load"])
         return top
 
     def _parse_joints(self, joints, specs):
@@ -239,6 +243,8 @@ class Topology:
                 raise SceneError(f"{key}.chord_axis", spec.get("chord_axis"), "a direction perpendicular to span_axis")
             y0 = y_raw
         x0 = x0 / np.linalg.norm(x0)
+        if "angular_velocity" in spec:
+            self.angular_velocity[name] = _vector(f"{key}.angular_velocity", spec["angular_velocity"])
         n_nodes = n_el + 1
         first_node = len(self.node_names)
         body = Body(name, length, section, damping, [], [])
@@ -368,28 +374,49 @@ class Topology:
             raise SceneError(key, span, f"a node position of body '{body_name}' (m from its root): {allowed}")
         return body.nodes[index]
 
-    def _add_masses_and_loads(self, structure):
+    def _add_masses_and_loads(self, structure, key=None):
         for i, spec in enumerate(structure.get("masses", [])):
-            key = f"structure.masses[{i}]"
+            item = f"structure.masses[{i}]"
             if spec.get("body") not in self.bodies:
-                raise SceneError(f"{key}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
-            mass = _number(f"{key}.mass", spec.get("mass"), "a mass > 0 (kg)", lambda v: v > 0)
-            self.masses.append((self._node_at(f"{key}.span", spec["body"], spec.get("span", 0.0)), mass))
+                raise SceneError(f"{item}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
+            mass = _number(f"{item}.mass", spec.get("mass"), "a mass > 0 (kg)", lambda v: v > 0)
+            self.masses.append((self._node_at(f"{item}.span", spec["body"], spec.get("span", 0.0)), mass))
         for i, spec in enumerate(structure.get("loads", [])):
-            key = f"structure.loads[{i}]"
+            item = key or f"structure.loads[{i}]"
             if spec.get("body") not in self.bodies:
-                raise SceneError(f"{key}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
+                raise SceneError(f"{item}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
             body = self.bodies[spec["body"]]
-            span = _number(f"{key}.span", spec.get("span"), f"0 <= span <= {body.length} (m)",
+            span = _number(f"{item}.span", spec.get("span"), f"0 <= span <= {body.length} (m)",
                            lambda v: 0 <= v <= body.length)
             chord = spec.get("chord", body.section.axis_position)
             law = spec.get("law", "constant")
             if law not in ("constant", "cosine_ramp"):
-                raise SceneError(f"{key}.law", law, "constant or cosine_ramp (000 Eq. 26)")
-            ramp = _number(f"{key}.ramp_time", spec.get("ramp_time", 1.0), "a time > 0 (s)", lambda v: v > 0)
-            index, x, y = self.locate(spec["body"], span, _number(f"{key}.chord", chord))
+                raise SceneError(f"{item}.law", law, "constant or cosine_ramp (000 Eq. 26)")
+            ramp = _number(f"{item}.ramp_time", spec.get("ramp_time", 1.0), "a time > 0 (s)", lambda v: v > 0)
+            index, x, y = self.locate(spec["body"], span, _number(f"{item}.chord", chord))
             self.loads.append({"element": index, "x": x, "y": y, "law": law, "ramp_time": ramp,
-                               "force": _vector(f"{key}.force", spec.get("force"))})
+                               "force": _vector(f"{item}.force", spec.get("force"))})
+
+    def _add_load_case(self, spec):
+        """`[load]`: a point load given by the non-dimensional parameter P L^2 / (EI_yy) of its body."""
+        if not isinstance(spec, dict):
+            raise SceneError("load", spec, "a table with parameter, direction and optionally body, span, law")
+        unknown = set(spec) - _LOAD_KEYS
+        if unknown:
+            name = sorted(unknown)[0]
+            raise SceneError(f"load.{name}", spec[name], f"one of {sorted(_LOAD_KEYS)}")
+        body_name = spec.get("body", list(self.bodies)[-1])
+        if body_name not in self.bodies:
+            raise SceneError("load.body", body_name, f"one of the bodies {sorted(self.bodies)}")
+        body = self.bodies[body_name]
+        parameter = _number("load.parameter", spec.get("parameter"), "P L^2 / (E I) >= 0", lambda v: v >= 0)
+        direction = _vector("load.direction", spec.get("direction"), unit=True)
+        magnitude = parameter * body.section.flap / body.length**2
+        load = {"body": body_name, "span": spec.get("span", body.length), "force": list(magnitude * direction),
+                "law": spec.get("law", "constant"), "ramp_time": spec.get("ramp_time", 1.0)}
+        if "chord" in spec:
+            load["chord"] = spec["chord"]
+        self._add_masses_and_loads({"loads": [load]}, key="load")
 
     # ------------------------------------------------------------------ queries
     @property

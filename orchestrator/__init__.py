@@ -1,0 +1,17 @@
+"""Master side of wingsim: scenes, FMU build, the co-simulation run loop, results, plots and the CLI.
+
+Modules (one concept each):
+
+- ``scene``       load a TOML scene, fill defaults, validate
+- ``overrides``   ``--set KEY=VALUE`` on a raw scene
+- ``build``       build the FMUs a scene needs, and tell whether built ones are up to date
+- ``units``       structure/aero units behind one interface (FMU through fmpy, or in-process)
+- ``master``      step the units from 0 to ``time.stop`` and record what the scene asks for
+- ``timeseries``  the recorded samples (time, probe positions, fold angles, monitors)
+- ``results``     ``timeseries.csv`` and ``summary.json`` (DESIGN §7)
+- ``plots``       PNG plots of a run
+- ``progress``    the progress line on stderr
+- ``cli``         the ``wingsim`` command line
+"""
+
+import structure_fmu  # noqa: F401  (first: it asks for single-threaded BLAS before numpy is loaded)

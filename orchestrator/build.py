@@ -1,0 +1,179 @@
+"""Build the FMUs a scene needs (pythonfmu), with the resolved scene embedded as `resources/scene.json`.
+
+`build_fmus(scene, out_dir)` writes `out_dir/structure.fmu` (and, once the aero unit exists, `aero.fmu` when
+`aero.model != "none"`). Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
+from there, and puts `resources/` first on `sys.path`), the Python packages it imports (`structure_fmu/`,
+copied as *.py files only), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
+FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
+The FMUs do not bundle Python, numpy or scipy: the host needs them (see README).
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import json
+import os
+import shutil
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+SCENE_RESOURCE = "scene.json"
+BUILD_INFO_RESOURCE = "build_info.json"
+
+# kind -> (FMU file name, slave module, packages embedded in resources/)
+UNITS = {
+    "structure": ("structure.fmu", "structure_fmu.structure_slave", ("structure_fmu",)),
+    "aero": ("aero.fmu", "aero_fmu.aero_slave", ("aero_fmu", "structure_fmu")),
+}
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built; the message names the unit, the scene and the cause."""
+
+
+def units_needed(scene: dict) -> list[str]:
+    """Unit kinds the scene needs: always the structure, the aero unit unless `aero.model` is "none"."""
+    model = scene.get("aero", {}).get("model", "none")
+    return ["structure"] if model == "none" else ["structure", "aero"]
+
+
+def build_fmus(scene: dict, out_dir: Path) -> list[Path]:
+    """Build every FMU the scene needs into `out_dir`; returns their paths (structure first).
+
+    Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails.
+    """
+    kinds = units_needed(scene)
+    for kind in kinds:  # fail before building anything
+        _require(kind, scene)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return [_build_unit(kind, scene, out_dir) for kind in kinds]
+
+
+def fmus_up_to_date(scene: dict, out_dir: Path) -> bool:
+    """True if every FMU the scene needs exists in `out_dir`, built from this scene and these sources."""
+    for kind in units_needed(scene):
+        fmu = Path(out_dir) / UNITS[kind][0]
+        try:
+            info = json.loads(read_resource(fmu, BUILD_INFO_RESOURCE))
+            if info != _build_info(kind, scene):
+                return False
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile, BuildError):
+            return False
+    return True
+
+
+def read_resource(fmu: Path, name: str) -> str:
+    """Text of `resources/<name>` inside an FMU file."""
+    with zipfile.ZipFile(fmu) as z:
+        return z.read(f"resources/{name}").decode("utf-8")
+
+
+def embedded_scene(fmu: Path) -> dict:
+    """The resolved scene an FMU was built from."""
+    return json.loads(read_resource(fmu, SCENE_RESOURCE))
+
+
+def _require(kind: str, scene: dict) -> None:
+    """BuildError unless the slave module of `kind` can be imported."""
+    module_name = UNITS[kind][1]
+    try:
+        spec = importlib.util.find_spec(module_name)
+    except ImportError:
+        spec = None
+    if kind == "aero" and spec is None:
+        raise BuildError(f"aero.model = {scene.get('aero', {}).get('model')!r} needs the aero FMU, which is "
+                         f"not implemented yet ({module_name} is missing); use aero.model = \"none\"")
+    _slave_script(kind)
+
+
+def _slave_script(kind: str) -> Path:
+    fmu_name, module_name, _ = UNITS[kind]
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise BuildError(f"cannot import {module_name} to build {fmu_name}: {exc}") from exc
+    return Path(module.__file__)
+
+
+def _package_dir(package: str) -> Path:
+    spec = importlib.util.find_spec(package)
+    if spec is None or not spec.submodule_search_locations:
+        raise BuildError(f"package {package} to embed in the FMU was not found on sys.path")
+    return Path(list(spec.submodule_search_locations)[0])
+
+
+def _sources(kind: str) -> list[tuple[str, Path]]:
+    """(archive name, file) of the slave script and every *.py of the embedded packages, sorted."""
+    script = _slave_script(kind)
+    files = [(script.name, script)]
+    for package in UNITS[kind][2]:
+        root = _package_dir(package)
+        for f in sorted(root.rglob("*.py")):
+            if "__pycache__" in f.parts or f == script:
+                continue
+            files.append((f"{package}/{f.relative_to(root).as_posix()}", f))
+    return files
+
+
+def _build_info(kind: str, scene: dict) -> dict:
+    h = hashlib.sha256()
+    for name, f in _sources(kind):
+        h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
+    scene_text = json.dumps(scene, sort_keys=True)
+    return {"unit": kind, "sources_sha256": h.hexdigest(),
+            "scene_sha256": hashlib.sha256(scene_text.encode()).hexdigest()}
+
+
+def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
+    fmu_name, module_name, packages = UNITS[kind]
+    _check_scene(kind, scene)
+    from pythonfmu import FmuBuilder
+    from structure_fmu.errors import SceneError
+
+    script = _slave_script(kind)
+    dest = out_dir / fmu_name
+    saved_path, saved_module = list(sys.path), sys.modules.get(script.stem)
+    with tempfile.TemporaryDirectory(prefix=f"wingsim_build_{kind}_") as tmp:
+        stage = Path(tmp) / "stage"
+        stage.mkdir()
+        (stage / SCENE_RESOURCE).write_text(json.dumps(scene, indent=1), encoding="utf-8")
+        (stage / BUILD_INFO_RESOURCE).write_text(json.dumps(_build_info(kind, scene)), encoding="utf-8")
+        project_files = [stage / SCENE_RESOURCE, stage / BUILD_INFO_RESOURCE]
+        for archive_name, f in _sources(kind)[1:]:
+            target = stage / archive_name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(f, target)
+        project_files += [stage / p for p in packages]
+        partial = out_dir / f".building-{os.getpid()}-{fmu_name}"
+        try:
+            FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
+                                 canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+        except SceneError:
+            partial.unlink(missing_ok=True)
+            raise
+        except Exception as exc:
+            partial.unlink(missing_ok=True)
+            raise BuildError(f"building {dest} for scene {scene.get('name', '?')!r} failed: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        finally:  # pythonfmu leaves the script folder on sys.path and the script in sys.modules
+            sys.path[:] = saved_path
+            if saved_module is None:
+                sys.modules.pop(script.stem, None)
+            else:
+                sys.modules[script.stem] = saved_module
+    os.replace(partial, dest)  # atomic: a failed build never leaves a half-written FMU behind
+    return dest
+
+
+def _check_scene(kind: str, scene: dict) -> None:
+    """Fail before building, with the structure package's SceneError naming the key."""
+    if kind == "structure":
+        from structure_fmu.solver import StructureSolver
+        from structure_fmu.topology import Topology
+        Topology.from_scene(scene)
+        StructureSolver.tunable_parameters(scene)
+

@@ -1,0 +1,147 @@
+"""The ``wingsim`` command line (DESIGN §7); ``python -m orchestrator`` is the same.
+
+- ``wingsim build SCENE [--out DIR]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``).
+- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
+  run, write ``timeseries.csv``, ``summary.json`` and PNG plots into DIR (default ``results/<scene>/``).
+- ``wingsim sweep`` (issue 5) and ``wingsim validate`` (issue 4): not implemented yet.
+
+Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), or
+an unexpected error; 2 bad scene, bad arguments or a command not implemented yet.
+Errors are one line, ``error: ...``; set ``WINGSIM_DEBUG=1`` to see tracebacks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+from structure_fmu.errors import SceneError
+
+NOT_IMPLEMENTED = {"sweep": "issue 5", "validate": "issue 4"}
+DEBUG_ENV = "WINGSIM_DEBUG"
+FMU_ROOT = Path("fmus")
+RESULTS_ROOT = Path("results")
+
+
+def _debug() -> bool:
+    return os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="wingsim", description="FMI co-simulation of deployable wings (structure and aero units).",
+        epilog=f"Set {DEBUG_ENV}=1 to see tracebacks of unexpected errors.")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    build = commands.add_parser("build", help="build the FMUs a scene needs",
+                                description="Build the FMUs a scene needs.")
+    build.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    build.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: fmus/<scene name>/)")
+    build.set_defaults(func=cmd_build)
+
+    run = commands.add_parser("run", help="build if needed, run a scene, write results and plots",
+                              description="Build the FMUs if needed, run the scene and write "
+                                          "timeseries.csv, summary.json and PNG plots.")
+    run.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    run.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<scene name>/)")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
+    run.add_argument("--backend", choices=("fmu", "direct"), default="fmu",
+                     help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
+    run.set_defaults(func=cmd_run)
+
+    for command, issue in NOT_IMPLEMENTED.items():
+        commands.add_parser(command, help=f"not implemented yet ({issue})")
+    return parser
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from orchestrator.build import build_fmus
+    from orchestrator.scene import load_scene
+
+    scene = load_scene(args.scene)
+    out = args.out or FMU_ROOT / scene["name"]
+    for path in build_fmus(scene, out):
+        print(path)
+    return 0
+
+
+def _build_if_needed(scene: dict, fmu_dir: Path):
+    """None when the FMUs are ready, else a failed RunResult saying why the build failed.
+
+    The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included)
+    or other sources (``orchestrator.build.fmus_up_to_date`` compares digests embedded in the FMUs).
+    """
+    from orchestrator.build import build_fmus, fmus_up_to_date
+    from orchestrator.master import RunResult, new_series
+
+    start = time.perf_counter()
+    try:
+        if fmus_up_to_date(scene, fmu_dir):
+            return None
+        print(f"building the FMUs of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
+        fmus = build_fmus(scene, fmu_dir)
+    except SceneError:
+        raise
+    except Exception as err:
+        logging.getLogger(__name__).debug("build failed", exc_info=True)
+        message = f"building the FMUs into {fmu_dir} failed: {type(err).__name__}: {err}"
+        return RunResult("error", message, time.perf_counter() - start, 0.0, scene, new_series(scene))
+    print(f"built {', '.join(str(p) for p in fmus)}", file=sys.stderr)
+    return None
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from orchestrator.master import run_scene
+    from orchestrator.plots import write_plots
+    from orchestrator.progress import Progress
+    from orchestrator.results import write_results
+    from orchestrator.scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    out = args.out or RESULTS_ROOT / scene["name"]
+    fmu_dir = FMU_ROOT / scene["name"]
+    result = _build_if_needed(scene, fmu_dir) if args.backend == "fmu" else None
+    if result is None:
+        progress = Progress(scene["time"]["stop"], label=scene["name"])
+        result = run_scene(scene, backend=args.backend, fmu_dir=fmu_dir, progress=progress)
+    write_results(result, out)
+    try:
+        write_plots(result, out)
+    except Exception as err:  # the data are written; a plotting problem must not hide them
+        if _debug():
+            raise
+        print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
+    print(f"{scene['name']}: {result.status}: {result.message}")
+    print(f"results in {out}")
+    return 0 if result.status == "ok" else 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``wingsim``; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if _debug():
+        logging.basicConfig(level=logging.DEBUG)
+    if argv and argv[0] in NOT_IMPLEMENTED:
+        print(f"error: 'wingsim {argv[0]}' is not implemented yet ({NOT_IMPLEMENTED[argv[0]]})",
+              file=sys.stderr)
+        return 2
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except SceneError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    except Exception as err:
+        if _debug():
+            raise
+        print(f"error: {type(err).__name__}: {err} (set {DEBUG_ENV}=1 to see the traceback)", file=sys.stderr)
+        return 1

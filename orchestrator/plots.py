@@ -1,0 +1,101 @@
+"""PNG plots of a run (matplotlib, Agg backend; no display needed).
+
+- ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle;
+- ``probe_displacements.png``: displacement of each probe from its initial position (m), per
+  global component, vs time (s);
+- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s).
+
+A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
+that name from an earlier run in the same folder is removed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from orchestrator.master import RunResult
+from orchestrator.scene import hinge_joints
+
+PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "energy_residual.png")
+DPI = 120
+
+
+def _title(result: RunResult, what: str) -> str:
+    status = "" if result.status == "ok" else f" ({result.status} at t = {result.simulated_time_s:.4g} s)"
+    return f"{result.scene['name']}: {what}{status}"
+
+
+def fold_angles_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.hinge_names:
+        return None
+    stops = {j["name"]: j.get("stop_angle_deg") for j in hinge_joints(result.scene)}
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    for i, hinge in enumerate(series.hinge_names):
+        line, = ax.plot(series.time, series.fold_angles_deg[:, i], label=hinge)
+        if stops.get(hinge) is not None:
+            ax.axhline(stops[hinge], color=line.get_color(), linestyle=":", label=f"{hinge} stop")
+    ax.set(title=_title(result, "fold angles"), xlabel="time (s)", ylabel="fold angle (deg)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def probe_displacements_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.probe_names:
+        return None
+    positions = series.positions                               # (samples, probes, 3), m
+    displacement = positions - positions[:1]
+    fig = Figure(figsize=(7, 7))
+    axes = fig.subplots(3, 1, sharex=True)
+    for c, (ax, axis) in enumerate(zip(axes, "xyz")):
+        for i, probe in enumerate(series.probe_names):
+            ax.plot(series.time, displacement[:, i, c], label=probe)
+        ax.set_ylabel(f"d{axis} (m)")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title(_title(result, "probe displacement from initial position (global frame)"))
+    axes[0].legend()
+    axes[-1].set_xlabel("time (s)")
+    return fig
+
+
+def monitors_figure(result: RunResult) -> Figure:
+    series = result.series
+    fig = Figure(figsize=(7, 6))
+    energy_ax, residual_ax = fig.subplots(2, 1, sharex=True)
+    energy_ax.plot(series.time, series.energy)
+    energy_ax.set(title=_title(result, "energy and constraint residual"), ylabel="energy (J)")
+    residual = series.constraint_residual
+    residual_ax.plot(series.time, residual)
+    if np.any(np.isfinite(residual) & (residual > 0)):
+        residual_ax.set_yscale("log")
+    residual_ax.set(xlabel="time (s)", ylabel="constraint residual (-)")
+    for ax in (energy_ax, residual_ax):
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
+def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
+    """Write the plots that apply into ``out_dir``; returns the paths written."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    empty = len(result.series) == 0
+    figures = dict(zip(PLOT_FILES, (None, None, None) if empty else (
+        fold_angles_figure(result), probe_displacements_figure(result), monitors_figure(result))))
+    written = []
+    for filename, fig in figures.items():
+        path = out_dir / filename
+        if fig is None:
+            path.unlink(missing_ok=True)
+            continue
+        FigureCanvasAgg(fig)
+        fig.tight_layout()
+        fig.savefig(path, dpi=DPI)
+        written.append(path)
+    return written

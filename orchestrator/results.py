@@ -1,0 +1,153 @@
+"""Write a run's ``timeseries.csv`` and ``summary.json`` (DESIGN §7), also for a failed run.
+
+Summary fields (SI units, angles in degrees):
+
+- ``status`` ("ok" | "diverged" | "error"), ``message``, ``wall_time_s``, ``simulated_time_s``,
+  ``scene`` (the resolved scene, after ``--set``);
+- ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has reached
+  it (for a single hinge: the first time its fold angle reaches the stop), linearly interpolated
+  between samples; null if a hinge never reaches its stop or no hinge has one;
+- ``max_constraint_residual``: the largest constraint residual over the run;
+- ``energy_drift``: (E_final - E_0) / max(|E_0|, 1e-9 J) over the samples with a finite energy;
+- ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
+  ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position.
+
+Values that do not apply, or are NaN/inf, are written as null (the JSON stays strict).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestrator.master import RunResult
+from orchestrator.scene import hinge_joints
+from orchestrator.timeseries import TimeSeries
+
+SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
+                  "max_constraint_residual", "energy_drift", "probes")
+ENERGY_FLOOR_J = 1e-9
+"""Smallest |E_0| (J) the energy drift is relative to, so that E_0 = 0 does not divide by zero."""
+
+
+def crossing_time(time: np.ndarray, angle_deg: np.ndarray, stop_deg: float) -> float | None:
+    """First time (s) ``angle_deg`` reaches ``stop_deg`` from the side it starts on, or None.
+
+    Linearly interpolated between the last sample before and the first sample at or past the stop.
+    """
+    t = np.asarray(time, dtype=float)
+    offset = np.asarray(angle_deg, dtype=float) - stop_deg
+    if offset.size == 0 or not np.isfinite(offset[0]):
+        return None
+    if offset[0] == 0.0:
+        return float(t[0])
+    with np.errstate(invalid="ignore"):
+        reached = np.flatnonzero(np.sign(offset[0]) * offset <= 0.0)
+    if reached.size == 0:
+        return None
+    k = reached[0]
+    before, after = offset[k - 1], offset[k]
+    if not np.isfinite(before):
+        return float(t[k])
+    return float(t[k - 1] + (t[k] - t[k - 1]) * before / (before - after))
+
+
+def deployment_time(series: TimeSeries, scene: dict) -> float | None:
+    """Time (s) at which every hinge with a stop angle has reached it; None if one never does."""
+    stops = {j["name"]: j["stop_angle_deg"] for j in hinge_joints(scene) if "stop_angle_deg" in j}
+    if not stops or len(series) == 0:
+        return None
+    angles = series.fold_angles_deg
+    times = [crossing_time(series.time, angles[:, series.hinge_names.index(h)], stop)
+             for h, stop in stops.items()]
+    return None if any(t is None for t in times) else max(times)
+
+
+def energy_drift(energy: np.ndarray) -> float | None:
+    """(E_final - E_0) / max(|E_0|, ENERGY_FLOOR_J) over the finite samples, or None."""
+    finite = np.asarray(energy, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return None
+    return float((finite[-1] - finite[0]) / max(abs(finite[0]), ENERGY_FLOOR_J))
+
+
+def max_constraint_residual(residual: np.ndarray) -> float | None:
+    """Largest residual over the run (NaN samples ignored), or None."""
+    values = np.asarray(residual, dtype=float)
+    values = values[~np.isnan(values)]
+    return float(values.max()) if values.size else None
+
+
+def probe_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
+    """Per probe: initial, final position and min/max displacement per component (m)."""
+    if len(series) == 0:
+        keys = ("initial", "final", "min_displacement", "max_displacement")
+        return {p: dict.fromkeys(keys) for p in series.probe_names}
+    positions = series.positions                      # (samples, probes, 3)
+    displacement = positions - positions[:1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN component gives NaN, written null
+        low, high = np.nanmin(displacement, axis=0), np.nanmax(displacement, axis=0)
+    return {
+        p: {"initial": positions[0, i].tolist(), "final": positions[-1, i].tolist(),
+            "min_displacement": low[i].tolist(), "max_displacement": high[i].tolist()}
+        for i, p in enumerate(series.probe_names)
+    }
+
+
+def summarize(result: RunResult) -> dict[str, Any]:
+    """The summary.json content (exactly SUMMARY_FIELDS), JSON-safe."""
+    series = result.series
+    summary = {
+        "status": result.status,
+        "message": result.message,
+        "wall_time_s": result.wall_time_s,
+        "simulated_time_s": result.simulated_time_s,
+        "scene": result.scene,
+        "deployment_time_s": deployment_time(series, result.scene),
+        "max_constraint_residual": max_constraint_residual(series.constraint_residual),
+        "energy_drift": energy_drift(series.energy),
+        "probes": probe_summary(series),
+    }
+    return json_safe(summary)
+
+
+def json_safe(value: Any) -> Any:
+    """Plain Python types for JSON: numpy scalars/arrays converted, NaN and inf as None."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def write_timeseries(series: TimeSeries, path: Path) -> None:
+    """CSV with a header row (``time`` first) and one row per sample; NaN written as ``nan``."""
+    np.savetxt(path, series.table(), delimiter=",", header=",".join(series.columns), comments="",
+               fmt="%.12g")
+
+
+def write_summary(result: RunResult, path: Path) -> None:
+    path.write_text(json.dumps(summarize(result), indent=2, allow_nan=False) + "\n")
+
+
+def write_results(result: RunResult, out_dir: Path) -> list[Path]:
+    """Write ``timeseries.csv`` and ``summary.json`` into ``out_dir`` (created); returns the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv_path, summary_path = out_dir / "timeseries.csv", out_dir / "summary.json"
+    write_timeseries(result.series, csv_path)
+    write_summary(result, summary_path)
+    return [csv_path, summary_path]

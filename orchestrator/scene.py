@@ -1,0 +1,318 @@
+"""Scene files: load a TOML scene, apply ``--set`` overrides, fill defaults, validate.
+
+The format is docs/scenes.md. The resolved scene is a plain, JSON-serialisable dict with every
+top-level section present and every default filled in; it is what the units are built from and
+what ``summary.json`` records. SI units throughout (s, m, kg, N, m/s, kg/m^3).
+
+This module checks the top level and the scalar keys (time, coupling, flow, aero, probes and the
+scalar ``structure`` keys). The physics tables (bodies, joints, masses, loads) are checked by
+``structure_fmu.topology.Topology.from_scene``, which ``load_scene`` calls last, so that every bad
+scene fails before anything runs with a ``SceneError`` naming the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from orchestrator.overrides import apply_overrides
+from structure_fmu.errors import SceneError
+
+Checker = Callable[[str, Any], Any]
+"""(dotted key, value) -> normalised value; raises SceneError."""
+
+REQUIRED = object()
+"""Default marker for keys a scene must give."""
+
+MISSING = "<missing>"
+"""The value reported in a SceneError for a required key that is absent."""
+
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+NAME_ALLOWED = "a non-empty name of letters, digits, '_', '-', '.' starting with a letter or digit"
+
+AERO_MODELS = ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
+
+
+class SceneFileError(SceneError):
+    """The scene file cannot be read or is not valid TOML."""
+
+    def __init__(self, path: Path, reason: str):
+        self.key, self.value, self.allowed = "<file>", str(path), reason
+        ValueError.__init__(self, f"cannot read scene file '{path}': {reason}")
+
+
+# --- value checkers -------------------------------------------------------------------------------
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _number(allowed: str, accept: Callable[[float], bool]) -> Checker:
+    def check(key: str, value: Any) -> float:
+        if not _is_number(value) or not accept(value):
+            raise SceneError(key, value, allowed)
+        return float(value)
+    return check
+
+
+def positive(unit: str) -> Checker:
+    return _number(f"a finite number > 0 ({unit})", lambda x: x > 0)
+
+
+def non_negative(unit: str) -> Checker:
+    return _number(f"a finite number >= 0 ({unit})", lambda x: x >= 0)
+
+
+def between(low: float, high: float, unit: str = "-") -> Checker:
+    return _number(f"a number in [{low:g}, {high:g}] ({unit})", lambda x: low <= x <= high)
+
+
+def integer_at_least(low: int) -> Checker:
+    def check(key: str, value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise SceneError(key, value, f"an integer >= {low}")
+        return value
+    return check
+
+
+def choice(*options: str) -> Checker:
+    allowed = "one of " + ", ".join(repr(o) for o in options)
+
+    def check(key: str, value: Any) -> str:
+        if not isinstance(value, str) or value not in options:
+            raise SceneError(key, value, allowed)
+        return value
+    return check
+
+
+def vector3(unit: str) -> Checker:
+    def check(key: str, value: Any) -> list[float]:
+        if not isinstance(value, list) or len(value) != 3 or not all(map(_is_number, value)):
+            raise SceneError(key, value, f"an array of 3 finite numbers ({unit}), e.g. [0, 0, -9.81]")
+        return [float(v) for v in value]
+    return check
+
+
+def text(key: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise SceneError(key, value, "a string")
+    return value
+
+
+def _is_name(value: Any) -> bool:
+    return isinstance(value, str) and NAME_PATTERN.fullmatch(value) is not None
+
+
+def name(key: str, value: Any) -> str:
+    if not _is_name(value):
+        raise SceneError(key, value, NAME_ALLOWED)
+    return value
+
+
+def table_list(what: str) -> Checker:
+    def check(key: str, value: Any) -> list[dict]:
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise SceneError(key, value, f"an array of tables [[{key}]], one per {what}")
+        return value
+    return check
+
+
+def optional_table(what: str) -> Checker:
+    def check(key: str, value: Any) -> dict | None:
+        if value is not None and not isinstance(value, dict):
+            raise SceneError(key, value, f"a table [{key}] with {what}")
+        return value
+    return check
+
+
+# --- the schema (docs/scenes.md) ------------------------------------------------------------------
+
+SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
+    "time": {
+        "stop": (REQUIRED, positive("end time, s")),
+    },
+    "coupling": {
+        "step": (1e-3, positive("communication step, s")),
+        "algorithm": ("gauss-seidel", choice("gauss-seidel", "jacobi", "implicit")),
+    },
+    "flow": {
+        "speed": (0.0, non_negative("free-stream speed, m/s")),
+        "density": (1.2, non_negative("air density, kg/m^3")),
+    },
+    "aero": {
+        "model": ("none", choice(*AERO_MODELS)),
+        "chordwise_panels": (2, integer_at_least(1)),
+        "spanwise_panels": (7, integer_at_least(1)),
+        "wake_length": (5.0, positive("wake length, chords")),
+    },
+    "structure": {
+        "fidelity": ("flexible", choice("prescribed", "rigid", "flexible")),
+        "elements_per_body": (4, integer_at_least(1)),
+        "integrator": ("generalized-alpha", choice("rk4", "generalized-alpha")),
+        "step": (1e-4, positive("internal time step, s")),
+        "rho_inf": (0.8, between(0.0, 1.0, "spectral radius at infinity")),
+        "gravity": ([0.0, 0.0, 0.0], vector3("m/s^2")),
+        "bodies": ([], table_list("body")),
+        "joints": ([], table_list("joint")),
+        "masses": ([], table_list("lumped mass")),
+        "loads": ([], table_list("load")),
+        "motion": (None, optional_table("the prescribed heave/pitch law")),
+    },
+}
+
+TOP_LEVEL = ("name", "description", *SECTIONS, "probes", "load")
+PROBE_KEYS = ("name", "body", "span", "chord")
+DEFAULT_AXIS_POSITION = 0.5
+"""Reference line position, fraction of chord from the leading edge, when a body does not say."""
+
+
+# --- reading --------------------------------------------------------------------------------------
+
+def read_scene_file(path: str | Path) -> dict:
+    """The raw TOML table of a scene file; raises SceneFileError when unreadable or not TOML."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise SceneFileError(path, "no such file") from None
+    except IsADirectoryError:
+        raise SceneFileError(path, "it is a directory, not a .toml file") from None
+    except OSError as err:
+        raise SceneFileError(path, err.strerror or str(err)) from None
+    except tomllib.TOMLDecodeError as err:
+        raise SceneFileError(path, f"not valid TOML: {err}") from None
+
+
+# --- defaults and validation ----------------------------------------------------------------------
+
+def _reject_unknown(table: dict, prefix: str, allowed: Iterable[str]) -> None:
+    allowed = list(allowed)
+    for key, value in table.items():
+        if key not in allowed:
+            where = f"in [{prefix}]" if prefix else "at the top level"
+            dotted = f"{prefix}.{key}" if prefix else key
+            raise SceneError(dotted, value, f"unknown key; allowed {where}: {', '.join(allowed)}")
+
+
+def _resolve_section(scene: dict, section: str, rules: dict[str, tuple[Any, Checker]]) -> dict:
+    table = scene.get(section, {})
+    if not isinstance(table, dict):
+        raise SceneError(section, table, f"a table [{section}] with keys {', '.join(rules)}")
+    _reject_unknown(table, section, rules)
+    resolved = {}
+    for key, (default, check) in rules.items():
+        dotted = f"{section}.{key}"
+        if key not in table and default is REQUIRED:
+            raise SceneError(dotted, MISSING, "required; " + _allowed_text(check, dotted))
+        resolved[key] = check(dotted, copy.deepcopy(table.get(key, default)))
+    return resolved
+
+
+def _allowed_text(check: Checker, key: str) -> str:
+    """What ``check`` accepts, as the text of the SceneError it raises for an impossible value."""
+    try:
+        check(key, object())
+    except SceneError as err:
+        return err.allowed
+    return "a value"
+
+
+def _check_aero_available(aero: dict) -> None:
+    if aero["model"] != "none":
+        raise SceneError("aero.model", aero["model"],
+                         "the aero unit is not implemented yet (issue 3); only 'none' can run now")
+
+
+def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
+    table_list("probe")("probes", probes)
+    by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
+    resolved, seen = [], set()
+    for index, probe in enumerate(probes):
+        label = probe["name"] if _is_name(probe.get("name")) else str(index)
+        prefix = f"probes.{label}"
+        _reject_unknown(probe, prefix, PROBE_KEYS)
+        probe_name = name(f"{prefix}.name", probe.get("name", MISSING))
+        if probe_name in seen:
+            raise SceneError(f"{prefix}.name", probe_name, "a probe name not used by another probe")
+        seen.add(probe_name)
+        body_name = probe.get("body", MISSING)
+        if not isinstance(body_name, str) or body_name not in by_name:
+            listed = ", ".join(repr(n) for n in by_name) or "the scene has no named bodies"
+            raise SceneError(f"{prefix}.body", body_name, f"the name of a body in structure.bodies: {listed}")
+        body = by_name[body_name]
+        span = non_negative("m from the body root")(f"{prefix}.span", probe.get("span", MISSING))
+        length = body.get("length")
+        if _is_number(length) and 0 < length < span / (1 + 1e-12):  # a bad length is Topology's to report
+            raise SceneError(f"{prefix}.span", span, f"a number in [0, {length:g}] "
+                                                     f"(m from the root of body '{body_name}', {length:g} m long)")
+        section = body.get("section") if isinstance(body.get("section"), dict) else {}
+        axis = section.get("axis_position", DEFAULT_AXIS_POSITION)
+        chord_default = axis if _is_number(axis) else DEFAULT_AXIS_POSITION
+        chord = between(0.0, 1.0, "fraction of chord from the leading edge")(
+            f"{prefix}.chord", probe.get("chord", chord_default))
+        resolved.append({"name": probe_name, "body": body_name, "span": span, "chord": chord})
+    return resolved
+
+
+def _reject_dates(value: Any, key: str) -> None:
+    """TOML dates and times are not scene values (and would not survive summary.json)."""
+    if isinstance(value, (datetime.date, datetime.time)):
+        raise SceneError(key, value.isoformat(), "a number, string, boolean, array or table (not a date or time)")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _reject_dates(v, f"{key}.{k}" if key else k)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            label = v["name"] if isinstance(v, dict) and isinstance(v.get("name"), str) else str(i)
+            _reject_dates(v, f"{key}.{label}")
+
+
+def resolve_scene(raw: dict, default_name: str) -> dict:
+    """Fill defaults into a raw scene and check everything but the physics tables.
+
+    Returns a new dict: ``name``, ``description``, the sections time, coupling, flow, aero,
+    structure (numbers as float, counts as int) and ``probes`` (each with ``chord`` filled from
+    its body's ``section.axis_position``). Raises SceneError at the first bad key.
+    """
+    if not isinstance(raw, dict):
+        raise SceneError("<top level>", raw, "a TOML table")
+    _reject_unknown(raw, "", TOP_LEVEL)
+    _reject_dates(raw, "")
+    scene: dict[str, Any] = {
+        "name": name("name", raw.get("name", default_name)),
+        "description": text("description", raw.get("description", "")),
+    }
+    for section, rules in SECTIONS.items():
+        scene[section] = _resolve_section(raw, section, rules)
+    if scene["structure"]["motion"] is None:
+        del scene["structure"]["motion"]
+    if "load" in raw:   # a load case by its non-dimensional parameter; checked by Topology
+        scene["load"] = optional_table("parameter, direction, body, span, law, ramp_time")("load", copy.deepcopy(raw["load"]))
+    _check_aero_available(scene["aero"])
+    scene["probes"] = _resolve_probes(copy.deepcopy(raw.get("probes", [])), scene["structure"]["bodies"])
+    return scene
+
+
+def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> dict:
+    """Read, override, resolve and fully check a scene file; returns the resolved scene.
+
+    ``overrides`` are ``KEY=VALUE`` strings as given to ``--set``. The physics tables are
+    checked by building the structural topology, so a scene that loads can run.
+    """
+    raw = apply_overrides(read_scene_file(path), overrides)
+    scene = resolve_scene(raw, default_name=Path(path).stem)
+    from structure_fmu.topology import Topology  # lazy: the physics package is only needed here
+
+    Topology.from_scene(scene)
+    return scene
+
+
+def hinge_joints(scene: dict) -> list[dict]:
+    """The scene's hinge joint tables, in order (each has ``name``; ``stop_angle_deg`` if latched)."""
+    return [j for j in scene["structure"]["joints"] if j.get("type") == "hinge"]

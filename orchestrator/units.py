@@ -1,0 +1,430 @@
+"""Co-simulation units as the master sees them, over two backends running the same slave code.
+
+`make_unit("structure", scene, backend, fmu_dir)` returns a `Unit`:
+
+    unit.n                      number of ANCF coordinates (length of e, de, Q)
+    unit.topology_hash          str, compared with the other units' before connecting
+    unit.get_outputs()          (e, de): ndarrays (n,), m and 1 / m/s and 1/s (fresh copies)
+    unit.set_inputs(Q)          generalized force (n,), N and N m
+    unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
+    unit.monitors()             {"energy": J, "constraint_residual": -, "fold_angles_deg": {hinge: deg}}
+    unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
+                                when the object is garbage collected or the unit terminated)
+    unit.terminate()            end the simulation and free the instance (idempotent, never raises)
+
+Backends: "fmu" loads `fmu_dir/structure.fmu` with fmpy (FMU2Slave), every get/set batched over
+precomputed value-reference arrays and ctypes buffers, every status checked, log messages captured;
+"direct" instantiates the same `StructureSlave` class in-process and drives it through the same calls.
+Both start at t = 0 (FMI start time) and are initialized by `make_unit`.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import sys
+import tempfile
+import weakref
+from ctypes import byref
+from pathlib import Path
+
+import numpy as np
+
+
+class UnitError(RuntimeError):
+    """A unit call failed. The message carries the unit's own logged reason.
+
+    `diverged` is True when the unit reported a diverging state (summary status "diverged").
+    """
+
+    def __init__(self, message: str, diverged: bool = False):
+        super().__init__(message)
+        self.diverged = diverged
+
+
+FMU_FILES = {"structure": "structure.fmu"}
+_ERROR = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
+_INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
+
+
+def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
+              instance_name: str | None = None) -> "Unit":
+    """Create, set up and initialize a unit of `kind` for `scene`.
+
+    backend: "fmu" (fmu_dir/structure.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
+    unused). parameters: optional {tunable name: value} set before initialization (names as in
+    StructureSolver.tunable_parameters). Raises UnitError on any failure, naming what was wrong.
+    """
+    if kind not in FMU_FILES:
+        raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(FMU_FILES)}")
+    # Import the host's structure package first: an FMU loaded in this process then shares it instead of
+    # importing its embedded copy from a temporary folder that is deleted at terminate().
+    import structure_fmu.structure_slave  # noqa: F401
+    name = instance_name or kind
+    if backend == "fmu":
+        port = _FmuPort(Path(fmu_dir) / FMU_FILES[kind], scene, name)
+    elif backend == "direct":
+        port = _DirectPort(scene, name)
+    else:
+        raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
+    try:
+        return Unit(port, scene, parameters or {})
+    except BaseException:
+        port.close()
+        raise
+
+
+class Unit:
+    """Structure unit driven through a port (fmpy FMU or in-process slave); see the module docstring."""
+
+    def __init__(self, port, scene: dict, parameters: dict):
+        from structure_fmu.structure_slave import fmi_name
+        from structure_fmu.topology import Topology
+
+        self._port = port
+        self.backend = port.backend
+        vr = port.value_references()
+        idx = {(m.group(1), int(m.group(2))): v for name, v in vr.items() if (m := _INDEXED.match(name))}
+        self.n = n = sum(1 for (kind, _) in idx if kind == "e")
+        try:
+            e_vr, de_vr, q_vr = ([idx[(k, i)] for i in range(1, n + 1)] for k in ("e", "de", "Q"))
+        except KeyError as exc:
+            raise UnitError(f"{port.label}: variable {exc.args[0][0]}[{exc.args[0][1]}] missing "
+                            f"(n = {n} from e[...])") from None
+        self.hinges = list(Topology.from_scene(scene).hinge_names)
+        missing = [h for h in self.hinges if fmi_name(f"fold_angle_{h}") not in vr]
+        if missing:
+            raise UnitError(f"{port.label}: no output fold_angle_{missing[0]}; the unit does not match the scene")
+        self._get_out = port.reader(e_vr + de_vr)
+        self._set_q = port.writer(q_vr)
+        self._get_mon = port.reader([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
+                                    + [vr["energy"], vr["constraint_residual"]])
+        self.topology_hash = port.get_string(vr["topology_hash"])
+
+        port.setup()
+        if parameters:
+            names = {p: fmi_name(p) for p in parameters}
+            unknown = [p for p, f in names.items() if f not in vr]
+            if unknown:
+                raise UnitError(f"{port.label}: unknown parameter(s) {', '.join(unknown)}")
+            port.writer([vr[names[p]] for p in parameters])(np.array(list(parameters.values()), float))
+        port.initialize()
+
+    def get_outputs(self) -> tuple[np.ndarray, np.ndarray]:
+        out = self._get_out()  # a fresh array, not the transfer buffer
+        return out[: self.n], out[self.n:]
+
+    def set_inputs(self, Q) -> None:
+        Q = np.asarray(Q, dtype=float)
+        if Q.shape != (self.n,):
+            raise UnitError(f"{self._port.label}: Q has shape {Q.shape}, expected ({self.n},)")
+        self._set_q(Q)
+
+    def do_step(self, t: float, h: float) -> None:
+        self._port.do_step(float(t), float(h))
+
+    def monitors(self) -> dict:
+        m = self._get_mon()
+        k = len(self.hinges)
+        return {"energy": float(m[k]), "constraint_residual": float(m[k + 1]),
+                "fold_angles_deg": {h: float(a) for h, a in zip(self.hinges, m[:k])}}
+
+    def get_state(self):
+        return self._port.get_state()
+
+    def set_state(self, state) -> None:
+        self._port.set_state(state)
+
+    def serialize_state(self, state) -> bytes:
+        """A state from get_state() as bytes (fmi2SerializeFMUstate for the fmu backend)."""
+        return self._port.serialize_state(state)
+
+    def deserialize_state(self, data: bytes):
+        """The inverse of serialize_state: a state usable with set_state()."""
+        return self._port.deserialize_state(data)
+
+    def terminate(self) -> None:
+        self._port.close()
+
+
+# ---- fmpy backend -----------------------------------------------------------------------------------
+class _FmuState:
+    """An fmi2FMUstate of one instance, freed when collected (or when the instance goes away first)."""
+
+    def __init__(self, port: "_FmuPort", handle):
+        self._port, self.handle = weakref.ref(port), handle
+        port._live_states.add(self)
+
+    def free(self):
+        port = self._port()
+        if self.handle is not None and port is not None and port._fmu is not None:
+            try:
+                port._fmu.fmi2FreeFMUstate(port._fmu.component, byref(self.handle))
+            except Exception:  # noqa: BLE001 - freeing is best effort
+                pass
+        self.handle = None
+
+    def __del__(self):
+        self.free()
+
+
+class _FmuPort:
+    backend = "fmu"
+
+    def __init__(self, fmu_path: Path, scene: dict, instance_name: str):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi1 import calloc, free
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+        self.label = f"{instance_name} ({fmu_path.name}, fmu)"
+        self._fmu = None
+        self._dir = None
+        self._live_states = weakref.WeakSet()
+        self._initialized = False
+        self.log: list[tuple[int, str]] = []
+        if not fmu_path.is_file():
+            raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
+        try:
+            md = read_model_description(str(fmu_path))
+            self._dir = extract(str(fmu_path))
+        except Exception as exc:
+            self.close()
+            raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
+        try:
+            self._check_scene(scene)
+        except UnitError:
+            self.close()
+            raise
+        self._vr = {v.name: v.valueReference for v in md.modelVariables}
+
+        def logger(env, inst, status, category, message):
+            # The FMU's printf-style message arrives unformatted: fmpy's formatting proxy (addLoggerProxy) is
+            # not used, as it keeps ONE logger for the whole process (messages of every instance would go to
+            # the last one registered, and into freed memory once that one is gone). The slave doubles '%'.
+            text = message.decode("utf-8", "replace") if message else ""
+            self.log.append((int(status), text.replace("%%", "%")))
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
+                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance_name)
+        try:
+            self._call("fmi2Instantiate", fmu.instantiate, callbacks=self._callbacks, loggingOn=True)
+        except UnitError:
+            self.close()
+            raise
+        self._fmu = fmu
+
+    def _check_scene(self, scene: dict) -> None:
+        """Refuse an FMU built from a different structure than `scene` (stale build)."""
+        try:
+            built = json.loads(Path(self._dir, "resources", "scene.json").read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise UnitError(f"{self.label}: resources/scene.json missing ({exc}); rebuild the FMU") from exc
+        want = json.loads(json.dumps(scene.get("structure")))
+        if built.get("structure") != want:
+            keys = _differing_keys(built.get("structure"), want, "structure")
+            raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
+                            "rebuild it (wingsim build SCENE)")
+
+    def _reasons(self, since: int) -> str:
+        msgs = [" ".join(m.split()) for s, m in self.log[since:] if s >= 1 and m]
+        return "; ".join(msgs) if msgs else "no reason logged by the unit"
+
+    def _call(self, what: str, fn, *args, **kwargs):
+        """fn(*args); UnitError if it fails (fmpy raises on a status above warning) or logs an error."""
+        mark = len(self.log)
+        try:
+            result = fn(*args, **kwargs)
+        except Exception as exc:
+            reasons = self._reasons(mark)
+            raise UnitError(f"{self.label}: {what} failed ({exc}): {reasons}",
+                            diverged="diverged" in reasons) from None
+        if any(status >= _ERROR for status, _ in self.log[mark:]):
+            reasons = self._reasons(mark)
+            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged="diverged" in reasons)
+        return result
+
+    def value_references(self) -> dict[str, int]:
+        return dict(self._vr)
+
+    def reader(self, vrs: list[int]):
+        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
+        n = len(vrs)
+        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
+        view = np.ctypeslib.as_array(buf)
+
+        def read() -> np.ndarray:
+            self._call("fmi2GetReal", self._fmu.fmi2GetReal, self._fmu.component, vr_arr, n, buf)
+            return view.copy()
+        return read
+
+    def writer(self, vrs: list[int]):
+        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
+        n = len(vrs)
+        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
+        view = np.ctypeslib.as_array(buf)
+
+        def write(values: np.ndarray) -> None:
+            view[:] = values
+            self._call("fmi2SetReal", self._fmu.fmi2SetReal, self._fmu.component, vr_arr, n, buf)
+        return write
+
+    def get_string(self, vr: int) -> str:
+        return self._call("fmi2GetString", self._fmu.getString, [vr])[0].decode("utf-8")
+
+    def setup(self) -> None:
+        self._call("fmi2SetupExperiment", self._fmu.setupExperiment, startTime=0.0)
+        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
+
+    def initialize(self) -> None:
+        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        self._initialized = True
+
+    def do_step(self, t: float, h: float) -> None:
+        from fmpy.fmi2 import fmi2False
+        self._call(f"fmi2DoStep(t = {t:.6g} s, h = {h:.6g} s)", self._fmu.fmi2DoStep,
+                   self._fmu.component, t, h, fmi2False)
+
+    def get_state(self) -> _FmuState:
+        return _FmuState(self, self._call("fmi2GetFMUstate", self._fmu.getFMUstate))
+
+    def set_state(self, state: _FmuState) -> None:
+        if not isinstance(state, _FmuState) or state._port() is not self or state.handle is None:
+            raise UnitError(f"{self.label}: set_state needs a live state from this unit's get_state()")
+        self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state.handle)
+
+    def serialize_state(self, state: _FmuState) -> bytes:
+        return bytes(self._call("fmi2SerializeFMUstate", self._fmu.serializeFMUstate, state.handle))
+
+    def deserialize_state(self, data: bytes) -> _FmuState:
+        return _FmuState(self, self._call("fmi2DeSerializeFMUstate", self._fmu.deSerializeFMUstate, data))
+
+    def close(self) -> None:
+        if self._fmu is not None:
+            for s in list(self._live_states):  # states are freed while the instance still exists
+                s.free()
+            fmu, self._fmu = self._fmu, None
+            for fn in ((fmu.terminate,) if self._initialized else ()) + (fmu.freeInstance,):
+                try:
+                    fn()
+                except Exception:  # noqa: BLE001 - e.g. terminate after a fatal status; free anyway
+                    pass
+        if self._dir is not None:
+            # pythonfmu put <dir>/resources first on sys.path at instantiation: take it out with the folder
+            resources = os.path.normpath(os.path.join(self._dir, "resources"))
+            sys.path[:] = [p for p in sys.path if os.path.normpath(p) != resources]
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+
+# ---- in-process backend -----------------------------------------------------------------------------
+class _DirectPort:
+    backend = "direct"
+
+    def __init__(self, scene: dict, instance_name: str):
+        from structure_fmu.structure_slave import SCENE_RESOURCE, StructureSlave
+
+        self.label = f"{instance_name} (direct)"
+        self._tmp = tempfile.TemporaryDirectory(prefix="wingsim_direct_")
+        Path(self._tmp.name, SCENE_RESOURCE).write_text(json.dumps(scene), encoding="utf-8")
+        self.log: list[tuple[int, str]] = []
+        self._slave = None
+        self._slave = self._call("instantiate", StructureSlave, instance_name=instance_name,
+                                 resources=self._tmp.name)
+
+    def _call(self, what: str, fn, *args, ok_on_false: bool = True, **kwargs):
+        slave = self._slave
+        try:
+            result = fn(*args, **kwargs)
+        except Exception as exc:  # noqa: BLE001 - as fmi2Fatal through the FMU: report, never crash
+            reasons = self._drain(slave)[1]
+            raise UnitError(f"{self.label}: {what} failed ({type(exc).__name__}: {exc})"
+                            + (f": {reasons}" if reasons else "")) from exc
+        error, reasons = self._drain(slave)
+        if error or (result is False and not ok_on_false):
+            reasons = reasons or "no reason logged by the unit"
+            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged="diverged" in reasons)
+        return result
+
+    def _drain(self, slave) -> tuple[bool, str]:
+        """Move the slave's queued log messages to self.log: (any error among them, warnings and errors)."""
+        if slave is None:
+            return False, ""
+        # the slave doubles '%' for the FMI logger's printf formatting: undo it as that logger would
+        new = [(int(m.status), m.msg.replace("%%", "%")) for m in slave.log_queue]
+        slave.log_queue.clear()
+        self.log += new
+        return any(s >= _ERROR for s, _ in new), "; ".join(m for s, m in new if s >= 1)
+
+    def value_references(self) -> dict[str, int]:
+        return {v.name: vr for vr, v in self._slave.vars.items()}
+
+    def reader(self, vrs: list[int]):
+        vrs = list(vrs)
+
+        def read() -> np.ndarray:
+            return np.array(self._call("get_real", self._slave.get_real, vrs))
+        return read
+
+    def writer(self, vrs: list[int]):
+        vrs = list(vrs)
+
+        def write(values: np.ndarray) -> None:
+            self._call("set_real", self._slave.set_real, vrs, np.asarray(values, float).tolist())
+        return write
+
+    def get_string(self, vr: int) -> str:
+        return self._call("get_string", self._slave.get_string, [vr])[0]
+
+    def setup(self) -> None:
+        self._call("setup_experiment", self._slave.setup_experiment, 0.0, None, None)
+        self._call("enter_initialization_mode", self._slave.enter_initialization_mode)
+
+    def initialize(self) -> None:
+        self._call("exit_initialization_mode", self._slave.exit_initialization_mode)
+
+    def do_step(self, t: float, h: float) -> None:
+        self._call(f"do_step(t = {t:.6g} s, h = {h:.6g} s)", self._slave.do_step, t, h, ok_on_false=False)
+
+    def get_state(self):
+        return self._call("get_fmu_state", self._slave._get_fmu_state)
+
+    def set_state(self, state) -> None:
+        self._call("set_fmu_state", self._slave._set_fmu_state, state)
+
+    def serialize_state(self, state) -> bytes:
+        return self._call("fmu_state_to_bytes", self._slave._fmu_state_to_bytes, state)
+
+    def deserialize_state(self, data: bytes):
+        return self._call("fmu_state_from_bytes", self._slave._fmu_state_from_bytes, data)
+
+    def close(self) -> None:
+        slave, self._slave = self._slave, None
+        if slave is not None:
+            try:
+                slave.terminate()
+            except Exception:  # noqa: BLE001
+                pass
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+
+def _differing_keys(a, b, prefix: str) -> list[str]:
+    """Dotted keys at which two JSON-like values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in list(a) + [k for k in b if k not in a]:
+            out += _differing_keys(a.get(k), b.get(k), f"{prefix}.{k}")
+        return out
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        out = []
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += _differing_keys(x, y, f"{prefix}[{i}]")
+        return out
+    return [] if a == b else [prefix]

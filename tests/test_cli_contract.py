@@ -1,0 +1,305 @@
+"""The command line contract (DESIGN §7): summary.json and timeseries.csv contents, the run loop's
+statuses, plots, and the CLI's exit codes and error messages."""
+
+import csv
+import io
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from orchestrator.master import RunResult, communication_times, run_scene
+from orchestrator.plots import write_plots
+from orchestrator.progress import Progress
+from orchestrator.results import crossing_time, deployment_time, summarize, write_results
+from orchestrator.scene import read_scene_file, resolve_scene
+from orchestrator.timeseries import TimeSeries
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"
+DESIGN_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
+                         "max_constraint_residual", "energy_drift", "probes"}
+
+
+@pytest.fixture
+def scene():
+    return resolve_scene(read_scene_file(EXAMPLE), "deploy_rigid")
+
+
+# A synthetic deployment: the fold angle crosses its stop (0 deg) between t = 0.03 s (+10 deg) and
+# t = 0.04 s (-5 deg), so by hand the crossing is at 0.03 + 0.01 * 10 / (10 + 5) = 0.036667 s.
+TIME = np.array([0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
+FOLD = np.array([170.0, 150.0, 90.0, 10.0, -5.0, 0.5])
+TIP = np.array([[0.0, 0.0, 0.30], [0.01, 0.0, 0.28], [0.05, -0.01, 0.20],
+                [0.10, 0.02, 0.25], [0.12, 0.01, 0.29], [0.11, 0.0, 0.30]])
+ENERGY = np.array([2.0, 1.9, 1.8, 1.7, 1.6, 1.5])
+RESIDUAL = np.array([0.0, 1e-12, 3e-10, 2e-11, 1e-12, 5e-12])
+
+
+def synthetic(scene, status="ok", samples=len(TIME)):
+    series = TimeSeries.from_arrays(["tip"], ["fold"], TIME[:samples], TIP[:samples, None, :],
+                                    FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples])
+    reached = float(TIME[samples - 1]) if samples else 0.0
+    return RunResult(status, "a message", 1.25, reached, scene, series)
+
+
+# --- summary.json and timeseries.csv --------------------------------------------------------------
+
+def test_summary_has_exactly_the_design_fields(scene, tmp_path):
+    write_results(synthetic(scene), tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert set(summary) == DESIGN_SUMMARY_FIELDS
+    assert summary["status"] == "ok" and summary["message"] == "a message"
+    assert summary["wall_time_s"] == 1.25 and summary["simulated_time_s"] == 0.05
+    assert summary["scene"] == scene
+
+
+def test_deployment_time_is_interpolated_between_samples(scene):
+    assert summarize(synthetic(scene))["deployment_time_s"] == pytest.approx(0.03 + 0.01 * 10 / 15, rel=1e-12)
+
+
+def test_monitor_summaries(scene):
+    summary = summarize(synthetic(scene))
+    assert summary["max_constraint_residual"] == 3e-10
+    assert summary["energy_drift"] == pytest.approx((1.5 - 2.0) / 2.0)
+
+
+def test_probe_displacements_relative_to_initial(scene):
+    tip = summarize(synthetic(scene))["probes"]["tip"]
+    assert tip["initial"] == [0.0, 0.0, 0.30]
+    assert tip["final"] == [0.11, 0.0, 0.30]
+    assert tip["min_displacement"] == pytest.approx([0.0, -0.01, -0.10])
+    assert tip["max_displacement"] == pytest.approx([0.12, 0.02, 0.0])
+
+
+def test_timeseries_csv_columns_and_rows(scene, tmp_path):
+    write_results(synthetic(scene), tmp_path)
+    with (tmp_path / "timeseries.csv").open() as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "fold_angle_fold", "energy", "constraint_residual"]
+    data = np.array(rows[1:], dtype=float)
+    assert data.shape == (len(TIME), 7)
+    np.testing.assert_allclose(data[:, 0], TIME)
+    np.testing.assert_allclose(data[:, 1:4], TIP)
+    np.testing.assert_allclose(data[:, 4], FOLD)
+
+
+def test_failed_run_still_writes_strict_json(scene, tmp_path):
+    result = synthetic(scene, status="diverged", samples=4)
+    result.series.append(0.04, np.full((1, 3), np.nan), {"fold": np.nan}, np.nan, np.inf)
+    write_results(result, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())  # strict: no NaN/Infinity tokens
+    assert "NaN" not in (tmp_path / "summary.json").read_text()
+    assert summary["status"] == "diverged"
+    assert summary["deployment_time_s"] is None               # reached +10 deg, never the stop
+    assert summary["probes"]["tip"]["final"] == [None, None, None]
+    assert summary["energy_drift"] == pytest.approx((1.7 - 2.0) / 2.0)
+    assert len((tmp_path / "timeseries.csv").read_text().splitlines()) == 1 + 5
+
+
+def test_run_without_samples_writes_nulls(scene, tmp_path):
+    write_results(synthetic(scene, status="error", samples=0), tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert set(summary) == DESIGN_SUMMARY_FIELDS
+    assert summary["deployment_time_s"] is None and summary["energy_drift"] is None
+    assert summary["probes"] == {"tip": {"initial": None, "final": None,
+                                         "min_displacement": None, "max_displacement": None}}
+    assert (tmp_path / "timeseries.csv").read_text().splitlines() == [
+        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,constraint_residual"]
+
+
+@pytest.mark.parametrize("angles, stop, expected", [
+    ([170, 100, 0, -3], 0.0, 0.02),           # exactly on a sample
+    ([-10, -4, 2, 5], 0.0, 0.01 + 0.01 * 4 / 6),  # approaching from below
+    ([170, 100, 50, 20], 0.0, None),          # never reached
+    ([0, 10, 20, 30], 0.0, 0.0),              # starts at the stop
+    ([170, 100, 50, 20], 60.0, 0.01 + 0.01 * 40 / 50),
+])
+def test_crossing_time(angles, stop, expected):
+    t = crossing_time(np.array([0.0, 0.01, 0.02, 0.03]), np.array(angles, float), stop)
+    assert t == (None if expected is None else pytest.approx(expected))
+
+
+def test_deployment_time_waits_for_every_latched_hinge(scene):
+    scene["structure"]["joints"].append({"type": "hinge", "name": "tip_fold", "stop_angle_deg": 5.0})
+    scene["structure"]["joints"].append({"type": "hinge", "name": "free"})   # no stop: ignored
+    time = np.array([0.0, 0.1, 0.2])
+    angles = np.array([[90.0, 20.0, 45.0], [0.0, 10.0, 30.0], [-1.0, 0.0, 10.0]])
+    series = TimeSeries.from_arrays([], ["fold", "tip_fold", "free"], time, np.zeros((3, 0, 3)), angles,
+                                    np.zeros(3), np.zeros(3))
+    assert deployment_time(series, scene) == pytest.approx(0.1 + 0.1 * 5 / 10)
+    angles[2, 1] = 6.0
+    series = TimeSeries.from_arrays([], ["fold", "tip_fold", "free"], time, np.zeros((3, 0, 3)), angles,
+                                    np.zeros(3), np.zeros(3))
+    assert deployment_time(series, scene) is None
+
+
+# --- the run loop, with a stand-in unit -----------------------------------------------------------
+
+class FakeUnitError(RuntimeError):
+    pass
+
+
+class FakeUnit:
+    """Moves the tip along x at 1 m/s; fails at ``fail_at`` (s) with ``reason``."""
+
+    n = 18
+
+    def __init__(self, fail_at=None, reason=""):
+        self.t, self.fail_at, self.reason, self.steps, self.terminated = 0.0, fail_at, reason, [], False
+
+    def get_outputs(self):
+        return np.full(self.n, self.t), np.ones(self.n)
+
+    def set_inputs(self, q):
+        assert q.shape == (self.n,) and not q.any()
+
+    def do_step(self, t, h):
+        assert t == pytest.approx(self.t)
+        if self.fail_at is not None and t + h > self.fail_at + 1e-12:
+            raise FakeUnitError(self.reason)
+        self.steps.append(h)
+        self.t = t + h
+
+    def monitors(self):
+        return {"energy": 1.0 + self.t, "constraint_residual": 1e-12,
+                "fold_angles_deg": {"fold": 170 - 1000 * self.t}}
+
+    def terminate(self):
+        self.terminated = True
+
+
+class FakeTopology:
+    n_coordinates = 18
+
+    @staticmethod
+    def point_position(e, body, span, chord_fraction):
+        return np.array([e[0], 0.0, span])
+
+
+def fake_run(scene, unit, stop=0.0105, progress=None):
+    scene["time"]["stop"] = stop
+    units = SimpleNamespace(make_unit=lambda **kw: unit, UnitError=FakeUnitError)
+    return run_scene(scene, backend="direct", units=units, topology=FakeTopology(), progress=progress)
+
+
+def test_communication_times_land_on_stop():
+    np.testing.assert_allclose(communication_times(0.0105, 1e-3), [*np.arange(11) * 1e-3, 0.0105])
+    assert len(communication_times(0.3, 1e-3)) == 301
+    assert communication_times(0.3, 1e-3)[-1] == 0.3
+
+
+def test_run_ok_records_every_communication_point(scene):
+    unit = FakeUnit()
+    result = fake_run(scene, unit)
+    assert result.status == "ok" and unit.terminated
+    assert result.simulated_time_s == 0.0105
+    assert unit.steps[-1] == pytest.approx(5e-4) and len(unit.steps) == 11
+    np.testing.assert_allclose(result.series.time, communication_times(0.0105, 1e-3))
+    np.testing.assert_allclose(result.series.positions[:, 0, 0], result.series.time)
+    np.testing.assert_allclose(result.series.fold_angles_deg[:, 0], 170 - 1000 * result.series.time)
+
+
+def test_diverged_unit_keeps_its_message_and_the_samples(scene, tmp_path):
+    reason = "structure: diverged at t = 0.005 s: constraint residual 3.2. Hint: reduce structure.step"
+    result = fake_run(scene, FakeUnit(fail_at=0.005, reason=reason))
+    assert result.status == "diverged" and result.message == reason
+    assert result.simulated_time_s == pytest.approx(0.005) and len(result.series) == 6
+    write_results(result, tmp_path)
+    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "diverged"
+
+
+def test_other_unit_failure_is_an_error(scene):
+    result = fake_run(scene, FakeUnit(fail_at=0.002, reason="fmi2DoStep returned fmi2Error: Q[3] is NaN"))
+    assert result.status == "error"
+    assert "Q[3] is NaN" in result.message and "t = 0.002" in result.message
+    assert len(result.series) == 3
+
+
+def test_progress_is_silent_off_a_terminal_except_the_final_line(scene):
+    stream = io.StringIO()
+    fake_run(scene, FakeUnit(), progress=Progress(0.0105, label="deploy_rigid", stream=stream))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 1 and "0.0105 / 0.0105 s" in lines[0] and lines[0].endswith(": ok")
+
+
+def test_plots_are_written(scene, tmp_path):
+    written = write_plots(synthetic(scene), tmp_path)
+    assert {p.name for p in written} == {"fold_angles.png", "probe_displacements.png", "energy_residual.png"}
+    assert all(p.stat().st_size > 1000 for p in written)
+
+
+# --- the command line -----------------------------------------------------------------------------
+
+def wingsim(*args, cwd):
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "CI": "true"}
+    env.pop("WINGSIM_DEBUG", None)
+    return subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_bad_scene_exits_2_with_a_clear_message(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(EXAMPLE.read_text().replace('fidelity = "rigid"', 'fidelity = "wobbly"'))
+    proc = wingsim("run", bad, cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+    assert "structure.fidelity" in proc.stderr and "'wobbly'" in proc.stderr and "'rigid'" in proc.stderr
+    assert not (tmp_path / "results").exists()
+
+
+def test_bad_override_and_missing_file_exit_2(tmp_path):
+    proc = wingsim("run", EXAMPLE, "--set", "coupling.step=-1", cwd=tmp_path)
+    assert proc.returncode == 2 and "coupling.step" in proc.stderr and "Traceback" not in proc.stderr
+    proc = wingsim("run", tmp_path / "nope.toml", cwd=tmp_path)
+    assert proc.returncode == 2 and "no such file" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("command, issue", [("sweep", "issue 5"), ("validate", "issue 4")])
+def test_unimplemented_commands_say_so(tmp_path, command, issue):
+    proc = wingsim(command, EXAMPLE, "--grid", "flow.speed=1,2", cwd=tmp_path)
+    assert proc.returncode == 2 and "not implemented yet" in proc.stderr and issue in proc.stderr
+
+
+def test_ci_runs_the_readme_test_command():
+    readme = (ROOT / "README.md").read_text()
+    blocks = [b.split("```", 1)[0].strip() for b in readme.split("```sh\n")[1:]]
+    run_command, test_command = blocks[0], blocks[1]
+    assert run_command.endswith(".venv/bin/wingsim run scenes/deploy_rigid.toml")
+    assert test_command.endswith(".venv/bin/python -m pytest -q")
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert test_command in ci
+    assert os.access(ROOT / ".ci" / "run", os.X_OK)
+
+
+# --- end to end, with the real structure unit (structure_fmu, orchestrator.units) -----------------
+
+@pytest.mark.parametrize("backend", ["direct", "fmu"])
+def test_run_example_scene(tmp_path, backend):
+    proc = wingsim("run", EXAMPLE, "--backend", backend, "--out", tmp_path / "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["simulated_time_s"] == pytest.approx(0.3)
+    assert set(summary) == DESIGN_SUMMARY_FIELDS
+    with (tmp_path / "out" / "timeseries.csv").open() as f:
+        header = next(csv.reader(f))
+    assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header
+    assert {p.name for p in (tmp_path / "out").glob("*.png")} == {
+        "fold_angles.png", "probe_displacements.png", "energy_residual.png"}
+    assert "results in" in proc.stdout
+
+
+def test_diverging_run_exits_1_and_keeps_its_results(tmp_path):
+    # rk4 at 1 ms with a 1e7 N m/rad actuator is far beyond the explicit stability limit
+    proc = wingsim("run", EXAMPLE, "--backend", "direct", "--out", tmp_path / "out", "--set", "time.stop=0.05",
+                   "--set", "structure.step=1e-3", "--set", "structure.joints.fold.stiffness=1e7", cwd=tmp_path)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "diverged" and "diverged" in summary["message"]
+    assert summary["simulated_time_s"] < 0.05
+    assert (tmp_path / "out" / "timeseries.csv").read_text().startswith("time,")

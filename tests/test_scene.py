@@ -1,0 +1,208 @@
+"""Scene loading: --set overrides, defaults, and malformed scenes naming key, value and allowed."""
+
+import copy
+import json
+from pathlib import Path
+
+import pytest
+
+from orchestrator.overrides import apply_overrides, parse_override, parse_value
+from orchestrator.scene import MISSING, SECTIONS, load_scene, read_scene_file, resolve_scene
+from structure_fmu.errors import SceneError
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"
+
+
+@pytest.fixture
+def raw():
+    return read_scene_file(EXAMPLE)
+
+
+def resolved(raw, *overrides):
+    return resolve_scene(apply_overrides(raw, overrides), default_name="deploy_rigid")
+
+
+# --- overrides ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("text, value", [
+    ("20", 20), ("1e-3", 1e-3), ("-9.81", -9.81), ("true", True), ("rigid", "rigid"),
+    ('"two words"', "two words"), ("[0,0,-9.8]", [0, 0, -9.8]), ("uvlm-flat", "uvlm-flat"), ("", ""),
+])
+def test_override_values_are_toml_or_bare_strings(text, value):
+    assert parse_value(text) == value
+    assert type(parse_value(text)) is type(value)
+
+
+def test_overrides_dotted_keys_with_types(raw):
+    scene = resolved(raw, "flow.speed=20", "structure.fidelity=flexible", "structure.gravity=[0,0,-9.81]",
+                     "time.stop=1e-2", "structure.elements_per_body=6")
+    assert scene["flow"]["speed"] == 20.0 and isinstance(scene["flow"]["speed"], float)
+    assert scene["structure"]["fidelity"] == "flexible"
+    assert scene["structure"]["gravity"] == [0.0, 0.0, -9.81]
+    assert scene["time"]["stop"] == 0.01
+    assert scene["structure"]["elements_per_body"] == 6
+
+
+def test_override_creates_missing_section(raw):
+    assert "flow" not in raw
+    assert resolved(raw, "flow.density=0.02")["flow"] == {"speed": 0.0, "density": 0.02}
+
+
+def test_override_addresses_array_of_tables_by_name_or_index(raw):
+    scene = resolved(raw, "structure.bodies.outer.damping=0.5", "structure.joints.fold.stiffness=0.03",
+                     "structure.masses.0.mass=0.05", "probes.tip.span=0.1", "structure.bodies[0].damping=0.2")
+    inner, outer = scene["structure"]["bodies"]
+    assert outer["damping"] == 0.5 and inner["damping"] == 0.2
+    assert scene["structure"]["joints"][1]["stiffness"] == 0.03
+    assert scene["structure"]["masses"][0]["mass"] == 0.05
+    assert scene["probes"][0]["span"] == 0.1
+
+
+def test_overrides_leave_the_raw_scene_alone(raw):
+    before = copy.deepcopy(raw)
+    apply_overrides(raw, ["structure.bodies.outer.damping=0.5", "flow.speed=3"])
+    assert raw == before
+
+
+def test_override_of_unknown_table_name_lists_the_names(raw):
+    with pytest.raises(SceneError) as err:
+        apply_overrides(raw, ["structure.bodies.middle.damping=0.5"])
+    assert err.value.key == "structure.bodies.middle.damping"
+    assert "'inner', 'outer'" in str(err.value)
+
+
+@pytest.mark.parametrize("item", ["flow.speed", "=3", "flow..speed=3", ".speed=2"])
+def test_malformed_override_is_a_scene_error(item):
+    with pytest.raises(SceneError) as err:
+        parse_override(item)
+    assert err.value.key == "--set" and "KEY=VALUE" in str(err.value)
+
+
+def test_override_inside_a_value_is_refused(raw):
+    with pytest.raises(SceneError) as err:
+        apply_overrides(raw, ["time.stop.x=1"])
+    assert err.value.key == "time.stop.x" and "not a table" in str(err.value)
+
+
+# --- defaults -------------------------------------------------------------------------------------
+
+def test_defaults_follow_docs_scenes_md():
+    scene = resolve_scene({"time": {"stop": 1.0}}, default_name="minimal")
+    assert scene["name"] == "minimal" and scene["description"] == ""
+    assert scene["coupling"] == {"step": 1e-3, "algorithm": "gauss-seidel"}
+    assert scene["flow"] == {"speed": 0.0, "density": 1.2}
+    assert scene["aero"] == {"model": "none", "chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
+    assert scene["structure"] == {
+        "fidelity": "flexible", "elements_per_body": 4, "integrator": "generalized-alpha", "step": 1e-4,
+        "rho_inf": 0.8, "gravity": [0.0, 0.0, 0.0], "bodies": [], "joints": [], "masses": [], "loads": []}
+    assert scene["probes"] == []
+    assert list(scene) == ["name", "description", *SECTIONS, "probes"]
+    json.dumps(scene, allow_nan=False)
+
+
+def test_resolved_example_keeps_its_values(raw):
+    scene = resolved(raw)
+    assert scene["name"] == "deploy_rigid"
+    assert scene["structure"]["fidelity"] == "rigid" and scene["structure"]["integrator"] == "rk4"
+    assert scene["structure"]["bodies"] == raw["structure"]["bodies"]
+    assert scene["probes"] == [{"name": "tip", "body": "outer", "span": 0.15, "chord": 0.5}]
+
+
+def test_probe_chord_defaults_to_the_body_axis(raw):
+    raw["structure"]["bodies"][1]["section"]["axis_position"] = 0.25
+    del raw["probes"][0]["chord"]
+    assert resolved(raw)["probes"][0]["chord"] == 0.25
+
+
+# --- malformed scenes -----------------------------------------------------------------------------
+
+MALFORMED = [
+    # (overrides, key, value, text of what is allowed)
+    (["structure.fidelity=wobbly"], "structure.fidelity", "wobbly", "one of 'prescribed', 'rigid', 'flexible'"),
+    (["structure.integrator=euler"], "structure.integrator", "euler", "'rk4', 'generalized-alpha'"),
+    (["flw.speed=3"], "flw", {"speed": 3}, "allowed at the top level: name, description, time"),
+    (["flow.sped=3"], "flow.sped", 3, "allowed in [flow]: speed, density"),
+    (["structure.stiffness=3"], "structure.stiffness", 3, "allowed in [structure]: fidelity"),
+    (["time.stop=abc"], "time.stop", "abc", "a finite number > 0"),
+    (["time.stop=true"], "time.stop", True, "a finite number > 0"),
+    (["time.stop=inf"], "time.stop", float("inf"), "a finite number > 0"),
+    (["coupling.step=-1e-3"], "coupling.step", -1e-3, "a finite number > 0"),
+    (["structure.step=0"], "structure.step", 0, "a finite number > 0"),
+    (["flow.speed=-1"], "flow.speed", -1, "a finite number >= 0"),
+    (["structure.gravity=[0,-9.8]"], "structure.gravity", [0, -9.8], "an array of 3 finite numbers"),
+    (["structure.elements_per_body=2.5"], "structure.elements_per_body", 2.5, "an integer >= 1"),
+    (["structure.elements_per_body=0"], "structure.elements_per_body", 0, "an integer >= 1"),
+    (["structure.rho_inf=1.5"], "structure.rho_inf", 1.5, "a number in [0, 1]"),
+    (["coupling.algorithm=newton"], "coupling.algorithm", "newton", "'gauss-seidel', 'jacobi', 'implicit'"),
+    (["aero.model=vortex"], "aero.model", "vortex", "one of 'none', 'strip', 'uvlm-flat'"),
+    (["aero.model=strip"], "aero.model", "strip", "not implemented yet (issue 3)"),
+    (["aero.chordwise_panels=0"], "aero.chordwise_panels", 0, "an integer >= 1"),
+    (["structure.bodies=3"], "structure.bodies", 3, "an array of tables"),
+    (["flow=3"], "flow", 3, "a table [flow] with keys speed, density"),
+    (["name=a/b"], "name", "a/b", "letters, digits"),
+    (["description=3"], "description", 3, "a string"),
+    (["probes.tip.body=wing"], "probes.tip.body", "wing", "'inner', 'outer'"),
+    (["probes.tip.span=0.2"], "probes.tip.span", 0.2, "a number in [0, 0.15]"),
+    (["probes.tip.chord=2"], "probes.tip.chord", 2, "a number in [0, 1]"),
+    (["probes.tip.side=2"], "probes.tip.side", 2, "allowed in [probes.tip]: name, body, span, chord"),
+    (["probes.tip.name=x,y"], "probes.0.name", "x,y", "letters, digits"),
+    (["flow.speed=1979-05-27"], "flow.speed", "1979-05-27", "not a date or time"),
+]
+
+
+@pytest.mark.parametrize("overrides, key, value, allowed", MALFORMED,
+                         ids=[f"{m[1]}={m[2]}" for m in MALFORMED])
+def test_malformed_scene_names_key_value_and_allowed(raw, overrides, key, value, allowed):
+    with pytest.raises(SceneError) as err:
+        resolved(raw, *overrides)
+    assert (err.value.key, err.value.value) == (key, value)
+    message = str(err.value)
+    assert f"'{key}'" in message and repr(value) in message and allowed in message
+
+
+def test_missing_required_key(raw):
+    del raw["time"]["stop"]
+    with pytest.raises(SceneError) as err:
+        resolved(raw)
+    assert (err.value.key, err.value.value) == ("time.stop", MISSING)
+    assert "required" in str(err.value)
+
+
+def test_duplicate_probe_names(raw):
+    raw["probes"].append(dict(raw["probes"][0]))
+    with pytest.raises(SceneError) as err:
+        resolved(raw)
+    assert err.value.key == "probes.tip.name" and "not used by another probe" in str(err.value)
+
+
+# --- files ----------------------------------------------------------------------------------------
+
+def test_load_scene_fails_on_a_bad_scalar_before_the_physics(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(EXAMPLE.read_text().replace('fidelity = "rigid"', 'fidelity = "wobbly"'))
+    with pytest.raises(SceneError, match="structure.fidelity"):
+        load_scene(path)
+
+
+def test_unreadable_scene_files(tmp_path):
+    with pytest.raises(SceneError, match="no such file"):
+        load_scene(tmp_path / "missing.toml")
+    (tmp_path / "broken.toml").write_text("[time\nstop = 1")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(tmp_path / "broken.toml")
+
+
+# --- with the structural topology (structure_fmu.topology) ----------------------------------------
+
+def test_load_example_scene_checks_the_physics(raw):
+    scene = load_scene(EXAMPLE, ["structure.bodies.outer.damping=0.5"])
+    assert scene == resolved(raw, "structure.bodies.outer.damping=0.5")
+
+
+def test_bad_physics_fails_at_load(tmp_path):
+    path = tmp_path / "bad_body.toml"
+    path.write_text(EXAMPLE.read_text())
+    with pytest.raises(SceneError) as err:
+        load_scene(path, ["structure.bodies.outer.length=-0.15"])
+    assert "length" in err.value.key and "-0.15" in str(err.value)
