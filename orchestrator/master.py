@@ -2,13 +2,13 @@
 
 Steps the structure unit from t = 0 to ``time.stop`` with the communication step ``coupling.step``
 (the last step shortened to land on ``time.stop``), holding the generalized force Q = 0, and records
-at every communication point: probe global positions (m), fold angles (degrees), energy (J) and
-constraint residual. A failure never loses the samples recorded before it.
+at every communication point: probe global positions (m), fold angles (degrees), energy (J), kinetic
+energy (J) and constraint residual. A failure never loses the samples recorded before it.
 
 The unit interface (``orchestrator.units``): ``make_unit(kind, scene, backend, fmu_dir)`` returns a
 unit with ``n``, ``get_outputs() -> (e, de)``, ``set_inputs(Q)``, ``do_step(t, h)`` (raises
 ``UnitError`` on an FMI error or discard, with the unit's logged reason), ``monitors()`` (``energy``,
-``constraint_residual``, ``fold_angles_deg``) and ``terminate()``.
+``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``) and ``terminate()``.
 """
 
 from __future__ import annotations
@@ -65,7 +65,8 @@ def _record(series: TimeSeries, unit: Any, topology: Any, probes: list[dict], t:
                          dtype=float).reshape(len(probes), 3)
     monitors = unit.monitors()
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
-                  monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan))
+                  monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
+                  kinetic_energy=monitors.get("kinetic_energy", np.nan))
 
 
 def _classify(err: BaseException, unit_error: type, phase: str) -> tuple[str, str]:

@@ -8,7 +8,11 @@ Summary fields (SI units, angles in degrees):
   it (for a single hinge: the first time its fold angle reaches the stop), linearly interpolated
   between samples; null if a hinge never reaches its stop or no hinge has one;
 - ``max_constraint_residual``: the largest constraint residual over the run;
-- ``energy_drift``: (E_final - E_0) / max(|E_0|, 1e-9 J) over the samples with a finite energy;
+- ``energy_drift``: (E_final - E_0) / max(|E_0|, max over the run of the kinetic energy, 1e-12 J), with
+  E_0 and E_final the first and last finite energy samples and the kinetic energy taken over the samples
+  with a finite energy (NaN samples ignored). The peak kinetic energy is the scale of the energy the
+  structure exchanges, so the drift stays meaningful when E_0 = 0 (e.g. a pendulum released at rest at
+  its potential datum); the 1e-12 J floor only avoids a division by zero for a structure at rest;
 - ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
   ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position.
 
@@ -31,8 +35,9 @@ from orchestrator.timeseries import TimeSeries
 
 SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                   "max_constraint_residual", "energy_drift", "probes")
-ENERGY_FLOOR_J = 1e-9
-"""Smallest |E_0| (J) the energy drift is relative to, so that E_0 = 0 does not divide by zero."""
+ENERGY_FLOOR_J = 1e-12
+"""Smallest energy scale (J) the energy drift is relative to, so that a structure at rest with E_0 = 0
+does not divide by zero."""
 
 
 def crossing_time(time: np.ndarray, angle_deg: np.ndarray, stop_deg: float) -> float | None:
@@ -68,13 +73,24 @@ def deployment_time(series: TimeSeries, scene: dict) -> float | None:
     return None if any(t is None for t in times) else max(times)
 
 
-def energy_drift(energy: np.ndarray) -> float | None:
-    """(E_final - E_0) / max(|E_0|, ENERGY_FLOOR_J) over the finite samples, or None."""
-    finite = np.asarray(energy, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
+def energy_drift(energy: np.ndarray, kinetic_energy: np.ndarray | None = None) -> float | None:
+    """(E_final - E_0) / max(|E_0|, max kinetic energy, ENERGY_FLOOR_J), or None without a finite energy.
+
+    E_0 and E_final are the first and last finite samples of ``energy`` (J); the kinetic energy (J, one
+    value per energy sample, or None) counts over the samples with a finite energy, NaN values ignored.
+    """
+    energy = np.asarray(energy, dtype=float)
+    finite = np.isfinite(energy)
+    if not finite.any():
         return None
-    return float((finite[-1] - finite[0]) / max(abs(finite[0]), ENERGY_FLOOR_J))
+    e = energy[finite]
+    scale = max(abs(e[0]), ENERGY_FLOOR_J)
+    if kinetic_energy is not None:
+        kinetic = np.asarray(kinetic_energy, dtype=float)[finite]
+        kinetic = kinetic[np.isfinite(kinetic)]
+        if kinetic.size:
+            scale = max(scale, float(kinetic.max()))
+    return float((e[-1] - e[0]) / scale)
 
 
 def max_constraint_residual(residual: np.ndarray) -> float | None:
@@ -112,7 +128,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "scene": result.scene,
         "deployment_time_s": deployment_time(series, result.scene),
         "max_constraint_residual": max_constraint_residual(series.constraint_residual),
-        "energy_drift": energy_drift(series.energy),
+        "energy_drift": energy_drift(series.energy, series.kinetic_energy),
         "probes": probe_summary(series),
     }
     return json_safe(summary)

@@ -1,8 +1,9 @@
 """The samples a run records at each communication point.
 
 One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
-the structure's energy (J) and its constraint residual (-). The column names are those of
-``timeseries.csv`` (DESIGN §7).
+the structure's energy (J), its kinetic energy (J) and its constraint residual (-). The column names
+are those of ``timeseries.csv`` (DESIGN §7); columns are only ever added, never renamed, and are read
+back by name (``column``), never by a fixed position.
 """
 
 from __future__ import annotations
@@ -10,6 +11,9 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 import numpy as np
+
+MONITOR_COLUMNS = ("energy", "kinetic_energy", "constraint_residual")
+"""The scalar monitor columns, in ``timeseries.csv`` order, after the fold angles."""
 
 
 class TimeSeries:
@@ -19,28 +23,38 @@ class TimeSeries:
         self.probe_names = list(probe_names)
         self.hinge_names = list(hinge_names)
         self._rows: list[np.ndarray] = []
+        # named column positions (time, probes, hinges, monitors), from the layout of ``columns``
+        k = 3 * len(self.probe_names)
+        self._positions = slice(1, 1 + k)
+        self._folds = slice(1 + k, 1 + k + len(self.hinge_names))
+        self._monitor = {name: self._folds.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
 
     @classmethod
     def from_arrays(cls, probe_names: Sequence[str], hinge_names: Sequence[str], time, positions,
-                    fold_angles_deg, energy, constraint_residual) -> "TimeSeries":
-        """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges), ..."""
+                    fold_angles_deg, energy, constraint_residual, kinetic_energy=None) -> "TimeSeries":
+        """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
+        energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN."""
         series = cls(probe_names, hinge_names)
         m = len(time)
+        kinetic = np.full(m, np.nan) if kinetic_energy is None else kinetic_energy
+        monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual}
         table = np.column_stack([
             np.asarray(time, float),
             np.asarray(positions, float).reshape(m, 3 * len(series.probe_names)),
             np.asarray(fold_angles_deg, float).reshape(m, len(series.hinge_names)),
-            np.asarray(energy, float), np.asarray(constraint_residual, float),
+            *(np.asarray(monitors[name], float).reshape(m) for name in MONITOR_COLUMNS),
         ])
         series._rows = list(table)
         return series
 
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
-               energy: float, constraint_residual: float) -> None:
-        """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN."""
+               energy: float, constraint_residual: float, kinetic_energy: float = np.nan) -> None:
+        """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
+        energies are in J."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
+        monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
         self._rows.append(np.concatenate((
-            [time], np.asarray(positions, float).reshape(-1), angles, [energy, constraint_residual],
+            [time], np.asarray(positions, float).reshape(-1), angles, [monitors[n] for n in MONITOR_COLUMNS],
         )).astype(float))
 
     def __len__(self) -> int:
@@ -51,35 +65,47 @@ class TimeSeries:
         """Column names in ``timeseries.csv`` order, ``time`` first."""
         probes = [f"{p}_{axis}" for p in self.probe_names for axis in "xyz"]
         hinges = [f"fold_angle_{h}" for h in self.hinge_names]
-        return ["time", *probes, *hinges, "energy", "constraint_residual"]
+        return ["time", *probes, *hinges, *MONITOR_COLUMNS]
 
     def table(self) -> np.ndarray:
         """All samples, shape (samples, columns)."""
         return np.array(self._rows, dtype=float).reshape(len(self._rows), len(self.columns))
 
+    def column(self, name: str) -> np.ndarray:
+        """The samples of the column called ``name`` (a ``timeseries.csv`` header), shape (samples,)."""
+        if name in self._monitor:
+            return self.table()[:, self._monitor[name]]
+        columns = self.columns
+        if name not in columns:
+            raise KeyError(f"no column {name!r}; the columns are {', '.join(columns)}")
+        return self.table()[:, columns.index(name)]
+
     @property
     def time(self) -> np.ndarray:
         """Sample times, s, shape (samples,)."""
-        return self.table()[:, 0]
+        return self.column("time")
 
     @property
     def positions(self) -> np.ndarray:
         """Probe global positions, m, shape (samples, probes, 3)."""
-        k = 3 * len(self.probe_names)
-        return self.table()[:, 1:1 + k].reshape(len(self), len(self.probe_names), 3)
+        return self.table()[:, self._positions].reshape(len(self), len(self.probe_names), 3)
 
     @property
     def fold_angles_deg(self) -> np.ndarray:
         """Hinge fold angles, degrees, shape (samples, hinges)."""
-        start = 1 + 3 * len(self.probe_names)
-        return self.table()[:, start:start + len(self.hinge_names)]
+        return self.table()[:, self._folds]
 
     @property
     def energy(self) -> np.ndarray:
         """Energy of the structure, J, shape (samples,)."""
-        return self.table()[:, -2]
+        return self.column("energy")
+
+    @property
+    def kinetic_energy(self) -> np.ndarray:
+        """Kinetic energy of the structure, J, shape (samples,)."""
+        return self.column("kinetic_energy")
 
     @property
     def constraint_residual(self) -> np.ndarray:
         """Constraint residual (as the unit reports it), shape (samples,)."""
-        return self.table()[:, -1]
+        return self.column("constraint_residual")

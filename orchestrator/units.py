@@ -7,7 +7,8 @@
     unit.get_outputs()          (e, de): ndarrays (n,), m and 1 / m/s and 1/s (fresh copies)
     unit.set_inputs(Q)          generalized force (n,), N and N m
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
-    unit.monitors()             {"energy": J, "constraint_residual": -, "fold_angles_deg": {hinge: deg}}
+    unit.monitors()             {"energy": J, "kinetic_energy": J, "constraint_residual": -,
+                                 "fold_angles_deg": {hinge: deg}}
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
     unit.terminate()            end the simulation and free the instance (idempotent, never raises)
@@ -46,6 +47,7 @@ class UnitError(RuntimeError):
 FMU_FILES = {"structure": "structure.fmu"}
 _ERROR = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
 _INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
+_MONITORS = ("energy", "kinetic_energy", "constraint_residual")  # scalar Real outputs read by monitors()
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
@@ -99,7 +101,7 @@ class Unit:
         self._get_out = port.reader(e_vr + de_vr)
         self._set_q = port.writer(q_vr)
         self._get_mon = port.reader([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
-                                    + [vr["energy"], vr["constraint_residual"]])
+                                    + [vr[name] for name in _MONITORS])
         self.topology_hash = port.get_string(vr["topology_hash"])
 
         port.setup()
@@ -127,7 +129,7 @@ class Unit:
     def monitors(self) -> dict:
         m = self._get_mon()
         k = len(self.hinges)
-        return {"energy": float(m[k]), "constraint_residual": float(m[k + 1]),
+        return {**{name: float(v) for name, v in zip(_MONITORS, m[k:])},
                 "fold_angles_deg": {h: float(a) for h, a in zip(self.hinges, m[:k])}}
 
     def get_state(self):

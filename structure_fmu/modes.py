@@ -10,7 +10,8 @@ from scipy.linalg import eigh, null_space
 
 
 def natural_frequencies(solver, count=6):
-    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state."""
+    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state
+    (all of them if count is None)."""
     model = solver.model
     state = solver.state
     E, dE, _ = model.coordinates(state.q, np.zeros_like(state.q), state.t)
@@ -23,4 +24,4 @@ def natural_frequencies(solver, count=6):
     T = model.T @ N
     stiffness, mass = T.T @ K @ T, N.T @ model.mass_q @ N
     eigenvalues = eigh(0.5 * (stiffness + stiffness.T), mass, eigvals_only=True)
-    return np.sqrt(np.clip(eigenvalues[:count], 0.0, None))
+    return np.sqrt(np.clip(eigenvalues if count is None else eigenvalues[:count], 0.0, None))

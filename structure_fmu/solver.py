@@ -3,6 +3,8 @@
 Owns the model, the integrator and the state; advances with its own internal steps inside a
 communication step; detects the latch; checks inputs and divergence; saves and restores its state.
 """
+from dataclasses import replace
+
 import numpy as np
 
 from .errors import InputError, SceneError, SolverDiverged
@@ -58,6 +60,7 @@ class StructureSolver:
         self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
         self._initialized = False
+        self._cache = (None, None)
         self._check_initial_constraints()
 
     def _initial_rates(self):
@@ -128,7 +131,7 @@ class StructureSolver:
             raise InputError(f"Q[{first + 1}] = {Q[first]} at t = {self.state.t:.6g} s: "
                              f"{int(bad.sum())} NaN/inf value(s) in the generalized force input")
         if self.state.q.size == 0:        # fully prescribed: no dynamics
-            self.state.t = float(t_end)
+            self.state = replace(self.state, t=float(t_end))
             return
         if not self._initialized:
             self._initialize(Q)
@@ -175,15 +178,18 @@ class StructureSolver:
 
     # ---------------------------------------------------------------- outputs
     def _coordinates(self):
-        return self.model.coordinates(self.state.q, self.state.dq, self.state.t)
+        """(E, dE, p'') of the current state, computed once per state (the slave reads them often)."""
+        if self._cache[0] is not self.state:
+            self._cache = (self.state, self.model.coordinates(self.state.q, self.state.dq, self.state.t))
+        return self._cache[1]
 
     @property
     def e(self) -> np.ndarray:
-        return self._coordinates()[0]
+        return self._coordinates()[0].copy()
 
     @property
     def de(self) -> np.ndarray:
-        return self._coordinates()[1]
+        return self._coordinates()[1].copy()
 
     def constraint_residual(self, state=None) -> float:
         state = state or self.state
@@ -193,11 +199,12 @@ class StructureSolver:
         return float(np.max(np.abs(self.model.constraints.residual(E))))
 
     def fold_angles_deg(self) -> dict:
-        return {k: float(np.degrees(v)) for k, v in self.topology.fold_angles(self.e).items()}
+        return {k: float(np.degrees(v)) for k, v in self.topology.fold_angles(self._coordinates()[0]).items()}
 
     def monitors(self) -> dict:
         E, dE, _ = self._coordinates()
         return {"energy": float(self.model.energy(E, dE, self.state.latched)),
+                "kinetic_energy": float(0.5 * dE @ self.model.mass_E @ dE),
                 "constraint_residual": self.constraint_residual(),
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
                 "latch_times": dict(self.state.latch_times)}

@@ -13,8 +13,10 @@ Variables, with value references laid out contiguously so that get/set are numpy
 | n .. 2n-1         | de[1] .. de[n]            | output, continuous       | m/s for r, 1/s for r_x, r_y       |
 | 2n .. 3n-1        | Q[1] .. Q[n]              | input, continuous (0)    | N for r, N.m for r_x, r_y         |
 | 3n .. 3n+H-1      | fold_angle_<hinge>        | output, continuous       | deg                               |
-| 3n+H, 3n+H+1      | energy, constraint_residual | output, continuous     | J, 1                              |
-| 3n+H+2 ..         | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
+| 3n+H              | energy                    | output, continuous       | J                                 |
+| 3n+H+1            | kinetic_energy            | output, continuous       | J                                 |
+| 3n+H+2            | constraint_residual       | output, continuous       | 1                                 |
+| 3n+H+3 ..         | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
 | last              | topology_hash (String)    | output, constant         | -                                 |
 
 Per node the 9 coordinates are r (3), r_x (3), r_y (3) in the global frame; Q is work-conjugate to e,
@@ -155,8 +157,8 @@ class StructureSlave(Fmi2Slave):
         nh, npar = len(self.hinges), len(self.tunables)
         self.sl_e, self.sl_de, self.sl_q = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
         self.sl_fold = slice(3 * n, 3 * n + nh)
-        self.i_energy, self.i_residual = 3 * n + nh, 3 * n + nh + 1
-        self.sl_par = slice(3 * n + nh + 2, 3 * n + nh + 2 + npar)
+        self.i_energy, self.i_kinetic, self.i_residual = 3 * n + nh, 3 * n + nh + 1, 3 * n + nh + 2
+        self.sl_par = slice(3 * n + nh + 3, 3 * n + nh + 3 + npar)
         self._real = np.zeros(self.sl_par.stop)
         self._real[self.sl_par] = list(self.defaults.values())
         self._settable = np.zeros(self._real.size, dtype=bool)
@@ -196,6 +198,8 @@ class StructureSlave(Fmi2Slave):
             self._reg(fmi_name(f"fold_angle_{hinge}"), self.sl_fold.start + j, "deg",
                       f"fold angle of hinge {hinge} (child root r_x from parent tip r_x, about r_y)", **out)
         self._reg("energy", self.i_energy, "J", "energy monitor of the structure solver", **out)
+        self._reg("kinetic_energy", self.i_kinetic, "J", "kinetic energy of the structure (1/2 de^T M de)",
+                  **out)
         self._reg("constraint_residual", self.i_residual, "1", "constraint residual monitor (max norm)", **out)
         for j, (name, (default, unit, text)) in enumerate(self.tunables.items()):
             self._reg(fmi_name(name), self.sl_par.start + j, unit, text, causality=Fmi2Causality.parameter,
@@ -326,6 +330,7 @@ class StructureSlave(Fmi2Slave):
             self._real[self.sl_fold] = np.degrees([angles[h] for h in self.hinges])
         m = s.monitors()
         self._real[self.i_energy] = m["energy"]
+        self._real[self.i_kinetic] = m["kinetic_energy"]
         self._real[self.i_residual] = m["constraint_residual"]
 
     # ---- state: complete (solver internals, inputs, parameters), arrays copied ------------------

@@ -16,7 +16,7 @@ import pytest
 from orchestrator.master import RunResult, communication_times, run_scene
 from orchestrator.plots import write_plots
 from orchestrator.progress import Progress
-from orchestrator.results import crossing_time, deployment_time, summarize, write_results
+from orchestrator.results import crossing_time, deployment_time, energy_drift, summarize, write_results
 from orchestrator.scene import read_scene_file, resolve_scene
 from orchestrator.timeseries import TimeSeries
 
@@ -38,12 +38,14 @@ FOLD = np.array([170.0, 150.0, 90.0, 10.0, -5.0, 0.5])
 TIP = np.array([[0.0, 0.0, 0.30], [0.01, 0.0, 0.28], [0.05, -0.01, 0.20],
                 [0.10, 0.02, 0.25], [0.12, 0.01, 0.29], [0.11, 0.0, 0.30]])
 ENERGY = np.array([2.0, 1.9, 1.8, 1.7, 1.6, 1.5])
+KINETIC = np.array([0.0, 0.4, 1.2, 0.9, 0.3, 0.1])  # peak 1.2 J < |E_0| = 2 J: the drift is relative to E_0
 RESIDUAL = np.array([0.0, 1e-12, 3e-10, 2e-11, 1e-12, 5e-12])
 
 
 def synthetic(scene, status="ok", samples=len(TIME)):
     series = TimeSeries.from_arrays(["tip"], ["fold"], TIME[:samples], TIP[:samples, None, :],
-                                    FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples])
+                                    FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples],
+                                    kinetic_energy=KINETIC[:samples])
     reached = float(TIME[samples - 1]) if samples else 0.0
     return RunResult(status, "a message", 1.25, reached, scene, series)
 
@@ -69,6 +71,33 @@ def test_monitor_summaries(scene):
     assert summary["energy_drift"] == pytest.approx((1.5 - 2.0) / 2.0)
 
 
+def test_energy_drift_from_zero_initial_energy_is_relative_to_peak_kinetic_energy(scene):
+    # A pendulum released at rest at its potential datum: E_0 = 0, the energy it exchanges is the peak
+    # kinetic energy, 0.8 J here. By hand: (E_final - E_0) / max(|E_0|, 0.8 J) = (-0.002 - 0) / 0.8
+    # = -2.5e-3 (relative to the 1e-12 J floor it would be -2e9).
+    time = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    energy = np.array([0.0, 0.001, -0.001, 0.0005, -0.002])
+    kinetic = np.array([0.0, 0.3, 0.8, 0.5, 0.1])
+    series = TimeSeries.from_arrays(["tip"], ["fold"], time, np.zeros((5, 1, 3)), np.full((5, 1), 90.0),
+                                    energy, np.zeros(5), kinetic_energy=kinetic)
+    result = RunResult("ok", "", 1.0, 0.4, scene, series)
+    assert summarize(result)["energy_drift"] == pytest.approx(-2.5e-3, rel=1e-12)
+    assert energy_drift(energy, kinetic) == pytest.approx(-2.5e-3, rel=1e-12)
+
+
+def test_energy_drift_scale_and_floor():
+    # |E_0| = 3 J exceeds the peak kinetic energy 1 J: (2.7 - 3) / 3 = -0.1
+    assert energy_drift(np.array([3.0, 2.9, 2.7]), np.array([0.0, 1.0, 0.5])) == pytest.approx(-0.1)
+    # NaN/inf samples are skipped, also the kinetic energy of a sample without a finite energy:
+    # (0.01 - 0) / max(0, 0.5) = 0.02 (the 40 J at the NaN energy sample does not count)
+    assert energy_drift(np.array([0.0, 0.005, np.nan, 0.01]),
+                        np.array([np.nan, 0.5, 40.0, 0.2])) == pytest.approx(0.02)
+    # at rest throughout (E_0 = 0, no kinetic energy): the 1e-12 J floor, no division by zero
+    assert energy_drift(np.array([0.0, 3e-15]), np.zeros(2)) == pytest.approx(3e-3)
+    assert energy_drift(np.array([0.0, 3e-15])) == pytest.approx(3e-3)   # no kinetic energy recorded
+    assert energy_drift(np.array([np.nan]), np.array([1.0])) is None
+
+
 def test_probe_displacements_relative_to_initial(scene):
     tip = summarize(synthetic(scene))["probes"]["tip"]
     assert tip["initial"] == [0.0, 0.0, 0.30]
@@ -81,17 +110,22 @@ def test_timeseries_csv_columns_and_rows(scene, tmp_path):
     write_results(synthetic(scene), tmp_path)
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "fold_angle_fold", "energy", "constraint_residual"]
+    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "fold_angle_fold", "energy", "kinetic_energy",
+                       "constraint_residual"]
     data = np.array(rows[1:], dtype=float)
-    assert data.shape == (len(TIME), 7)
-    np.testing.assert_allclose(data[:, 0], TIME)
+    assert data.shape == (len(TIME), 8)
+    column = {name: data[:, k] for k, name in enumerate(rows[0])}
+    np.testing.assert_allclose(column["time"], TIME)
     np.testing.assert_allclose(data[:, 1:4], TIP)
-    np.testing.assert_allclose(data[:, 4], FOLD)
+    np.testing.assert_allclose(column["fold_angle_fold"], FOLD)
+    np.testing.assert_allclose(column["energy"], ENERGY)
+    np.testing.assert_allclose(column["kinetic_energy"], KINETIC)
+    np.testing.assert_allclose(column["constraint_residual"], RESIDUAL)
 
 
 def test_failed_run_still_writes_strict_json(scene, tmp_path):
     result = synthetic(scene, status="diverged", samples=4)
-    result.series.append(0.04, np.full((1, 3), np.nan), {"fold": np.nan}, np.nan, np.inf)
+    result.series.append(0.04, np.full((1, 3), np.nan), {"fold": np.nan}, np.nan, np.inf, kinetic_energy=np.inf)
     write_results(result, tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())  # strict: no NaN/Infinity tokens
     assert "NaN" not in (tmp_path / "summary.json").read_text()
@@ -110,7 +144,7 @@ def test_run_without_samples_writes_nulls(scene, tmp_path):
     assert summary["probes"] == {"tip": {"initial": None, "final": None,
                                          "min_displacement": None, "max_displacement": None}}
     assert (tmp_path / "timeseries.csv").read_text().splitlines() == [
-        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,constraint_residual"]
+        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,kinetic_energy,constraint_residual"]
 
 
 @pytest.mark.parametrize("angles, stop, expected", [
@@ -167,7 +201,7 @@ class FakeUnit:
         self.t = t + h
 
     def monitors(self):
-        return {"energy": 1.0 + self.t, "constraint_residual": 1e-12,
+        return {"energy": 1.0 + self.t, "kinetic_energy": 0.5 * self.t, "constraint_residual": 1e-12,
                 "fold_angles_deg": {"fold": 170 - 1000 * self.t}}
 
     def terminate(self):
@@ -203,6 +237,9 @@ def test_run_ok_records_every_communication_point(scene):
     np.testing.assert_allclose(result.series.time, communication_times(0.0105, 1e-3))
     np.testing.assert_allclose(result.series.positions[:, 0, 0], result.series.time)
     np.testing.assert_allclose(result.series.fold_angles_deg[:, 0], 170 - 1000 * result.series.time)
+    np.testing.assert_allclose(result.series.energy, 1.0 + result.series.time)
+    np.testing.assert_allclose(result.series.kinetic_energy, 0.5 * result.series.time)
+    assert np.all(result.series.constraint_residual == 1e-12)
 
 
 def test_diverged_unit_keeps_its_message_and_the_samples(scene, tmp_path):
@@ -289,6 +326,7 @@ def test_run_example_scene(tmp_path, backend):
     with (tmp_path / "out" / "timeseries.csv").open() as f:
         header = next(csv.reader(f))
     assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header
+    assert header[header.index("energy") + 1] == "kinetic_energy" and "constraint_residual" in header
     assert {p.name for p in (tmp_path / "out").glob("*.png")} == {
         "fold_angles.png", "probe_displacements.png", "energy_residual.png"}
     assert "results in" in proc.stdout

@@ -95,6 +95,16 @@ def test_variables_match_topology(scene, fmu_dir):
     for hinge in topology.hinge_names:
         assert v[f"fold_angle_{hinge}"].unit == "deg"
     assert v["energy"].unit == "J" and v["constraint_residual"].causality == "output"
+    kinetic = v["kinetic_energy"]
+    assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
+        "Real", "J", "output", "continuous", "exact")
+    # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, parameters
+    h = len(topology.hinge_names)
+    assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
+    assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [
+        3 * n + h, 3 * n + h + 1, 3 * n + h + 2]
+    tunables = StructureSolver.tunable_parameters(scene)
+    assert [v[name].valueReference for name in tunables] == list(range(3 * n + h + 3, 3 * n + h + 3 + len(tunables)))
     for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
         p = v[name]
         assert (p.causality, p.variability, p.unit) == ("parameter", "fixed", unit)
@@ -112,9 +122,11 @@ def test_fmu_and_direct_backends_agree(units):
     assert np.max(np.abs(e_f - e_d)) <= 1e-10 and np.max(np.abs(de_f - de_d)) <= 1e-10
     assert np.max(np.abs(de_f)) > 0  # it moved
     m_f, m_d = fmu.monitors(), direct.monitors()
-    assert set(m_f) >= {"energy", "constraint_residual", "fold_angles_deg"}
+    assert set(m_f) >= {"energy", "kinetic_energy", "constraint_residual", "fold_angles_deg"}
+    assert set(m_d) == set(m_f)
     assert m_f["fold_angles_deg"] == pytest.approx(m_d["fold_angles_deg"], abs=1e-9)
     assert np.isfinite(m_f["energy"]) and m_f["constraint_residual"] < 1e-4
+    assert m_f["kinetic_energy"] > 0 and m_f["kinetic_energy"] == pytest.approx(m_d["kinetic_energy"], rel=1e-9)
 
 
 @pytest.mark.parametrize("backend", ["fmu", "direct"])

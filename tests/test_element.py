@@ -1,0 +1,136 @@
+"""The 18-DoF ANCF element (000 Sec. II) against closed-form values."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from structure_fmu import element
+
+RNG = np.random.default_rng(7)
+
+
+def straight(length):
+    """Undeformed element along x with chord along y: e of 000 Eq. (3)."""
+    return np.array([0, 0, 0, 1, 0, 0, 0, 1, 0, length, 0, 0, 1, 0, 0, 0, 1, 0], dtype=float)
+
+
+def paper_mass_matrix(A, Qz, Izz, l):
+    """000 Eq. (5) with its identity blocks restored (papers README), scalar 6x6 part times rho = 1."""
+    upper = [
+        [13 * A * l / 35, 11 * A * l**2 / 210, 7 * Qz * l / 20, 9 * A * l / 70, -13 * A * l**2 / 420, 3 * Qz * l / 20],
+        [0, A * l**3 / 105, Qz * l**2 / 20, 13 * A * l**2 / 420, -A * l**3 / 140, Qz * l**2 / 30],
+        [0, 0, Izz * l / 3, 3 * Qz * l / 20, -Qz * l**2 / 30, Izz * l / 6],
+        [0, 0, 0, 13 * A * l / 35, -11 * A * l**2 / 210, 7 * Qz * l / 20],
+        [0, 0, 0, 0, A * l**3 / 105, -Qz * l**2 / 20],
+        [0, 0, 0, 0, 0, Izz * l / 3],
+    ]
+    m = np.array(upper)
+    m = m + np.triu(m, 1).T
+    return np.kron(m, np.eye(3))
+
+
+def test_mass_matrix_equals_paper_eq5():
+    l, A, Qz, Izz = 0.37, 2.1, 0.13, 0.045
+    M = element.mass_matrix(np.array([l]), np.array([A]), np.array([Qz]), np.array([Izz]))[0]
+    np.testing.assert_allclose(M, paper_mass_matrix(A, Qz, Izz, l), rtol=1e-13, atol=1e-15)
+
+
+def test_mass_matrix_total_mass_and_moments():
+    """Rigid translation carries rho A l; a uniform r_y rate pairs with it through rho Q_z l."""
+    l, mu, mu1, mu2 = 0.8, 3.0, 0.2, 0.07
+    M = element.mass_matrix(np.array([l]), np.array([mu]), np.array([mu1]), np.array([mu2]))[0]
+    v, w = np.array([0.3, -1.2, 0.5]), np.array([0.7, 0.1, -0.4])
+    translation = np.concatenate([v, 0 * v, 0 * v, v, 0 * v, 0 * v])
+    chord_rate = np.concatenate([0 * w, 0 * w, w, 0 * w, 0 * w, w])
+    assert translation @ M @ translation == pytest.approx(mu * l * v @ v, rel=1e-13)
+    assert translation @ M @ chord_rate == pytest.approx(mu1 * l * v @ w, rel=1e-13)
+    assert chord_rate @ M @ chord_rate == pytest.approx(mu2 * l * w @ w, rel=1e-13)
+
+
+def test_gravity_force_is_weight_and_its_moment():
+    l, mu, mu1 = 0.5, 2.0, 0.1
+    g = np.array([0.0, 0.0, -9.81])
+    F = element.distributed_force(np.array([l]), np.array([mu]), np.array([mu1]), g)[0]
+    translation = np.tile(np.concatenate([np.ones(3), np.zeros(6)]), 2)
+    # virtual work of a unit translation in each direction: the weight
+    assert F.reshape(6, 3)[[0, 3]].sum(axis=0) @ np.array([0, 0, 1]) == pytest.approx(mu * l * g[2])
+    assert translation @ F == pytest.approx(mu * l * g.sum())
+
+
+def rigid_transform(e, rotation, shift):
+    v = e.reshape(-1, 6, 3) @ rotation.T
+    v[:, [0, 3]] += shift
+    return v.reshape(-1, 18)
+
+
+def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
+    stiffness = np.array([[2e5, 3.0, 40.0, 1.5]])
+    l = np.array([0.4])
+    R = Rotation.from_rotvec([0.4, -1.1, 2.0]).as_matrix()
+    moved = rigid_transform(straight(0.4)[None], R, np.array([1.0, -2.0, 0.5]))
+    force = element.elastic_force(moved, l, stiffness)
+    assert np.max(np.abs(force)) < 1e-9 * stiffness.max()
+    # a deformed element moved rigidly: same energy, force rotated with it
+    deformed = straight(0.4)[None] + 0.02 * RNG.standard_normal((1, 18))
+    moved = rigid_transform(deformed, R, np.array([0.3, 0.2, 0.1]))
+    assert element.elastic_energy(moved, l, stiffness) == pytest.approx(element.elastic_energy(deformed, l, stiffness), rel=1e-12)
+    rotated_force = (element.elastic_force(deformed, l, stiffness).reshape(6, 3) @ R.T).ravel()
+    np.testing.assert_allclose(element.elastic_force(moved, l, stiffness)[0], rotated_force, atol=1e-9 * np.abs(rotated_force).max())
+
+
+def test_force_is_gradient_of_energy_and_jacobian_is_its_derivative():
+    stiffness = np.array([[1e3, 2.0, 3.0, 4.0], [5e2, 1.0, 7.0, 0.5]])
+    l = np.array([0.3, 0.5])
+    e = np.stack([straight(0.3), straight(0.5)]) + 0.05 * RNG.standard_normal((2, 18))
+    force = element.elastic_force(e, l, stiffness)
+    jac = element.elastic_jacobian(e, l, stiffness)
+    h = 1e-6
+    for k in range(18):
+        ep, em = e.copy(), e.copy()
+        ep[:, k] += h
+        em[:, k] -= h
+        dU = (element.elastic_energy(ep, l, stiffness) - element.elastic_energy(em, l, stiffness)) / (2 * h)
+        np.testing.assert_allclose(-force[:, k], dU, rtol=1e-6, atol=1e-6 * np.abs(force).max())
+        dF = (element.elastic_force(ep, l, stiffness) - element.elastic_force(em, l, stiffness)) / (2 * h)
+        np.testing.assert_allclose(-jac[:, :, k], dF, rtol=1e-5, atol=1e-5 * np.abs(jac).max())
+
+
+def arc_element(length, curvature, plane):
+    """Nodes of a circular arc of `curvature` starting along x: bending toward z (flap) or y (chord)."""
+    phi = curvature * length
+    bend = np.array([0, 0, 1.0]) if plane == "flap" else np.array([0, 1.0, 0])
+    x_axis = np.array([1.0, 0, 0])
+    rB = (np.sin(phi) * x_axis + (1 - np.cos(phi)) * bend) / curvature
+    xB = np.cos(phi) * x_axis + np.sin(phi) * bend
+    yA = np.array([0, 1.0, 0])
+    yB = yA if plane == "flap" else np.cos(phi) * yA - np.sin(phi) * x_axis
+    return np.concatenate([np.zeros(3), x_axis, yA, rB, xB, yB])[None]
+
+
+@pytest.mark.parametrize("plane, column", [("flap", 1), ("chord", 2)])
+def test_pure_bending_gives_beam_theory_energy(plane, column):
+    """A circular arc of curvature kappa stores EI kappa^2 l / 2 (Euler-Bernoulli)."""
+    l, kappa = 0.2, 0.05
+    stiffness = np.array([[1e6, 3.0, 5.0, 2.0]])
+    U = element.elastic_energy(arc_element(l, kappa, plane), np.array([l]), stiffness)[0]
+    assert U == pytest.approx(0.5 * stiffness[0, column] * kappa**2 * l, rel=1e-4)
+
+
+def test_pure_torsion_gives_beam_theory_energy():
+    """A uniform twist rate kappa_x stores GJ kappa_x^2 l / 2."""
+    l, twist = 0.2, 1e-3
+    e = straight(l)
+    e[15:18] = [0, np.cos(twist), np.sin(twist)]   # r_y^B rotated about x by the twist angle
+    stiffness = np.array([[1e6, 3.0, 5.0, 2.0]])
+    U = element.elastic_energy(e[None], np.array([l]), stiffness)[0]
+    assert U == pytest.approx(0.5 * 2.0 * (twist / l) ** 2 * l, rel=1e-6)
+
+
+def test_uniform_stretch_gives_axial_energy():
+    l, strain = 0.3, 1e-3
+    e = straight(l)
+    e[3:6] *= 1 + strain
+    e[9:12] *= 1 + strain
+    e[12:15] *= 1 + strain
+    stiffness = np.array([[2e5, 3.0, 5.0, 2.0]])
+    U = element.elastic_energy(e[None], np.array([l]), stiffness)[0]
+    assert U == pytest.approx(0.5 * 2e5 * strain**2 * l, rel=1e-6)
