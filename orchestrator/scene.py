@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from orchestrator.overrides import apply_overrides
-from structure_fmu.errors import SceneError
+from structure_fmu.errors import SceneError, reject_unknown_keys
 
 Checker = Callable[[str, Any], Any]
 """(dotted key, value) -> normalised value; raises SceneError."""
@@ -191,20 +191,11 @@ def read_scene_file(path: str | Path) -> dict:
 
 # --- defaults and validation ----------------------------------------------------------------------
 
-def _reject_unknown(table: dict, prefix: str, allowed: Iterable[str]) -> None:
-    allowed = list(allowed)
-    for key, value in table.items():
-        if key not in allowed:
-            where = f"in [{prefix}]" if prefix else "at the top level"
-            dotted = f"{prefix}.{key}" if prefix else key
-            raise SceneError(dotted, value, f"unknown key; allowed {where}: {', '.join(allowed)}")
-
-
 def _resolve_section(scene: dict, section: str, rules: dict[str, tuple[Any, Checker]]) -> dict:
     table = scene.get(section, {})
     if not isinstance(table, dict):
         raise SceneError(section, table, f"a table [{section}] with keys {', '.join(rules)}")
-    _reject_unknown(table, section, rules)
+    reject_unknown_keys(table, section, rules)
     resolved = {}
     for key, (default, check) in rules.items():
         dotted = f"{section}.{key}"
@@ -236,7 +227,7 @@ def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
     for index, probe in enumerate(probes):
         label = probe["name"] if _is_name(probe.get("name")) else str(index)
         prefix = f"probes.{label}"
-        _reject_unknown(probe, prefix, PROBE_KEYS)
+        reject_unknown_keys(probe, prefix, PROBE_KEYS)
         probe_name = name(f"{prefix}.name", probe.get("name", MISSING))
         if probe_name in seen:
             raise SceneError(f"{prefix}.name", probe_name, "a probe name not used by another probe")
@@ -282,7 +273,7 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     """
     if not isinstance(raw, dict):
         raise SceneError("<top level>", raw, "a TOML table")
-    _reject_unknown(raw, "", TOP_LEVEL)
+    reject_unknown_keys(raw, "", TOP_LEVEL)
     _reject_dates(raw, "")
     scene: dict[str, Any] = {
         "name": name("name", raw.get("name", default_name)),

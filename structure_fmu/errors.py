@@ -26,3 +26,13 @@ class SolverDiverged(RuntimeError):
     def __init__(self, time: float, reason: str, hint: str):
         self.time, self.reason, self.hint = time, reason, hint
         super().__init__(f"diverged at t = {time:.6g} s: {reason}. Hint: {hint}")
+
+
+def reject_unknown_keys(table: dict, prefix: str, allowed) -> None:
+    """Raise SceneError for the first key of `table` not in `allowed`; `prefix` is the table's dotted key."""
+    allowed = sorted(allowed) if isinstance(allowed, (set, frozenset)) else list(allowed)
+    for key, value in table.items():
+        if key not in allowed:
+            where = f"in [{prefix}]" if prefix else "at the top level"
+            raise SceneError(f"{prefix}.{key}" if prefix else key, value,
+                             f"unknown key; allowed {where}: {', '.join(allowed)}")

@@ -1,7 +1,7 @@
 """Cross-section properties of a wing body, from a rectangular plate or given explicitly."""
 from dataclasses import dataclass
 
-from .errors import SceneError
+from .errors import SceneError, reject_unknown_keys
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class Section:
 
 _PLATE = ("thickness", "density", "youngs_modulus")
 _EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
-_ALLOWED = {"chord", "axis_position", "torsional_rigidity", *_PLATE, *_EXPLICIT}
+_ALLOWED = ("chord", "axis_position", "torsional_rigidity", *_PLATE, *_EXPLICIT)
 
 
 def _positive(key, table, name):
@@ -54,10 +54,7 @@ def section_from_scene(key: str, table: dict) -> Section:
     """
     if not isinstance(table, dict):
         raise SceneError(key, table, "a table with chord, torsional_rigidity and plate or explicit properties")
-    unknown = set(table) - _ALLOWED
-    if unknown:
-        name = sorted(unknown)[0]
-        raise SceneError(f"{key}.{name}", table[name], f"one of {sorted(_ALLOWED)}")
+    reject_unknown_keys(table, key, _ALLOWED)
     chord = _positive(key, table, "chord")
     axis = table.get("axis_position", 0.5)
     if not isinstance(axis, (int, float)) or not 0.0 <= axis <= 1.0:

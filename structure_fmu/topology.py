@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import element
-from .errors import SceneError
+from .errors import SceneError, reject_unknown_keys
 from .motion import Fixed, HeavePitch, SpinUp, rotation_about
 from .section import section_from_scene
 
@@ -144,10 +144,7 @@ class Topology:
             key = f"structure.bodies[{i}]"
             if not isinstance(spec, dict):
                 raise SceneError(key, spec, "a table")
-            unknown = set(spec) - _BODY_KEYS
-            if unknown:
-                name = sorted(unknown)[0]
-                raise SceneError(f"{key}.{name}", spec[name], f"one of {sorted(_BODY_KEYS)}")
+            reject_unknown_keys(spec, key, _BODY_KEYS)
             name = spec.get("name")
             if not isinstance(name, str) or not name or name in specs:
                 raise SceneError(f"{key}.name", name, "a unique non-empty body name")
@@ -175,10 +172,7 @@ class Topology:
             kind = spec.get("type") if isinstance(spec, dict) else None
             if kind not in _JOINT_KEYS:
                 raise SceneError(f"{key}.type", kind, f"one of {sorted(_JOINT_KEYS)}")
-            unknown = set(spec) - _JOINT_KEYS[kind]
-            if unknown:
-                name = sorted(unknown)[0]
-                raise SceneError(f"{key}.{name}", spec[name], f"one of {sorted(_JOINT_KEYS[kind])} for a {kind}")
+            reject_unknown_keys(spec, key, _JOINT_KEYS[kind])
             bodies = [spec.get("parent"), spec.get("child")] if kind == "hinge" else [spec.get("body")]
             for field_name, body in zip(("parent", "child") if kind == "hinge" else ("body",), bodies):
                 if body not in specs:
@@ -301,10 +295,7 @@ class Topology:
         self.bodies[name] = body
 
     def _prescribed_motion(self, spec, r0, x0, y0, section):
-        unknown = set(spec) - _MOTION_KEYS
-        if unknown:
-            name = sorted(unknown)[0]
-            raise SceneError(f"structure.motion.{name}", spec[name], f"one of {sorted(_MOTION_KEYS)}")
+        reject_unknown_keys(spec, "structure.motion", _MOTION_KEYS)
         key = "structure.motion"
         get = lambda name, default: _number(f"{key}.{name}", spec.get(name, default))
         heave_axis = _vector(f"{key}.heave_axis", spec.get("heave_axis", list(np.cross(x0, y0))), unit=True)
@@ -401,10 +392,7 @@ class Topology:
         """`[load]`: a point load given by the non-dimensional parameter P L^2 / (EI_yy) of its body."""
         if not isinstance(spec, dict):
             raise SceneError("load", spec, "a table with parameter, direction and optionally body, span, law")
-        unknown = set(spec) - _LOAD_KEYS
-        if unknown:
-            name = sorted(unknown)[0]
-            raise SceneError(f"load.{name}", spec[name], f"one of {sorted(_LOAD_KEYS)}")
+        reject_unknown_keys(spec, "load", _LOAD_KEYS)
         body_name = spec.get("body", list(self.bodies)[-1])
         if body_name not in self.bodies:
             raise SceneError("load.body", body_name, f"one of the bodies {sorted(self.bodies)}")
