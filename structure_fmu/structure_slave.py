@@ -326,8 +326,8 @@ class StructureSlave(Fmi2Slave):
         self._real[self.sl_e] = e
         self._real[self.sl_de] = s.de
         if self.hinges:
-            angles = self.topology.fold_angles(e)
-            self._real[self.sl_fold] = np.degrees([angles[h] for h in self.hinges])
+            angles = s.fold_angles_deg()
+            self._real[self.sl_fold] = [angles[h] for h in self.hinges]
         m = s.monitors()
         self._real[self.i_energy] = m["energy"]
         self._real[self.i_kinetic] = m["kinetic_energy"]
