@@ -9,12 +9,15 @@ r_x/|r_x|, r_y, their cross product). The force F = -alpha (I - P)^T M (I - P) d
 """
 import numpy as np
 
+from .element import cross
+
 
 def _skew(v):
     """(..., 3) -> (..., 3, 3) with skew(v) w = v x w."""
-    z = np.zeros_like(v[..., 0])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
 
 
 def frame_angular_velocity_map(root):
@@ -41,7 +44,7 @@ def rigid_velocity_projector(E_body):
     m = len(nodes)
     W = frame_angular_velocity_map(E_body[:9])
     P = np.zeros((m, 3, 3, 9))
-    arms = np.stack([nodes[:, 0] - nodes[0, 0], nodes[:, 1], nodes[:, 2]], axis=1)   # (m, 3, 3)
+    arms = _arms(nodes)
     P[:, :, :, :] = -np.einsum("mkij,jc->mkic", _skew(arms), W)                      # omega x arm
     P[:, 0, :, 0:3] += np.eye(3)                                                     # + dr_root/dt
     out = np.zeros((9 * m, 9 * m))
@@ -49,7 +52,31 @@ def rigid_velocity_projector(E_body):
     return out
 
 
+def _arms(nodes):
+    """Per node the vectors a rigid rotation acts on: r - r_root, r_x, r_y, shape (m, 3, 3)."""
+    return np.stack([nodes[:, 0] - nodes[0, 0], nodes[:, 1], nodes[:, 2]], axis=1)
+
+
 def deformation_damping_matrix(E_body, mass_body, alpha):
-    """D = alpha (I - P)^T M (I - P) for one body; the damping force is -D de."""
+    """D = alpha (I - P)^T M (I - P) for one body; the damping force is -D de (used for the tangent)."""
     A = np.eye(len(E_body)) - rigid_velocity_projector(E_body)
     return alpha * A.T @ mass_body @ A
+
+
+def deformation_damping_force(E_body, dE_body, mass_body, alpha):
+    """-D de computed matrix-free in O(n): v = (I - P) de, y = M v, F = -alpha (y - P^T y).
+
+    P^T y is non-zero only on the root coordinates: the sum of y over the r slots (translation) plus
+    W^T sum_j a_j x y_j (rotation), since y . (omega x a) = omega . (a x y).
+    """
+    nodes, rates = E_body.reshape(-1, 3, 3), dE_body.reshape(-1, 3, 3)
+    W = frame_angular_velocity_map(E_body[:9])
+    arms = _arms(nodes)
+    rigid = cross(W @ dE_body[:9], arms)
+    rigid[:, 0] += rates[0, 0]
+    y = mass_body @ (rates - rigid).ravel()
+    Y = y.reshape(-1, 3, 3)
+    back = W.T @ cross(arms, Y).sum(axis=(0, 1))
+    back[:3] += Y[:, 0].sum(axis=0)
+    y[:9] -= back
+    return -alpha * y

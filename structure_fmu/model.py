@@ -13,7 +13,7 @@ from . import element
 from .element import cross
 from .constraints import Constraints
 from .motion import Fixed
-from .damping import deformation_damping_matrix
+from .damping import deformation_damping_force, deformation_damping_matrix
 from .joints import actuator_forces
 
 
@@ -119,10 +119,9 @@ class StructureModel:
                 for dofs, j in zip(self.dofs, jac):
                     K[np.ix_(dofs, dofs)] += j
         for alpha, idx, mass in self.damped_bodies:
-            D = deformation_damping_matrix(E[idx], mass, alpha)
-            F[idx] -= D @ dE[idx]
+            F[idx] += deformation_damping_force(E[idx], dE[idx], mass, alpha)
             if with_tangent:
-                C[np.ix_(idx, idx)] += D
+                C[np.ix_(idx, idx)] += deformation_damping_matrix(E[idx], mass, alpha)
         return F, K, C
 
     def force_q(self, q, dq, t, Q, latched):
