@@ -159,7 +159,7 @@ class GeneralizedAlpha:
         scale = max(1.0, float(np.max(np.abs(q)))) if n else 1.0
         if self._matrix is None or self._matrix[0] != h:
             self._factor(model, t, q, dq, Q, state.latched, lam, h)
-        refreshed, previous = False, np.inf
+        refreshed, previous = False, 0.0
         for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
             residual = model.mass_q @ ddq - F
@@ -176,7 +176,10 @@ class GeneralizedAlpha:
             lam += beta_p * delta[n:]
             self.newton_iterations += 1
             size = float(np.max(np.abs(dq_step))) if n else 0.0
-            if size <= self.tol * scale:
+            # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
+            # observed contraction rate), is below the tolerance
+            rate = size / previous if previous > 0 else 1.0
+            if size <= self.tol * scale or (rate < 0.5 and rate / (1 - rate) * size <= self.tol * scale):
                 break
             if not np.isfinite(size):
                 raise SolverDiverged(state.t, "Newton iteration produced NaN/inf",
