@@ -1,0 +1,163 @@
+"""The vortex-ring lattice of each body, as fixed shape-function matrices on the exchanged coordinates.
+
+Each body (length L, chord c, reference line at chord fraction a) carries M chordwise x N spanwise
+panels of uniform size: panel (i, j) spans the chord fractions [i/M, (i+1)/M] (0 at the leading edge,
+1 at the trailing edge) and the span stations [j L/N, (j+1) L/N] from the body's root. A material point
+(span s, chord fraction f) lies on the element k = floor(s / l) of its body at x = s - k l (the last
+element takes s = L), y = section.chord_offset(f) = (f - a) c, i.e. measured from the reference line
+along r_y toward the trailing edge (000 Eq. 2).
+
+Katz & Plotkin placement: ring (i, j) has its leading (bound) segment at the panel's quarter chord,
+f = (i + 1/4)/M, and its trailing segment at the next panel's quarter chord, so the last ring's trailing
+segment lies a quarter panel behind the trailing edge, f = 1 + 1/(4M) (the linear field
+r(x, y) = r(x, 0) + y r_y(x) extends it off the plate). The collocation point is at the panel's
+three-quarter chord, f = (i + 3/4)/M, at mid panel span. The force of a panel acts at the middle of its
+bound segment, f = (i + 1/4)/M at mid span (the lumped-vortex centre of pressure).
+
+Every point is r = S(x, y) e on its element (000 Eq. 20), and S = kron(s, I_3) with the scalar shape row
+s of `structure_fmu.element`. We therefore store scalar matrices acting on the slot array
+X = E.reshape(-1, 3) (row 3 node + k holds r, r_x, r_y of a node): points = Sc @ X is the same as
+kron(Sc, I_3) @ E (000 Eq. 20), nine times fewer operations. Likewise the tangents at the collocation
+points r_x = Sx @ X (S_x: x-derivative of S) and r_y = Sy @ X (S_y = dS/dy: the r_y interpolation), from
+which n = r_x x r_y / |r_x x r_y| (000 Eq. 21) and tau_x, tau_y (000 Eq. 24). All matrices are built
+once; `geometry(E)` is one matrix product.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from structure_fmu import element
+from structure_fmu.element import cross
+
+CORE_FRACTION = 1e-3   # vortex core radius / smallest reference panel dimension (see biot_savart.py)
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The lattice at one E. Points in metres (global frame); tangents dimensionless.
+
+    corners (n_corners, 3); collocation, application, r_x, r_y, normal (n_panels, 3) with normal the unit
+    r_x x r_y (000 Eq. 21); area (n_panels,) m^2 = |r_x x r_y| * panel span * panel chord.
+    """
+    corners: np.ndarray
+    collocation: np.ndarray
+    application: np.ndarray
+    r_x: np.ndarray
+    r_y: np.ndarray
+    normal: np.ndarray
+    area: np.ndarray
+
+
+def shape_rows(x, y, length):
+    """s(x, y), s_x = ds/dx (1/m) and s_y = ds/dy (1/m) of 000 Eq. (2), each (..., 6), for
+    [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]; x along the element (0..l, m), y along the chord (m)."""
+    x, y, length = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, length)))
+    _, dN, _, L = element.hermite(x / length, length)
+    s = element.shape_row(x, y, length)
+    dL = np.stack([-1.0 / length, 1.0 / length], axis=-1)
+    yy = y[..., None]
+    s_x = np.concatenate([dN[..., :2], yy * dL[..., :1], dN[..., 2:], yy * dL[..., 1:]], axis=-1)
+    zero = np.zeros_like(L[..., :1])
+    s_y = np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]], axis=-1)
+    return s, s_x, s_y
+
+
+class Lattice:
+    """Vortex-ring lattice of all bodies of a topology, M chordwise x N spanwise panels per body.
+
+    Numbering (body-major, row-major): corner (b, i, j), i = 0..M chordwise, j = 0..N spanwise, is
+    b (M+1)(N+1) + i (N+1) + j; panel (b, i, j), i < M, j < N, is b M N + i N + j.
+    Attributes: `rings` (n_panels, 4) corner indices of each ring in circulation order
+    (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1), so a positive circulation induces velocity along -n
+    inside the ring and, in a flow from leading to trailing edge, makes a force along +n (000 Eq. 25);
+    `trailing_corners` (n_bodies, N + 1) and `trailing_panels` (n_bodies, N); per panel `panel_span`,
+    `panel_chord` (reference lengths, m), `chord` (body chord, m), `body` (body index);
+    `reference_area` (sum of body length x chord, m^2) and `core_radius` (m).
+    """
+
+    def __init__(self, topology, chordwise, spanwise, core_fraction=CORE_FRACTION):
+        M, N = int(chordwise), int(spanwise)
+        if M < 1 or N < 1:
+            raise ValueError(f"panels must be >= 1 (chordwise {chordwise}, spanwise {spanwise})")
+        self.M, self.N = M, N
+        self.n_slots = 3 * topology.n_nodes
+        self.body_names = list(topology.bodies)
+        bodies = [topology.bodies[name] for name in self.body_names]
+        B = len(bodies)
+        slots = topology.element_dofs()[:, ::3] // 3          # (n_elements, 6) slot of each shape entry
+        lengths = topology.element_lengths()
+        i_c, j_c = np.meshgrid(np.arange(M + 1), np.arange(N + 1), indexing="ij")
+        i_p, j_p = np.meshgrid(np.arange(M), np.arange(N), indexing="ij")
+        parts = {"corner": [], "collocation": [], "application": [], "grid": []}
+        for body in bodies:
+            # span stations as exact fractions num / den of the body length; chord fractions as floats
+            rows = lambda num, den, frac: _body_rows(body, num.ravel(), den, frac.ravel(), slots, lengths, self.n_slots)
+            parts["corner"].append(rows(j_c, N, (i_c + 0.25) / M))
+            parts["collocation"].append(rows(2 * j_p + 1, 2 * N, (i_p + 0.75) / M))
+            parts["application"].append(rows(2 * j_p + 1, 2 * N, (i_p + 0.25) / M))
+            parts["grid"].append(rows(j_c, N, i_c / M))
+        stack = lambda name, k: np.concatenate([p[k] for p in parts[name]])
+        self.corner_matrix = stack("corner", 0)                  # Sc (n_corners, n_slots)
+        self.collocation_matrix = stack("collocation", 0)        # Sp
+        self.tangent_x_matrix = stack("collocation", 1)          # Sx
+        self.tangent_y_matrix = stack("collocation", 2)          # Sy
+        self.application_matrix = stack("application", 0)       # Sa, where panel forces act (000 Eq. 12)
+        self.grid_matrix = stack("grid", 0)                      # panel edges: f = i/M (leading edge 0, trailing 1)
+        self._all = np.vstack([self.corner_matrix, self.collocation_matrix, self.application_matrix,
+                               self.tangent_x_matrix, self.tangent_y_matrix])
+        nc, n_p = (M + 1) * (N + 1), M * N
+        self.n_corners, self.n_panels = B * nc, B * n_p
+        corner = lambda b, i, j: b * nc + i * (N + 1) + j
+        b_p = np.repeat(np.arange(B), n_p)
+        ii, jj = np.tile(i_p.ravel(), B), np.tile(j_p.ravel(), B)
+        self.rings = np.stack([corner(b_p, ii, jj), corner(b_p, ii + 1, jj), corner(b_p, ii + 1, jj + 1),
+                               corner(b_p, ii, jj + 1)], axis=1)
+        self.trailing_corners = corner(np.arange(B)[:, None], M, np.arange(N + 1)[None, :])
+        self.trailing_panels = np.arange(B)[:, None] * n_p + (M - 1) * N + np.arange(N)[None, :]
+        self.body = b_p
+        self.panel_span = np.repeat([b.length / N for b in bodies], n_p)
+        self.panel_chord = np.repeat([b.section.chord / M for b in bodies], n_p)
+        self.chord = np.repeat([b.section.chord for b in bodies], n_p)
+        self.reference_area = float(sum(b.length * b.section.chord for b in bodies))
+        self.core_radius = core_fraction * float(min(self.panel_span.min(), self.panel_chord.min()))
+
+    # ------------------------------------------------------------------ per time step
+    def geometry(self, E):
+        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (000 Eqs. 20-21, 24)."""
+        X = np.asarray(E, dtype=float).reshape(-1, 3)
+        P = self._all @ X
+        nc, n_p = self.n_corners, self.n_panels
+        corners, colloc, app = P[:nc], P[nc:nc + n_p], P[nc + n_p:nc + 2 * n_p]
+        r_x, r_y = P[nc + 2 * n_p:nc + 3 * n_p], P[nc + 3 * n_p:]
+        c = cross(r_x, r_y)
+        norm = np.sqrt(np.sum(c * c, axis=1))
+        normal = c / np.where(norm > 0, norm, 1.0)[:, None]
+        return Geometry(corners, colloc, app, r_x, r_y, normal, norm * self.panel_span * self.panel_chord)
+
+    def grid_points(self, E):
+        """Panel edge points (n_corners, 3), chord fractions i/M (leading edge 0, trailing edge 1), m."""
+        return self.grid_matrix @ np.asarray(E, dtype=float).reshape(-1, 3)
+
+    def generalized_force(self, forces):
+        """Q (9 n_nodes,) of panel forces a (n_panels, 3) N acting at the application points:
+        Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12), virtual-work consistent with r = S e."""
+        return (self.application_matrix.T @ np.asarray(forces, dtype=float)).ravel()
+
+    @staticmethod
+    def full(matrix):
+        """kron(matrix, I_3): the (3 n, 9 n_nodes) form acting on E directly (000 Eq. 20)."""
+        return np.kron(matrix, np.eye(3))
+
+
+def _body_rows(body, num, den, fraction, slots, lengths, n_slots):
+    """Scalar shape rows (s, s_x, s_y), stacked (3, n, n_slots), of the material points of `body` at span
+    num / den * L and chord `fraction`: each point on exactly one element, k = floor(s / l) (the last
+    element takes s = L), computed in integers so that points on element ends are placed exactly."""
+    n_el = len(body.elements)
+    k_local = np.minimum(num * n_el // den, n_el - 1)
+    k = np.asarray(body.elements)[k_local]
+    x = (num * n_el / den - k_local) * (body.length / n_el)
+    y = body.section.chord_offset(fraction)
+    out = np.zeros((3, len(num), n_slots))
+    out[:, np.arange(len(num))[:, None], slots[k]] = np.stack(shape_rows(x, y, lengths[k]))
+    return out
