@@ -1,14 +1,17 @@
-"""Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory).
+"""Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory), 000 Sec. V.
 
-Built so far (issue 3, first step): the kernels of a steady vortex-lattice method on the structure's
-shape functions (000 Sec. V):
-
-  lattice.py      vortex-ring lattice of each body as fixed shape-function matrices (000 Eqs. 12, 20, 21, 24)
-  biot_savart.py  velocity of straight vortex segments with a Scully core (000 Eq. 19)
-  vlm.py          influence matrix, flat horseshoe wake, circulations (Eq. 22), panel forces (Eqs. 23, 25)
-
-Not implemented yet: the unsteady solver and its wakes, strip theory, the FMI slave. Scenes must use
-``aero.model = "none"`` until then, and the scene loader rejects any other aero model with a clear message.
+  solver.py         AeroSolver, the API of docs/aero_api.md (scene, parameters, inputs, state, outputs)
+  uvlm.py           unsteady vortex-lattice step: no penetration (Eq. 22), Kutta condition, unsteady
+                    Bernoulli (Eq. 23), panel forces (Eq. 25); the flat-wake model and its closed form
+  wake.py           shed ring wakes: shedding, convection (prescribed / free), truncation
+  strip.py          quasi-steady strip theory, the cheapest model
+  factorization.py  bound (+ horseshoe) influence matrices and LU, reused while the wing moves rigidly
+  rigid.py          rigid-motion test of a point set (Kabsch)
+  loads.py          Q (Eq. 12), lift, drag, moments, coefficients
+  lattice.py        vortex-ring lattice of each body as fixed shape-function matrices (Eqs. 12, 20, 21, 24)
+  biot_savart.py    velocity of straight vortex segments with a Scully core (Eq. 19)
+  vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
+  aero_slave.py     the FMI slave over AeroSolver
 
 Like structure_fmu, we ask for one BLAS thread (effective only if numpy is not imported yet): on the
 shared 2-core machines threaded OpenBLAS was many times slower for the small matrices we factorize.

@@ -79,18 +79,11 @@ def bound_segments(rings: RingSegments, corners) -> Segments:
     return Segments(corners[rings.start], corners[rings.end], rings.incidence)
 
 
-def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> list:
-    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (000 Sec. V).
-
-    The legs start at the last rings' trailing corners (a quarter panel behind the trailing edge) and run
-    along the unit `direction` (the free stream) for wake_length chords of their body, closed there by a
-    starting-vortex segment; wake_length = inf gives semi-infinite legs and no closing segment. The
-    horseshoe's bound segment runs opposite to the last ring's trailing segment, so the two cancel: the
-    circulation leaves the trailing edge only through the legs (steady Kutta condition).
-    """
-    d = np.asarray(direction, dtype=float)
+def horseshoe_weights(lattice: Lattice):
+    """(legs, span) sparse weights of the horseshoe wake (topology only, built once per lattice): legs
+    (B (N+1), n_panels) maps Gamma to the trailing legs from the trailing corners, span (B N, n_panels) to
+    the spanwise segments (the horseshoes' bound segments and, for finite legs, the closing segments)."""
     B, N, n_p = len(lattice.body_names), lattice.N, lattice.n_panels
-    te = corners[lattice.trailing_corners]                  # (B, N+1, 3)
     panels = lattice.trailing_panels                        # (B, N)
     # column j of wake "rings": legs (M, j) -> far_j (+1), far_j -> far_{j+1} (+1), (M, j+1) -> far_{j+1}
     # reversed (-1), and the bound segment (M, j+1) -> (M, j), i.e. -1 on (M, j) -> (M, j+1)
@@ -100,13 +93,29 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> 
     leg_signs = np.repeat([1.0, -1.0], B * N)
     legs = scipy.sparse.csr_matrix((leg_signs, (leg_rows, leg_cols)), shape=(B * (N + 1), n_p))
     span = scipy.sparse.csr_matrix((np.ones(B * N), (np.arange(B * N), panels.ravel())), shape=(B * N, n_p))
+    return legs, span
+
+
+def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, weights=None) -> list:
+    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (000 Sec. V).
+
+    The legs start at the last rings' trailing corners (a quarter panel behind the trailing edge) and run
+    along the unit `direction` (the free stream) for wake_length chords of their body, closed there by a
+    starting-vortex segment; wake_length = inf gives semi-infinite legs and no closing segment. The
+    horseshoe's bound segment runs opposite to the last ring's trailing segment, so the two cancel: the
+    circulation leaves the trailing edge only through the legs (steady Kutta condition).
+    weights: `horseshoe_weights(lattice)`, built here if None.
+    """
+    d = np.asarray(direction, dtype=float)
+    legs, span = horseshoe_weights(lattice) if weights is None else weights
+    te = corners[lattice.trailing_corners]                  # (B, N+1, 3)
     te_start, te_end = te[:, :-1].reshape(-1, 3), te[:, 1:].reshape(-1, 3)
     out = [Segments(te_start, te_end, -span)]
     starts = te.reshape(-1, 3)
     if np.isinf(wake_length):
         out.append(Segments(starts, np.broadcast_to(d, starts.shape), legs, semi_infinite=True))
     else:
-        chord = lattice.chord[panels[:, 0]]                 # (B,) body chords
+        chord = lattice.chord[lattice.trailing_panels[:, 0]]   # (B,) body chords
         far = te + (wake_length * chord)[:, None, None] * d
         out.append(Segments(starts, far.reshape(-1, 3), legs))
         out.append(Segments(far[:, :-1].reshape(-1, 3), far[:, 1:].reshape(-1, 3), span))
@@ -126,22 +135,30 @@ def induced_velocity(points, systems, gamma, core) -> np.ndarray:
 
 
 def pressure_forces(lattice: Lattice, geometry, gamma, velocity, density, dgamma_dt=None) -> np.ndarray:
-    """Panel forces a (n_panels, 3) N by 000 Eqs. (23) and (25).
+    """Panel forces a (n_panels, 3) N by 000 Eqs. (23) and (25), with V (n_panels, 3) the fluid velocity
+    relative to the panel at its collocation point (m/s). See `pressure_jump_forces`."""
+    v_x = np.sum(velocity * geometry.r_x, axis=1)
+    v_y = np.sum(velocity * geometry.r_y, axis=1)
+    return pressure_jump_forces(lattice, geometry, gamma, v_x, v_y, density, dgamma_dt)
+
+
+def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, dgamma_dt=None) -> np.ndarray:
+    """Panel forces a (n_panels, 3) N by 000 Eqs. (23) and (25) from the tangential velocity products.
 
     Delta p_ij = rho [V . (tau_x (G_ij - G_i,j-1) / Delta x + tau_y (G_ij - G_i-1,j) / Delta y) + dG_ij/dt]
-    with V (n_panels, 3) the fluid velocity relative to the panel at its collocation point (m/s), tau the
-    unit tangents (Eq. 24), Delta x = |r_x| L/N, Delta y = |r_y| c/M the panel's span and chord lengths,
+    with V the fluid velocity relative to the panel at its collocation point, tau the unit tangents
+    (Eq. 24), Delta x = |r_x| L/N, Delta y = |r_y| c/M the panel's span and chord lengths,
     G_i,-1 = G_-1,j = 0 at the body's root edge and leading edge; a = Delta p * area * n (Eq. 25).
+    Only V . r_x = v_x and V . r_y = v_y (m/s, r_x, r_y dimensionless, (n_panels,)) enter, since
+    tau / Delta = r / (|r|^2 * reference length); dgamma_dt (n_panels,) m^2/s^2 or None (steady).
     """
     M, N = lattice.M, lattice.N
     G = np.asarray(gamma, dtype=float).reshape(-1, M, N)
     dG_span = np.diff(G, axis=2, prepend=0.0).ravel()
     dG_chord = np.diff(G, axis=1, prepend=0.0).ravel()
     rx, ry = geometry.r_x, geometry.r_y
-    # tau / Delta = r / (|r|^2 * reference length)
-    gx = rx * (dG_span / (np.sum(rx * rx, axis=1) * lattice.panel_span))[:, None]
-    gy = ry * (dG_chord / (np.sum(ry * ry, axis=1) * lattice.panel_chord))[:, None]
-    dp = density * np.sum(velocity * (gx + gy), axis=1)
+    dp = density * (v_x * dG_span / (np.sum(rx * rx, axis=1) * lattice.panel_span)
+                    + v_y * dG_chord / (np.sum(ry * ry, axis=1) * lattice.panel_chord))
     if dgamma_dt is not None:
         dp = dp + density * np.asarray(dgamma_dt, dtype=float)
     return (dp * geometry.area)[:, None] * geometry.normal

@@ -1,9 +1,11 @@
 """Build the FMUs a scene needs (pythonfmu), with the resolved scene embedded as `resources/scene.json`.
 
-`build_fmus(scene, out_dir)` writes `out_dir/structure.fmu` (and, once the aero unit exists, `aero.fmu` when
-`aero.model != "none"`). Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
-from there, and puts `resources/` first on `sys.path`), the Python packages it imports (`structure_fmu/`,
-copied as *.py files only), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
+`build_fmus(scene, out_dir)` writes `out_dir/structure.fmu` and, when `aero.model != "none"`, `aero.fmu`.
+Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it from there, and puts
+`resources/` first on `sys.path`; the two scripts have distinct names, `structure_slave.py` and
+`aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`structure_fmu/`;
+`aero_fmu/` and `structure_fmu/` for the aero unit, copied as *.py files only), `scene.json`, and
+`build_info.json` (digests used by `fmus_up_to_date`).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
 The FMUs do not bundle Python, numpy or scipy: the host needs them (see README).
 """
@@ -20,7 +22,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-SCENE_RESOURCE = "scene.json"
+from structure_fmu.fmi_slave import SCENE_RESOURCE
+
 BUILD_INFO_RESOURCE = "build_info.json"
 
 # kind -> (FMU file name, slave module, packages embedded in resources/)
@@ -84,9 +87,8 @@ def _require(kind: str, scene: dict) -> None:
         spec = importlib.util.find_spec(module_name)
     except ImportError:
         spec = None
-    if kind == "aero" and spec is None:
-        raise BuildError(f"aero.model = {scene.get('aero', {}).get('model')!r} needs the aero FMU, which is "
-                         f"not implemented yet ({module_name} is missing); use aero.model = \"none\"")
+    if spec is None:
+        raise BuildError(f"the {kind} unit needs {module_name}, which is missing from this installation")
     _slave_script(kind)
 
 
@@ -176,4 +178,7 @@ def _check_scene(kind: str, scene: dict) -> None:
         from structure_fmu.topology import Topology
         Topology.from_scene(scene)
         StructureSolver.tunable_parameters(scene)
+    elif kind == "aero":
+        from aero_fmu.solver import AeroSolver
+        AeroSolver(scene)
 

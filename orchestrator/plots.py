@@ -3,7 +3,8 @@
 - ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle;
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
-- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s).
+- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s);
+- ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s).
 
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
 that name from an earlier run in the same folder is removed.
@@ -20,7 +21,7 @@ from matplotlib.figure import Figure
 from orchestrator.master import RunResult
 from orchestrator.scene import hinge_joints
 
-PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "energy_residual.png")
+PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "energy_residual.png", "lift_coefficient.png")
 DPI = 120
 
 
@@ -81,13 +82,30 @@ def monitors_figure(result: RunResult) -> Figure:
     return fig
 
 
+def lift_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.has_aero:
+        return None
+    fig = Figure(figsize=(7, 6))
+    cl_ax, lift_ax = fig.subplots(2, 1, sharex=True)
+    cl_ax.plot(series.time, series.CL)
+    model = result.scene.get("aero", {}).get("model", "")
+    cl_ax.set(title=_title(result, f"lift coefficient ({model})"), ylabel="CL (-)")
+    lift_ax.plot(series.time, series.lift)
+    lift_ax.set(xlabel="time (s)", ylabel="lift (N)")
+    for ax in (cl_ax, lift_ax):
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
 def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     """Write the plots that apply into ``out_dir``; returns the paths written."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     empty = len(result.series) == 0
-    figures = dict(zip(PLOT_FILES, (None, None, None) if empty else (
-        fold_angles_figure(result), probe_displacements_figure(result), monitors_figure(result))))
+    figures = dict(zip(PLOT_FILES, (None,) * len(PLOT_FILES) if empty else (
+        fold_angles_figure(result), probe_displacements_figure(result), monitors_figure(result),
+        lift_figure(result))))
     written = []
     for filename, fig in figures.items():
         path = out_dir / filename

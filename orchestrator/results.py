@@ -14,7 +14,9 @@ Summary fields (SI units, angles in degrees):
   structure exchanges, so the drift stays meaningful when E_0 = 0 (e.g. a pendulum released at rest at
   its potential datum); the 1e-12 J floor only avoids a division by zero for a structure at rest;
 - ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
-  ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position.
+  ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position;
+- ``aero`` (only for a scene with an aero unit): ``model``, ``CL_final``, ``CL_min``, ``CL_max`` (-) and
+  ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet).
 
 Values that do not apply, or are NaN/inf, are written as null (the JSON stays strict).
 """
@@ -35,6 +37,8 @@ from orchestrator.timeseries import TimeSeries
 
 SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                   "max_constraint_residual", "energy_drift", "probes")
+"""The fields of every summary; an aero scene adds AERO_FIELD."""
+AERO_FIELD = "aero"
 ENERGY_FLOOR_J = 1e-12
 """Smallest energy scale (J) the energy drift is relative to, so that a structure at rest with E_0 = 0
 does not divide by zero."""
@@ -117,8 +121,22 @@ def probe_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
     }
 
 
+def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
+    """model, CL_final, CL_min, CL_max (-) and lift_final (N) over the samples after the first."""
+    keys = ("CL_final", "CL_min", "CL_max", "lift_final")
+    out: dict[str, Any] = {"model": scene.get("aero", {}).get("model"), **dict.fromkeys(keys)}
+    if len(series) < 2:
+        return out
+    cl, lift = series.CL[1:], series.lift[1:]
+    finite = cl[np.isfinite(cl)]
+    out.update(CL_final=cl[-1], lift_final=lift[-1])
+    if finite.size:
+        out.update(CL_min=finite.min(), CL_max=finite.max())
+    return out
+
+
 def summarize(result: RunResult) -> dict[str, Any]:
-    """The summary.json content (exactly SUMMARY_FIELDS), JSON-safe."""
+    """The summary.json content (SUMMARY_FIELDS, and AERO_FIELD for an aero scene), JSON-safe."""
     series = result.series
     summary = {
         "status": result.status,
@@ -131,6 +149,8 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "energy_drift": energy_drift(series.energy, series.kinetic_energy),
         "probes": probe_summary(series),
     }
+    if series.has_aero:
+        summary[AERO_FIELD] = aero_summary(series, result.scene)
     return json_safe(summary)
 
 

@@ -6,8 +6,21 @@ what ``summary.json`` records. SI units throughout (s, m, kg, N, m/s, kg/m^3).
 
 This module checks the top level and the scalar keys (time, coupling, flow, aero, probes and the
 scalar ``structure`` keys). The physics tables (bodies, joints, masses, loads) are checked by
-``structure_fmu.topology.Topology.from_scene``, which ``load_scene`` calls last, so that every bad
-scene fails before anything runs with a ``SceneError`` naming the key, the value and what is allowed.
+``structure_fmu.topology.Topology.from_scene``, and an aero scene by ``aero_fmu.solver.AeroSolver``,
+which ``load_scene`` calls last, so that every bad scene fails before anything runs with a
+``SceneError`` naming the key, the value and what is allowed.
+
+Two top-level tables are shorthands that the loader translates (after ``--set``, so that overriding
+one of their keys or ``flow.speed`` takes effect), keeping them in the resolved scene as given:
+
+- ``[motion]`` (a heaving wing, 000 Sec. VI.D): ``reduced_frequency`` k and ``amplitude`` (in chords c
+  of the first body) become ``structure.motion.frequency`` = 2 k V / c (rad/s, V = ``flow.speed``)
+  and ``structure.motion.heave_amplitude`` = amplitude * c (m);
+- ``[wing]`` (a one-body wing): ``chord`` (m) becomes the body's ``section.chord``, ``aspect_ratio``
+  its ``length`` = aspect_ratio * chord, ``alpha_deg`` the constant pitch ``structure.motion.alpha_deg``.
+
+Both need ``structure.fidelity = "prescribed"`` where they set the motion. A translated key that the
+scene also gives directly must agree with it (else SceneError): nothing is silently overridden.
 """
 
 from __future__ import annotations
@@ -98,6 +111,26 @@ def vector3(unit: str) -> Checker:
     return check
 
 
+def optional(check: Checker) -> Checker:
+    """``check``, or None when the key is absent."""
+    def checked(key: str, value: Any) -> Any:
+        return None if value is None else check(key, value)
+    return checked
+
+
+def optional_direction(what: str) -> Checker:
+    vector = vector3(f"{what}, any length but not zero")
+
+    def check(key: str, value: Any) -> list[float] | None:
+        if value is None:
+            return None
+        v = vector(key, value)
+        if not any(v):
+            raise SceneError(key, value, f"a non-zero array of 3 finite numbers ({what})")
+        return v
+    return check
+
+
 def text(key: str, value: Any) -> str:
     if not isinstance(value, str):
         raise SceneError(key, value, "a string")
@@ -143,6 +176,7 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
     "flow": {
         "speed": (0.0, non_negative("free-stream speed, m/s")),
         "density": (1.2, non_negative("air density, kg/m^3")),
+        "direction": (None, optional_direction("free-stream direction")),
     },
     "aero": {
         "model": ("none", choice(*AERO_MODELS)),
@@ -165,7 +199,21 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
     },
 }
 
-TOP_LEVEL = ("name", "description", *SECTIONS, "probes", "load")
+SHORTHANDS: dict[str, dict[str, tuple[Any, Checker]]] = {
+    "motion": {
+        "reduced_frequency": (REQUIRED, non_negative("reduced frequency k = omega c / (2 V), -")),
+        "amplitude": (REQUIRED, non_negative("heave amplitude, chords")),
+    },
+    "wing": {
+        "chord": (None, optional(positive("chord, m"))),
+        "aspect_ratio": (None, optional(positive("aspect ratio span / chord, -"))),
+        "alpha_deg": (None, optional(_number("a finite angle of attack in degrees, in (-90, 90)",
+                                             lambda x: -90 < x < 90))),
+    },
+}
+"""Top-level tables translated into structure keys (see the module docstring)."""
+
+TOP_LEVEL = ("name", "description", *SECTIONS, "probes", "load", *SHORTHANDS)
 PROBE_KEYS = ("name", "body", "span", "chord")
 DEFAULT_AXIS_POSITION = 0.5
 """Reference line position, fraction of chord from the leading edge, when a body does not say."""
@@ -214,10 +262,95 @@ def _allowed_text(check: Checker, key: str) -> str:
     return "a value"
 
 
-def _check_aero_available(aero: dict) -> None:
-    if aero["model"] != "none":
-        raise SceneError("aero.model", aero["model"],
-                         "the aero unit is not implemented yet (issue 3); only 'none' can run now")
+def _check_coupling(scene: dict) -> None:
+    """The coupling algorithms the master implements (only used with an aero unit)."""
+    algorithm = scene["coupling"]["algorithm"]
+    if scene["aero"]["model"] != "none" and algorithm == "implicit":
+        raise SceneError("coupling.algorithm", algorithm, "'gauss-seidel' or 'jacobi': the implicit "
+                                                          "coupling is not implemented yet")
+
+
+def _default_flow_direction(scene: dict) -> None:
+    """Aero scenes record the free-stream direction: given, or the chord axis of the first body."""
+    flow = scene["flow"]
+    if flow["direction"] is None:
+        if scene["aero"]["model"] == "none":
+            del flow["direction"]
+            return
+        bodies = scene["structure"]["bodies"]
+        chord_axis = bodies[0].get("chord_axis", [0.0, 1.0, 0.0]) if bodies else [0.0, 1.0, 0.0]
+        flow["direction"] = optional_direction("chord axis of the first body, the default flow.direction")(
+            "structure.bodies.0.chord_axis", copy.deepcopy(chord_axis))
+
+
+def _agree(key: str, given: Any, derived: float, source: str) -> float:
+    """``derived`` if ``given`` is absent or equal to it (relative 1e-12), else a SceneError."""
+    if given is not None and not (_is_number(given) and math.isclose(given, derived, rel_tol=1e-12)):
+        raise SceneError(key, given, f"{derived:.12g} as {source} sets it, or leave the key out")
+    return float(derived)
+
+
+def _motion_table(scene: dict, key: str) -> dict:
+    """The ``structure.motion`` table of a prescribed-fidelity scene, created if absent."""
+    structure = scene["structure"]
+    if structure["fidelity"] != "prescribed":
+        raise SceneError(key, structure["fidelity"], "structure.fidelity = 'prescribed' (the shorthand "
+                                                     "sets a prescribed motion)")
+    if structure.get("motion") is None:
+        structure["motion"] = {}
+    return structure["motion"]
+
+
+def _first_body(scene: dict, key: str, only: bool) -> dict:
+    bodies = scene["structure"]["bodies"]
+    if not bodies or (only and len(bodies) != 1) or not isinstance(bodies[0], dict):
+        raise SceneError(key, f"{len(bodies)} bodies", "a scene with exactly one body in structure.bodies"
+                         if only else "a scene with a body in structure.bodies")
+    return bodies[0]
+
+
+def _body_chord(body: dict) -> float:
+    section = body.get("section")
+    chord = section.get("chord", MISSING) if isinstance(section, dict) else MISSING
+    return positive("chord, m")("structure.bodies.0.section.chord", chord)
+
+
+def _apply_shorthands(raw: dict, scene: dict) -> None:
+    """Resolve the [wing] and [motion] tables and translate them into structure keys, in place."""
+    for table, rules in SHORTHANDS.items():
+        if table in raw:
+            resolved = _resolve_section(raw, table, rules)
+            scene[table] = {k: v for k, v in resolved.items() if v is not None}
+    wing = scene.get("wing")
+    if wing:
+        body = _first_body(scene, "wing", only=True)
+        if "chord" in wing:
+            section = body.setdefault("section", {})
+            if not isinstance(section, dict):
+                raise SceneError("structure.bodies.0.section", section, "a table with the chord")
+            section["chord"] = _agree("structure.bodies.0.section.chord", section.get("chord"), wing["chord"],
+                                      "wing.chord")
+        if "aspect_ratio" in wing:
+            chord = _body_chord(body)
+            body["length"] = _agree("structure.bodies.0.length", body.get("length"), wing["aspect_ratio"] * chord,
+                                    f"wing.aspect_ratio x chord ({wing['aspect_ratio']:g} x {chord:g} m)")
+        if "alpha_deg" in wing:
+            motion = _motion_table(scene, "wing.alpha_deg")
+            motion["alpha_deg"] = _agree("structure.motion.alpha_deg", motion.get("alpha_deg"), wing["alpha_deg"],
+                                         "wing.alpha_deg")
+    heave = scene.get("motion")
+    if heave is not None:
+        chord = _body_chord(_first_body(scene, "motion", only=False))
+        speed = scene["flow"]["speed"]
+        if speed <= 0 and heave["reduced_frequency"] > 0:
+            raise SceneError("flow.speed", speed, "a speed > 0 (m/s): motion.reduced_frequency is relative to it")
+        motion = _motion_table(scene, "motion")
+        source = f"motion.reduced_frequency = {heave['reduced_frequency']:g} (2 k V / c)"
+        motion["frequency"] = _agree("structure.motion.frequency", motion.get("frequency"),
+                                     2.0 * heave["reduced_frequency"] * speed / chord, source)
+        motion["heave_amplitude"] = _agree("structure.motion.heave_amplitude", motion.get("heave_amplitude"),
+                                           heave["amplitude"] * chord,
+                                           f"motion.amplitude = {heave['amplitude']:g} chords")
 
 
 def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
@@ -285,7 +418,9 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
         del scene["structure"]["motion"]
     if "load" in raw:   # a load case by its non-dimensional parameter; checked by Topology
         scene["load"] = optional_table("parameter, direction, body, span, law, ramp_time")("load", copy.deepcopy(raw["load"]))
-    _check_aero_available(scene["aero"])
+    _apply_shorthands(raw, scene)
+    _default_flow_direction(scene)
+    _check_coupling(scene)
     scene["probes"] = _resolve_probes(copy.deepcopy(raw.get("probes", [])), scene["structure"]["bodies"])
     return scene
 
@@ -294,14 +429,25 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> dict:
     """Read, override, resolve and fully check a scene file; returns the resolved scene.
 
     ``overrides`` are ``KEY=VALUE`` strings as given to ``--set``. The physics tables are
-    checked by building the structural topology, so a scene that loads can run.
+    checked by building the structural topology (and the aero solver of an aero scene), so a scene that
+    loads can run.
     """
     raw = apply_overrides(read_scene_file(path), overrides)
     scene = resolve_scene(raw, default_name=Path(path).stem)
-    from structure_fmu.topology import Topology  # lazy: the physics package is only needed here
+    check_physics(scene)
+    return scene
+
+
+def check_physics(scene: dict) -> None:
+    """SceneError unless the units can be built from the resolved scene: the structural topology and,
+    for an aero scene, the aero solver."""
+    from structure_fmu.topology import Topology  # lazy: the physics packages are only needed here
 
     Topology.from_scene(scene)
-    return scene
+    if scene["aero"]["model"] != "none":
+        from aero_fmu.solver import AeroSolver
+
+        AeroSolver(scene)
 
 
 def hinge_joints(scene: dict) -> list[dict]:

@@ -1,25 +1,32 @@
 """Co-simulation units as the master sees them, over two backends running the same slave code.
 
-`make_unit("structure", scene, backend, fmu_dir)` returns a `Unit`:
+`make_unit(kind, scene, backend, fmu_dir)` returns a `Unit` of kind "structure" or "aero":
 
+    unit.kind                   "structure" | "aero"
     unit.n                      number of ANCF coordinates (length of e, de, Q)
     unit.topology_hash          str, compared with the other units' before connecting
-    unit.get_outputs()          (e, de): ndarrays (n,), m and 1 / m/s and 1/s (fresh copies)
-    unit.set_inputs(Q)          generalized force (n,), N and N m
+    unit.get_outputs()          the output blocks, fresh ndarrays (n,) each:
+                                  structure: (e, de)  m and 1 / m/s and 1/s
+                                  aero:      (Q,)     N and N m
+    unit.set_inputs(*blocks)    the input blocks, (n,) each:
+                                  structure: set_inputs(Q)      generalized force, N and N m
+                                  aero:      set_inputs(e, de)  the structure's coordinates and rates
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
-    unit.monitors()             {"energy": J, "kinetic_energy": J, "constraint_residual": -,
-                                 "fold_angles_deg": {hinge: deg}}
+    unit.monitors()             structure: {"energy": J, "kinetic_energy": J, "constraint_residual": -,
+                                            "fold_angles_deg": {hinge: deg}}
+                                aero: {"CL": -, "lift": N, "wake_panels": count, ...every scalar output}
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
     unit.terminate()            end the simulation and free the instance (idempotent, never raises)
 
-Backends: "fmu" loads `fmu_dir/structure.fmu` with fmpy (FMU2Slave), every get/set batched over
-precomputed value-reference arrays and ctypes buffers, every status checked, log messages captured;
-"direct" instantiates the same `StructureSlave` class in-process and drives it through the same calls.
-Both start at t = 0 (FMI start time) and are initialized by `make_unit`.
+Backends: "fmu" loads `fmu_dir/<kind>.fmu` with fmpy (FMU2Slave), every get/set batched over precomputed
+value-reference arrays and ctypes buffers, every status checked, log messages captured; "direct"
+instantiates the same slave class (`StructureSlave`, `AeroSlave`) in-process and drives it through the
+same calls. Both start at t = 0 (FMI start time) and are initialized by `make_unit`.
 """
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import re
@@ -28,9 +35,12 @@ import sys
 import tempfile
 import weakref
 from ctypes import byref
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from structure_fmu.fmi_slave import SCENE_RESOURCE
 
 
 class UnitError(RuntimeError):
@@ -44,64 +54,99 @@ class UnitError(RuntimeError):
         self.diverged = diverged
 
 
-FMU_FILES = {"structure": "structure.fmu"}
+@dataclass(frozen=True)
+class UnitKind:
+    """What distinguishes the unit kinds; everything else is one code path."""
+
+    fmu_file: str
+    slave: tuple[str, str]            # (module, class) of the slave, for the direct backend
+    inputs: tuple[str, ...]           # indexed input blocks, each [1..n]
+    outputs: tuple[str, ...]          # indexed output blocks, each [1..n]
+    monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
+    scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale)
+    hinge_monitors: bool = False      # fold_angle_<hinge> outputs, one per hinge of the scene
+    extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
+
+
+KINDS = {
+    "structure": UnitKind("structure.fmu", ("structure_fmu.structure_slave", "StructureSlave"), ("Q",),
+                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual"), ("structure",),
+                          hinge_monitors=True),
+    "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), ("e", "de"), ("Q",),
+                     ("CL", "lift", "wake_panels"), ("structure", "aero", "flow"), extra_monitors=True),
+}
+FMU_FILES = {kind: spec.fmu_file for kind, spec in KINDS.items()}
 _ERROR = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
 _INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
-_MONITORS = ("energy", "kinetic_energy", "constraint_residual")  # scalar Real outputs read by monitors()
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
               instance_name: str | None = None) -> "Unit":
-    """Create, set up and initialize a unit of `kind` for `scene`.
+    """Create, set up and initialize a unit of `kind` ("structure" or "aero") for `scene`.
 
-    backend: "fmu" (fmu_dir/structure.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
+    backend: "fmu" (fmu_dir/<kind>.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
     unused). parameters: optional {tunable name: value} set before initialization (names as in
-    StructureSolver.tunable_parameters). Raises UnitError on any failure, naming what was wrong.
+    StructureSolver / AeroSolver.tunable_parameters). Raises UnitError on any failure, naming what was wrong.
     """
-    if kind not in FMU_FILES:
-        raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(FMU_FILES)}")
-    # Import the host's structure package first: an FMU loaded in this process then shares it instead of
-    # importing its embedded copy from a temporary folder that is deleted at terminate().
-    import structure_fmu.structure_slave  # noqa: F401
+    if kind not in KINDS:
+        raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(KINDS)}")
+    spec = KINDS[kind]
+    # Import the host's packages first: an FMU loaded in this process then shares them instead of importing
+    # its embedded copy from a temporary folder that is deleted at terminate().
+    try:
+        importlib.import_module(spec.slave[0])
+    except ImportError as exc:
+        raise UnitError(f"the {kind} unit cannot be loaded: {spec.slave[0]} does not import ({exc})") from exc
     name = instance_name or kind
     if backend == "fmu":
-        port = _FmuPort(Path(fmu_dir) / FMU_FILES[kind], scene, name)
+        port = _FmuPort(Path(fmu_dir) / spec.fmu_file, scene, name, spec)
     elif backend == "direct":
-        port = _DirectPort(scene, name)
+        port = _DirectPort(scene, name, spec)
     else:
         raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
     try:
-        return Unit(port, scene, parameters or {})
+        return Unit(port, scene, parameters or {}, kind)
     except BaseException:
         port.close()
         raise
 
 
 class Unit:
-    """Structure unit driven through a port (fmpy FMU or in-process slave); see the module docstring."""
+    """A structure or aero unit driven through a port (fmpy FMU or in-process slave); see the module
+    docstring."""
 
-    def __init__(self, port, scene: dict, parameters: dict):
-        from structure_fmu.structure_slave import fmi_name
+    def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure"):
+        from structure_fmu.fmi_slave import fmi_name
         from structure_fmu.topology import Topology
 
         self._port = port
+        self.kind = kind
+        self._spec = spec = KINDS[kind]
         self.backend = port.backend
         vr = port.value_references()
         idx = {(m.group(1), int(m.group(2))): v for name, v in vr.items() if (m := _INDEXED.match(name))}
-        self.n = n = sum(1 for (kind, _) in idx if kind == "e")
+        self.n = n = sum(1 for (block, _) in idx if block == spec.outputs[0])
         try:
-            e_vr, de_vr, q_vr = ([idx[(k, i)] for i in range(1, n + 1)] for k in ("e", "de", "Q"))
+            block_vr = {b: [idx[(b, i)] for i in range(1, n + 1)] for b in (*spec.outputs, *spec.inputs)}
         except KeyError as exc:
             raise UnitError(f"{port.label}: variable {exc.args[0][0]}[{exc.args[0][1]}] missing "
-                            f"(n = {n} from e[...])") from None
-        self.hinges = list(Topology.from_scene(scene).hinge_names)
+                            f"(n = {n} from {spec.outputs[0]}[...])") from None
+        self.hinges = list(Topology.from_scene(scene).hinge_names) if spec.hinge_monitors else []
         missing = [h for h in self.hinges if fmi_name(f"fold_angle_{h}") not in vr]
         if missing:
             raise UnitError(f"{port.label}: no output fold_angle_{missing[0]}; the unit does not match the scene")
-        self._get_out = port.reader(e_vr + de_vr)
-        self._set_q = port.writer(q_vr)
+        absent = [m for m in spec.monitors if m not in vr]
+        if absent:
+            raise UnitError(f"{port.label}: no output {absent[0]}; rebuild the FMU")
+        monitors = list(spec.monitors)
+        if spec.extra_monitors:
+            known = {v for b in block_vr.values() for v in b}
+            monitors += [name for name in port.scalar_outputs() if name not in monitors and vr[name] not in known]
+        self._monitor_names = monitors
+        self._get_out = port.reader([v for b in spec.outputs for v in block_vr[b]])
+        self._set_in = port.writer([v for b in spec.inputs for v in block_vr[b]])
         self._get_mon = port.reader([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
-                                    + [vr[name] for name in _MONITORS])
+                                    + [vr[name] for name in monitors])
         self.topology_hash = port.get_string(vr["topology_hash"])
 
         port.setup()
@@ -113,15 +158,26 @@ class Unit:
             port.writer([vr[names[p]] for p in parameters])(np.array(list(parameters.values()), float))
         port.initialize()
 
-    def get_outputs(self) -> tuple[np.ndarray, np.ndarray]:
-        out = self._get_out()  # a fresh array, not the transfer buffer
-        return out[: self.n], out[self.n:]
+    @property
+    def label(self) -> str:
+        return self._port.label
 
-    def set_inputs(self, Q) -> None:
-        Q = np.asarray(Q, dtype=float)
-        if Q.shape != (self.n,):
-            raise UnitError(f"{self._port.label}: Q has shape {Q.shape}, expected ({self.n},)")
-        self._set_q(Q)
+    def get_outputs(self) -> tuple[np.ndarray, ...]:
+        """The output blocks in order (structure: e, de; aero: Q), fresh arrays."""
+        out = self._get_out()  # a fresh array, not the transfer buffer
+        return tuple(out[k * self.n:(k + 1) * self.n] for k in range(len(self._spec.outputs)))
+
+    def set_inputs(self, *blocks) -> None:
+        """The input blocks in order (structure: Q; aero: e, de), each of shape (n,)."""
+        names = self._spec.inputs
+        if len(blocks) != len(names):
+            raise UnitError(f"{self._port.label}: set_inputs takes {', '.join(names)} "
+                            f"({len(names)} arrays), got {len(blocks)}")
+        arrays = [np.asarray(b, dtype=float) for b in blocks]
+        for name, a in zip(names, arrays):
+            if a.shape != (self.n,):
+                raise UnitError(f"{self._port.label}: {name} has shape {a.shape}, expected ({self.n},)")
+        self._set_in(arrays[0] if len(arrays) == 1 else np.concatenate(arrays))
 
     def do_step(self, t: float, h: float) -> None:
         self._port.do_step(float(t), float(h))
@@ -129,8 +185,10 @@ class Unit:
     def monitors(self) -> dict:
         m = self._get_mon()
         k = len(self.hinges)
-        return {**{name: float(v) for name, v in zip(_MONITORS, m[k:])},
-                "fold_angles_deg": {h: float(a) for h, a in zip(self.hinges, m[:k])}}
+        out = {name: float(v) for name, v in zip(self._monitor_names, m[k:])}
+        if self._spec.hinge_monitors:
+            out["fold_angles_deg"] = {h: float(a) for h, a in zip(self.hinges, m[:k])}
+        return out
 
     def get_state(self):
         return self._port.get_state()
@@ -174,7 +232,7 @@ class _FmuState:
 class _FmuPort:
     backend = "fmu"
 
-    def __init__(self, fmu_path: Path, scene: dict, instance_name: str):
+    def __init__(self, fmu_path: Path, scene: dict, instance_name: str, spec: UnitKind = KINDS["structure"]):
         from fmpy import extract, read_model_description
         from fmpy.fmi1 import calloc, free
         from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
@@ -195,11 +253,13 @@ class _FmuPort:
             self.close()
             raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
         try:
-            self._check_scene(scene)
+            self._check_scene(scene, spec.scene_sections)
         except UnitError:
             self.close()
             raise
         self._vr = {v.name: v.valueReference for v in md.modelVariables}
+        self._scalar_outputs = [v.name for v in md.modelVariables if v.causality == "output"
+                                and v.type == "Real" and not _INDEXED.match(v.name)]
 
         def logger(env, inst, status, category, message):
             # The FMU's printf-style message arrives unformatted: fmpy's formatting proxy (addLoggerProxy) is
@@ -221,15 +281,18 @@ class _FmuPort:
             raise
         self._fmu = fmu
 
-    def _check_scene(self, scene: dict) -> None:
-        """Refuse an FMU built from a different structure than `scene` (stale build)."""
+    def _check_scene(self, scene: dict, sections: tuple[str, ...]) -> None:
+        """Refuse an FMU built from a different scene than `scene` in `sections` (stale build)."""
         try:
             built = json.loads(Path(self._dir, "resources", "scene.json").read_text(encoding="utf-8"))
         except OSError as exc:
             raise UnitError(f"{self.label}: resources/scene.json missing ({exc}); rebuild the FMU") from exc
-        want = json.loads(json.dumps(scene.get("structure")))
-        if built.get("structure") != want:
-            keys = _differing_keys(built.get("structure"), want, "structure")
+        keys = []
+        for section in sections:
+            want = json.loads(json.dumps(scene.get(section)))
+            if built.get(section) != want:
+                keys += _differing_keys(built.get(section), want, section)
+        if keys:
             raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
                             "rebuild it (wingsim build SCENE)")
 
@@ -253,6 +316,10 @@ class _FmuPort:
 
     def value_references(self) -> dict[str, int]:
         return dict(self._vr)
+
+    def scalar_outputs(self) -> list[str]:
+        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
+        return list(self._scalar_outputs)
 
     def reader(self, vrs: list[int]):
         from fmpy.fmi2 import fmi2Real, fmi2ValueReference
@@ -328,15 +395,16 @@ class _FmuPort:
 class _DirectPort:
     backend = "direct"
 
-    def __init__(self, scene: dict, instance_name: str):
-        from structure_fmu.structure_slave import SCENE_RESOURCE, StructureSlave
+    def __init__(self, scene: dict, instance_name: str, spec: UnitKind = KINDS["structure"]):
+        module = importlib.import_module(spec.slave[0])
+        slave_class = getattr(module, spec.slave[1])
 
         self.label = f"{instance_name} (direct)"
+        self._slave = None
         self._tmp = tempfile.TemporaryDirectory(prefix="wingsim_direct_")
         Path(self._tmp.name, SCENE_RESOURCE).write_text(json.dumps(scene), encoding="utf-8")
         self.log: list[tuple[int, str]] = []
-        self._slave = None
-        self._slave = self._call("instantiate", StructureSlave, instance_name=instance_name,
+        self._slave = self._call("instantiate", slave_class, instance_name=instance_name,
                                  resources=self._tmp.name)
 
     def _call(self, what: str, fn, *args, ok_on_false: bool = True, **kwargs):
@@ -365,6 +433,12 @@ class _DirectPort:
 
     def value_references(self) -> dict[str, int]:
         return {v.name: vr for vr, v in self._slave.vars.items()}
+
+    def scalar_outputs(self) -> list[str]:
+        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
+        from pythonfmu import Fmi2Causality, Real
+        return [v.name for _, v in sorted(self._slave.vars.items()) if isinstance(v, Real)
+                and v.causality == Fmi2Causality.output and not _INDEXED.match(v.name)]
 
     def reader(self, vrs: list[int]):
         vrs = list(vrs)

@@ -36,3 +36,18 @@ def reject_unknown_keys(table: dict, prefix: str, allowed) -> None:
             where = f"in [{prefix}]" if prefix else "at the top level"
             raise SceneError(f"{prefix}.{key}" if prefix else key, value,
                              f"unknown key; allowed {where}: {', '.join(allowed)}")
+
+
+def checked_input(name: str, value, n: int, time: float):
+    """`value` as a float array of shape (n,); InputError naming the first NaN/inf entry (1-based, the FMI
+    variable name) or a wrong size. `time` (s) is where the unit stands, for the message."""
+    import numpy as np
+    value = np.asarray(value, dtype=float)
+    if value.shape != (n,):
+        raise InputError(f"{name} has shape {value.shape}, the topology has {n} coordinates")
+    bad = ~np.isfinite(value)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{name}[{k + 1}] = {value[k]} at t = {time:.6g} s: {int(bad.sum())} NaN/inf value(s) "
+                         f"in the input {name}")
+    return value

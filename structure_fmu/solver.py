@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import InputError, SceneError, SolverDiverged
+from .errors import SceneError, SolverDiverged, checked_input
 from .integrators import RK4, GeneralizedAlpha, State, project
 from .model import StructureModel
 from .topology import Topology
@@ -122,14 +122,7 @@ class StructureSolver:
 
     def advance(self, t_end: float, Q=None) -> None:
         """Take internal steps from `time` to `t_end` (s) with the generalized force Q held constant."""
-        Q = self._zero_Q if Q is None else np.asarray(Q, dtype=float)
-        if Q.shape != self._zero_Q.shape:
-            raise InputError(f"Q has {Q.size} values, the structure has {self._zero_Q.size} coordinates")
-        bad = ~np.isfinite(Q)
-        if bad.any():
-            first = int(np.flatnonzero(bad)[0])
-            raise InputError(f"Q[{first + 1}] = {Q[first]} at t = {self.state.t:.6g} s: "
-                             f"{int(bad.sum())} NaN/inf value(s) in the generalized force input")
+        Q = self._zero_Q if Q is None else checked_input("Q", Q, self._zero_Q.size, self.state.t)
         if self.state.q.size == 0:        # fully prescribed: no dynamics
             self.state = replace(self.state, t=float(t_end))
             return

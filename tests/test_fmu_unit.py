@@ -13,7 +13,7 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from orchestrator.build import BuildError, build_fmus, embedded_scene, fmus_up_to_date  # noqa: E402
+from orchestrator.build import build_fmus, embedded_scene, fmus_up_to_date  # noqa: E402
 from orchestrator.units import UnitError, make_unit  # noqa: E402
 from structure_fmu.solver import StructureSolver  # noqa: E402
 from structure_fmu.topology import Topology  # noqa: E402
@@ -207,16 +207,6 @@ def test_stale_or_missing_fmu_and_bad_arguments_are_refused(scene, fmu_dir, tmp_
         make_unit("structure", scene, "ssp", fmu_dir)
     with pytest.raises(UnitError, match="unknown parameter"):
         make_unit("structure", scene, "direct", fmu_dir, parameters={"no.such": 1.0})
-
-
-def test_aero_scene_without_aero_unit_fails_clearly(scene, tmp_path):
-    try:
-        import aero_fmu.aero_slave  # noqa: F401
-        pytest.skip("the aero unit exists")
-    except ImportError:
-        pass
-    with pytest.raises(BuildError, match="aero"):
-        build_fmus({**scene, "aero": {**scene.get("aero", {}), "model": "strip"}}, tmp_path)
 
 
 def test_fmu_runs_in_a_fresh_host_from_its_embedded_package(fmu_dir, tmp_path):

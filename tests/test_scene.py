@@ -136,7 +136,10 @@ MALFORMED = [
     (["structure.rho_inf=1.5"], "structure.rho_inf", 1.5, "a number in [0, 1]"),
     (["coupling.algorithm=newton"], "coupling.algorithm", "newton", "'gauss-seidel', 'jacobi', 'implicit'"),
     (["aero.model=vortex"], "aero.model", "vortex", "one of 'none', 'strip', 'uvlm-flat'"),
-    (["aero.model=strip"], "aero.model", "strip", "not implemented yet (issue 3)"),
+    (["aero.model=strip", "coupling.algorithm=implicit"], "coupling.algorithm", "implicit",
+     "the implicit coupling is not implemented yet"),
+    (["flow.direction=[0,0,0]"], "flow.direction", [0, 0, 0], "a non-zero array of 3 finite numbers"),
+    (["flow.direction=[1,0]"], "flow.direction", [1, 0], "an array of 3 finite numbers"),
     (["aero.chordwise_panels=0"], "aero.chordwise_panels", 0, "an integer >= 1"),
     (["structure.bodies=3"], "structure.bodies", 3, "an array of tables"),
     (["flow=3"], "flow", 3, "a table [flow] with keys speed, density"),
@@ -206,3 +209,67 @@ def test_bad_physics_fails_at_load(tmp_path):
     with pytest.raises(SceneError) as err:
         load_scene(path, ["structure.bodies.outer.length=-0.15"])
     assert "length" in err.value.key and "-0.15" in str(err.value)
+
+
+# --- aero scenes: flow.direction and the [motion] / [wing] shorthands ------------------------------
+
+def aero_raw(name):
+    return read_scene_file(ROOT / "scenes" / f"{name}.toml")
+
+
+def test_flow_direction_defaults_to_the_chord_axis_of_an_aero_scene_only(raw):
+    assert "direction" not in resolved(raw)["flow"]                        # structure only: not recorded
+    scene = resolved(raw, "aero.model=uvlm-flat")
+    assert scene["flow"]["direction"] == [1.0, 0.0, 0.0]                  # chord_axis of body 'inner'
+    assert resolved(raw, "aero.model=strip", "flow.direction=[1,0,1]")["flow"]["direction"] == [1.0, 0.0, 1.0]
+
+
+def test_motion_shorthand_gives_the_heave_law_of_000_VI_D():
+    scene = resolve_scene(aero_raw("heaving_wing"), "heaving_wing")
+    # 2 k V / c = 2 * 0.25 * 1 / 1 = 0.5 rad/s; 0.1 chords of 1 m
+    assert scene["structure"]["motion"] == {"frequency": 0.5, "heave_amplitude": 0.1}
+    assert scene["motion"] == {"reduced_frequency": 0.25, "amplitude": 0.1}
+    assert resolve_scene(scene, "heaving_wing") == scene                    # resolving again changes nothing
+    faster = resolve_scene(apply_overrides(aero_raw("heaving_wing"), ["flow.speed=2", "motion.amplitude=0.2"]), "x")
+    assert faster["structure"]["motion"] == {"frequency": 1.0, "heave_amplitude": 0.2}
+
+
+@pytest.mark.parametrize("overrides, key", [
+    (["structure.motion.frequency=0.7"], "structure.motion.frequency"),       # contradicts 2 k V / c
+    (["flow.speed=0"], "flow.speed"),                                          # k is relative to V
+    (["structure.fidelity=rigid"], "motion"),                                  # sets a prescribed motion
+    (["motion.phase=3"], "motion.phase"),
+])
+def test_motion_shorthand_refuses_contradictions(overrides, key):
+    with pytest.raises(SceneError) as err:
+        resolve_scene(apply_overrides(aero_raw("heaving_wing"), overrides), "x")
+    assert err.value.key == key
+
+
+def test_wing_shorthand_sets_length_chord_and_angle():
+    scene = resolve_scene(aero_raw("steady_wing"), "steady_wing")
+    body = scene["structure"]["bodies"][0]
+    assert body["length"] == 8.0 and scene["structure"]["motion"] == {"alpha_deg": 5.0}
+    assert resolve_scene(scene, "steady_wing") == scene
+    scene = resolve_scene(apply_overrides(aero_raw("steady_wing"), ["wing.chord=0.5", "wing.alpha_deg=-2"]), "x")
+    body = scene["structure"]["bodies"][0]
+    assert (body["length"], body["section"]["chord"], scene["structure"]["motion"]["alpha_deg"]) == (4.0, 0.5, -2.0)
+
+
+@pytest.mark.parametrize("overrides, key", [
+    (["structure.bodies.wing.length=3"], "structure.bodies.0.length"),     # contradicts AR x chord
+    (["wing.alpha_deg=90"], "wing.alpha_deg"),
+    (["wing.aspect_ratio=0"], "wing.aspect_ratio"),
+    (["structure.fidelity=rigid"], "wing.alpha_deg"),
+])
+def test_wing_shorthand_refuses_contradictions(overrides, key):
+    with pytest.raises(SceneError) as err:
+        resolve_scene(apply_overrides(aero_raw("steady_wing"), overrides), "x")
+    assert err.value.key == key
+
+
+def test_wing_shorthand_needs_one_body(raw):
+    raw["wing"] = {"aspect_ratio": 4.0}
+    with pytest.raises(SceneError) as err:
+        resolved(raw)
+    assert err.value.key == "wing" and "exactly one body" in str(err.value)

@@ -1,0 +1,170 @@
+"""FMI 2.0 co-simulation slave of the aero unit (pythonfmu), a thin adapter over AeroSolver.
+
+No physics lives here: every number comes from `aero_fmu.solver.AeroSolver` (docs/aero_api.md). The
+resolved scene is read from the resource `scene.json` (inside the FMU, or the folder given as `resources`
+when the class is instantiated in-process by the `direct` backend). The structural topology, and so n and
+`topology_hash`, come from `structure_fmu.topology.Topology` exactly as in the structure unit.
+
+The module name differs from the structure unit's (`structure_slave`): pythonfmu imports the slave script
+by its file name, and two FMUs in one process need distinct names (DESIGN §10).
+
+Variables, value references laid out contiguously so that get/set are numpy fancy indexing
+(n = Topology.n_coordinates, K = number of extra scalar outputs of the solver, P = tunable parameters):
+
+| vr                | name                      | causality / variability  | unit                              |
+|-------------------|---------------------------|--------------------------|-----------------------------------|
+| 0 .. n-1          | e[1] .. e[n]              | input, continuous        | m for r, 1 for r_x, r_y           |
+| n .. 2n-1         | de[1] .. de[n]            | input, continuous (0)    | m/s for r, 1/s for r_x, r_y       |
+| 2n .. 3n-1        | Q[1] .. Q[n]              | output, continuous       | N for r, N.m for r_x, r_y         |
+| 3n                | CL                        | output, continuous       | 1 (lift / (q S_ref))              |
+| 3n+1              | lift                      | output, continuous       | N                                 |
+| 3n+2              | wake_panels               | output, continuous       | 1 (a count, published as Real)    |
+| 3n+3 .. 3n+2+K    | other scalar outputs of AeroSolver.outputs(), in its order (e.g. drag, moments) |
+| 3n+3+K ..         | <tunable parameter>       | parameter, fixed         | as AeroSolver declares            |
+| last              | topology_hash (String)    | output, constant         | -                                 |
+
+The start values of e are the scene's initial coordinates (Topology.initial_coordinates), of de zero; a
+host sets both from the structure unit before each step. Q is work-conjugate to e (000 Eq. 12).
+Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
+scene's `flow.direction` (normalized) when it gives one.
+
+Errors, exactly as the structure slave (the shared plumbing is structure_fmu/fmi_slave.py): after
+construction no FMI call raises. A non-finite e or de, `InputError`, `SolverDiverged` or any other failure
+in `do_step` is logged at error status with its reason and `do_step` returns False (pythonfmu 0.7.0:
+fmi2Discard), with the state unchanged.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variability
+
+try:
+    import structure_fmu  # noqa: F401
+except ImportError:  # only the folder of this script is on sys.path: add the one holding structure_fmu/
+    _here = os.path.dirname(os.path.abspath(__file__))
+    for _cand in (_here, os.path.dirname(_here)):
+        if os.path.isfile(os.path.join(_cand, "structure_fmu", "errors.py")):
+            sys.path.append(_cand)
+            break
+# Only functions and the abstract SolverSlave are imported: pythonfmu's builder picks the one concrete
+# Fmi2Slave subclass of this module.
+from structure_fmu.fmi_slave import (COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name,
+                                     read_scene)
+
+from aero_fmu.solver import AeroSolver
+
+REQUIRED_OUTPUTS = ("CL", "lift", "wake_panels")
+# units and descriptions of the scalar outputs we know; others are published without a unit
+_OUTPUT_UNITS = {
+    "CL": ("1", "lift coefficient: lift / (1/2 rho V^2 S_ref), 0 at zero dynamic pressure"),
+    "lift": ("N", "aerodynamic force along the lift axis (normal to the free stream)"),
+    "wake_panels": ("1", "number of wake panels (a count, as Real)"),
+    "drag": ("N", "aerodynamic force along the free stream"),
+    "CD": ("1", "drag coefficient"),
+    "side_force": ("N", "aerodynamic side force"),
+    "moment_x": ("N.m", "aerodynamic moment about global x"),
+    "moment_y": ("N.m", "aerodynamic moment about global y"),
+    "moment_z": ("N.m", "aerodynamic moment about global z"),
+    "CM": ("1", "moment coefficient"),
+}
+
+
+def tunable_defaults(scene: dict) -> dict[str, tuple[float, str, str]]:
+    """AeroSolver.tunable_parameters(scene), with the scene's `flow.direction` (normalized) as the default of
+    flow.direction_x/_y/_z when the scene gives one (the solver's own default is the first chord axis)."""
+    tunables = dict(AeroSolver.tunable_parameters(scene))
+    direction = (scene.get("flow") or {}).get("direction")
+    if direction is not None:
+        d = np.asarray(direction, dtype=float)
+        norm = float(np.linalg.norm(d))
+        if d.shape == (3,) and np.isfinite(norm) and norm > 0:
+            for c, value in zip("xyz", d / norm):
+                name = f"flow.direction_{c}"
+                if name in tunables:
+                    _, unit, text = tunables[name]
+                    tunables[name] = (float(value), unit, text)
+    return tunables
+
+
+def _scalar_output_names(outputs: dict) -> list[str]:
+    """The required outputs first, then every other finite-or-not real scalar of AeroSolver.outputs()."""
+    extra = [k for k, v in outputs.items() if k not in REQUIRED_OUTPUTS
+             and isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)]
+    return [*REQUIRED_OUTPUTS, *extra]
+
+
+class AeroSlave(SolverSlave):
+    author = "wingsim"
+    description = "Aero unit: UVLM (flat, prescribed or free wake) or strip theory on the ANCF wing (wingsim)"
+    label = "aero unit"
+    solver_class = AeroSolver
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.scene = read_scene(self.resources, self.label)
+        self.modelName = "aero"
+        tunables = tunable_defaults(self.scene)
+        self._start(tunables, solver_parameters={name: float(v[0]) for name, v in tunables.items()})
+        self.topology = self._solver.topology
+        self.topology_hash = str(self.topology.topology_hash)
+        n = self.n = int(self.topology.n_coordinates)
+        self.output_names = _scalar_output_names(self._solver.outputs())
+
+        k, npar = len(self.output_names), len(self.tunables)
+        self.sl_e, self.sl_de, self.sl_q = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
+        self.sl_out = slice(3 * n, 3 * n + k)
+        self.sl_par = slice(3 * n + k, 3 * n + k + npar)
+        self._real = np.zeros(self.sl_par.stop)
+        self._real[self.sl_e] = self.topology.initial_coordinates()
+        self._real[self.sl_par] = list(self.defaults.values())
+        self._settable = np.zeros(self._real.size, dtype=bool)
+        self._settable[self.sl_e] = True
+        self._settable[self.sl_de] = True
+        self._settable[self.sl_par] = True
+        self._publish()
+        self._register(n)
+
+        stop = self.scene.get("time", {}).get("stop")
+        step = self.scene.get("coupling", {}).get("step")
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=stop, step_size=step)
+
+    def _register(self, n):
+        out = dict(causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                   initial=Fmi2Initial.exact)
+        inp = dict(causality=Fmi2Causality.input, variability=Fmi2Variability.continuous)
+        for k in range(n):
+            node, comp, vec = coordinate_description(self.topology, k)
+            self._reg(f"e[{k + 1}]", k, COORDINATE_UNITS[vec][0], f"node {node} {comp}",
+                      start=float(self._real[k]), **inp)
+        for k in range(n):
+            node, comp, vec = coordinate_description(self.topology, k)
+            self._reg(f"de[{k + 1}]", n + k, COORDINATE_UNITS[vec][1], f"rate of node {node} {comp}", start=0.0, **inp)
+        for k in range(n):
+            node, comp, vec = coordinate_description(self.topology, k)
+            self._reg(f"Q[{k + 1}]", 2 * n + k, COORDINATE_UNITS[vec][2],
+                      f"generalized aerodynamic force on node {node} {comp}", **out)
+        for j, name in enumerate(self.output_names):
+            unit, text = _OUTPUT_UNITS.get(name, (None, f"aero output {name}"))
+            self._reg(fmi_name(name), self.sl_out.start + j, unit, text, **out)
+        self._register_parameters_and_hash("structure unit")
+
+    def do_step(self, current_time, step_size):
+        reason = (self._non_finite("e", self.sl_e, "", current_time)
+                  or self._non_finite("de", self.sl_de, "rate of", current_time))
+        if reason is not None:
+            self._error(reason)
+            return False
+        e, de = self._real[self.sl_e].copy(), self._real[self.sl_de].copy()
+        return self._advance(current_time,
+                             lambda: self._solver.advance(current_time + step_size - self._t0, e, de))
+
+    def _publish(self):
+        """Copy the solver's Q and scalar outputs into the output slots of the value buffer."""
+        s = self._solver
+        self._real[self.sl_q] = s.Q
+        outputs = s.outputs()
+        self._real[self.sl_out] = [float(outputs.get(name, math.nan)) for name in self.output_names]

@@ -1,0 +1,49 @@
+"""Resultants of the panel forces: generalized force (000 Eq. 12), lift, drag, moments, coefficients.
+
+Axes: drag along the free-stream unit direction d; lift along `vlm.lift_axis` (the area-weighted wing
+normal without its component along d); side force along d x lift axis. Moments about the global origin,
+of the panel forces at their application points. Coefficients use q = rho V^2 / 2 and the reference area
+S (sum of body length x chord); they are 0 when q = 0 (still air or zero density), never NaN.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from .vlm import lift_axis
+
+
+@dataclass
+class Loads:
+    """forces (n_panels, 3) N at points (n_panels, 3) m; Q (n_coordinates,) N / N.m; outputs (dict of floats)."""
+    forces: np.ndarray
+    points: np.ndarray
+    Q: np.ndarray
+    outputs: dict
+
+    def copy(self):
+        return Loads(self.forces.copy(), self.points.copy(), self.Q.copy(), dict(self.outputs))
+
+
+OUTPUT_NAMES = ("CL", "lift", "wake_panels", "drag", "side_force", "CD", "moment_x", "moment_y", "moment_z")
+
+
+def resultants(lattice, geometry, forces, direction, speed, density, wake_panels) -> Loads:
+    """Loads of panel forces (n_panels, 3) N acting at geometry.application; direction (3,) unit, speed
+    m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12)."""
+    points = geometry.application
+    total = forces.sum(axis=0)
+    moment = np.cross(points, forces).sum(axis=0)
+    lift_dir = lift_axis(geometry, direction)
+    lift, drag = float(total @ lift_dir), float(total @ direction)
+    q_area = 0.5 * density * speed * speed * lattice.reference_area
+    coefficient = (lambda force: force / q_area) if q_area > 0 else (lambda force: 0.0)
+    outputs = {"CL": coefficient(lift), "lift": lift, "wake_panels": int(wake_panels), "drag": drag,
+               "side_force": float(total @ np.cross(direction, lift_dir)), "CD": coefficient(drag),
+               "moment_x": float(moment[0]), "moment_y": float(moment[1]), "moment_z": float(moment[2])}
+    return Loads(forces, points, lattice.generalized_force(forces), outputs)
+
+
+def zero_loads(lattice, n_coordinates) -> Loads:
+    """Loads before the first step: no force."""
+    outputs = {name: 0 if name == "wake_panels" else 0.0 for name in OUTPUT_NAMES}
+    return Loads(np.zeros((lattice.n_panels, 3)), np.zeros((lattice.n_panels, 3)), np.zeros(n_coordinates), outputs)

@@ -1,0 +1,24 @@
+"""Does a point set move rigidly? (Kabsch fit), so that influence matrices can be reused.
+
+An influence coefficient n_p . v_q(r_p) (000 Eqs. 19, 22) depends only on the relative positions of
+points and segments and on the normals, so it does not change when the whole lattice translates and
+rotates. The aero solvers keep their matrices (and the LU) of a reference geometry and reuse them while
+the current geometry is that reference moved rigidly: a heaving or pitching rigid wing factorizes once.
+"""
+import numpy as np
+
+
+def rigid_fit(reference, current):
+    """(R (3, 3), t (3,), residual (m)) of the rigid motion x -> R x + t that best maps the points
+    `reference` (n, 3) onto `current` (n, 3) in the least-squares sense (Kabsch: SVD of the 3 x 3
+    covariance, with the reflection removed); residual = max_i |R reference_i + t - current_i|."""
+    reference = np.asarray(reference, dtype=float)
+    current = np.asarray(current, dtype=float)
+    c0, c1 = reference.mean(axis=0), current.mean(axis=0)
+    a, b = reference - c0, current - c1
+    u, _, vt = np.linalg.svd(a.T @ b)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    t = c1 - R @ c0
+    residual = float(np.max(np.abs(a @ R.T - b))) if len(a) else 0.0
+    return R, t, residual

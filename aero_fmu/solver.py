@@ -1,0 +1,133 @@
+"""AeroSolver: the aero unit's solver API (docs/aero_api.md), a thin owner of one aero model and its state.
+
+Scene keys used: aero.model (strip | uvlm-flat | uvlm-prescribed | uvlm-free), aero.chordwise_panels,
+aero.spanwise_panels, aero.wake_length (chords; inf allowed), flow.speed, flow.density; the structure
+table builds the same `Topology` as the structure unit. Tunable parameters: flow.speed (m/s),
+flow.density (kg/m^3), flow.direction_x/_y/_z (normalized; default the first body's chord axis r_y).
+
+Errors: SceneError (bad scene value or parameter, naming it), InputError (e or de of the wrong size or
+with NaN/inf, naming the first bad entry by its FMI name e[k], de[k], 1-based; t_end before the current
+time), SolverDiverged (a singular influence matrix from degenerate panels, or a non-finite result).
+"""
+import numpy as np
+
+from structure_fmu.errors import InputError, SceneError, SolverDiverged, checked_input
+from structure_fmu.topology import Topology
+
+from .strip import StripTheory
+from .uvlm import UVLM
+from .wake import MAX_WAKE_ROWS
+
+MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
+_DEFAULTS = {"chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
+_HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
+
+
+class AeroSolver:
+    """The aerodynamic solver of one scene. See docs/aero_api.md.
+
+    max_wake_rows (keyword, not a scene key): cap of shed wake rows (wake.MAX_WAKE_ROWS by default)."""
+
+    def __init__(self, scene: dict, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
+        self.topology = Topology.from_scene(scene)
+        aero = scene.get("aero") or {}
+        model = aero.get("model", "none")
+        if model not in MODELS:
+            raise SceneError("aero.model", model, f"one of {', '.join(MODELS)} (\"none\" builds no aero unit)")
+        settings = {key: aero.get(key, default) for key, default in _DEFAULTS.items()}
+        for key in ("chordwise_panels", "spanwise_panels"):
+            value = settings[key]
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise SceneError(f"aero.{key}", value, "an integer >= 1")
+        wake_length = settings["wake_length"]
+        if isinstance(wake_length, bool) or not isinstance(wake_length, (int, float)) or not wake_length > 0:
+            raise SceneError("aero.wake_length", wake_length, "a wake length > 0 (chords; inf for no truncation)")
+        self.model_name = model
+        values = {name: spec[0] for name, spec in self.tunable_parameters(scene, self.topology).items()}
+        for name, value in (parameters or {}).items():
+            if name not in values:
+                raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not np.isfinite(value):
+                raise SceneError(name, value, "a finite number")
+            values[name] = float(value)
+        for name in ("flow.speed", "flow.density"):
+            if values[name] < 0:
+                raise SceneError(name, values[name], "a value >= 0")
+        direction = np.array([values[f"flow.direction_{c}"] for c in "xyz"])
+        norm = float(np.linalg.norm(direction))
+        if not norm > 0:
+            raise SceneError("flow.direction_x/_y/_z", list(direction), "a non-zero direction")
+        self.parameters = values
+        self.direction = direction / norm
+        self.U = values["flow.speed"] * self.direction                   # free stream, m/s
+        self.density = values["flow.density"]
+        if model == "strip":
+            self.model = StripTheory(self.topology, settings["spanwise_panels"])
+        else:
+            self.model = UVLM(self.topology, settings["chordwise_panels"], settings["spanwise_panels"],
+                              wake=model.removeprefix("uvlm-"), wake_length=float(wake_length),
+                              max_wake_rows=max_wake_rows)
+        self.state = self.model.initial_state()
+
+    @staticmethod
+    def tunable_parameters(scene: dict, topology=None) -> dict:
+        """name -> (default, unit, description) of the scalars a system tool may change before a run."""
+        topology = topology or Topology.from_scene(scene)
+        flow = scene.get("flow") or {}
+        first = next(iter(topology.bodies.values()))
+        chord_axis = topology.node_initial[first.nodes[0]][2]
+        chord_axis = chord_axis / np.linalg.norm(chord_axis)
+        out = {"flow.speed": (float(flow.get("speed", 0.0)), "m/s", "free-stream speed"),
+               "flow.density": (float(flow.get("density", 1.2)), "kg/m3", "air density")}
+        for c, value in zip("xyz", chord_axis):
+            out[f"flow.direction_{c}"] = (float(value), "1", f"free-stream direction, {c} component (normalized)")
+        return out
+
+    # ---------------------------------------------------------------- stepping
+    @property
+    def time(self) -> float:
+        return self.state.time
+
+    @property
+    def lattice(self):
+        return self.model.lattice
+
+    def advance(self, t_end: float, e, de) -> None:
+        """The aero state at t_end for the coordinates e and rates de at t_end (docs/aero_api.md)."""
+        n = self.topology.n_coordinates
+        e, de = checked_input("e", e, n, self.state.time), checked_input("de", de, n, self.state.time)
+        t_end = float(t_end)
+        if not np.isfinite(t_end) or t_end < self.state.time - 1e-12 * max(1.0, abs(self.state.time)):
+            raise InputError(f"t_end = {t_end} s is before the aero time {self.state.time} s: restore a saved "
+                             "state (set_state) to repeat a step")
+        t_end = max(t_end, self.state.time)
+        try:
+            new = self.model.advance(self.state, t_end, e, de, self.U, self.density, self.direction)
+        except np.linalg.LinAlgError as exc:
+            raise SolverDiverged(t_end, str(exc), _HINT) from None
+        loads = new.loads
+        if not (np.all(np.isfinite(loads.Q)) and np.all(np.isfinite(loads.forces))):
+            raise SolverDiverged(t_end, "the aerodynamic forces became NaN/inf", _HINT)
+        self.state = new
+
+    # ---------------------------------------------------------------- outputs
+    @property
+    def Q(self) -> np.ndarray:
+        """Generalized aerodynamic force (n,), N on r slots, N.m on r_x, r_y slots (000 Eq. 12); a copy."""
+        return self.state.loads.Q.copy()
+
+    def outputs(self) -> dict:
+        """{"CL", "lift" N, "wake_panels" int, "drag" N, "side_force" N, "CD", "moment_x/_y/_z" N.m}
+        (`loads.py`: axes, moments about the global origin); the same keys before the first step."""
+        return dict(self.state.loads.outputs)
+
+    def panel_forces(self):
+        """(points (P, 3) m, forces (P, 3) N) of the last step: the panel forces and where they act."""
+        return self.state.loads.points.copy(), self.state.loads.forces.copy()
+
+    def get_state(self):
+        """Complete state including the wake, arrays copied."""
+        return self.state.copy()
+
+    def set_state(self, state) -> None:
+        self.state = state.copy()

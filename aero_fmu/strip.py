@@ -1,0 +1,67 @@
+"""Quasi-steady strip theory: the cheapest aero model (aero.model = "strip"), same interface as the UVLM.
+
+Each body is cut into N spanwise strips (aero.spanwise_panels; the chordwise panel count is not used).
+Strip j uses the one-panel lattice (`Lattice(topology, 1, N)`): its "collocation" point at 3/4 chord and
+mid-strip span, where the relative flow is taken, and its "application" point at 1/4 chord, where the
+force acts. With V_rel = U - r'(3/4 chord) (the flow relative to the section, docs/aero_api.md), n the
+section normal (000 Eq. 21), t_x = r_x / |r_x| the span direction and V_perp = V_rel - (V_rel . t_x) t_x
+the flow in the section plane (|V_perp| = |t_x x V_rel|), thin-airfoil theory per strip gives
+
+    sin(alpha_eff) = (V_rel . n) / |V_perp|
+    f = 1/2 rho |V_perp|^2 c 2 pi sin(alpha_eff) = pi rho c |V_perp| (V_rel . n)       (N per m of span)
+
+for small alpha_eff the lift per unit span 1/2 rho V^2 c 2 pi alpha_eff. The force is applied along the
+section normal n, like the UVLM's panel forces (000 Eq. 25), so the strip force (N) is
+
+    F_j = pi rho c_j |V_perp| (V_rel . n) Delta s_j n,   c_j = |r_y| c,   Delta s_j = |r_x| L / N
+        = pi rho |r_y| c (V_rel . n) |r_x x V_rel| (L / N) n
+
+at the quarter chord; Q by 000 Eq. (12). No division: zero in still air, and a wing moving normal to
+itself in still air (alpha_eff = 90 deg, e.g. deployment at 0 m/s) gets a normal force resisting the
+motion (2 pi instead of a flat plate's drag coefficient of about 2: the linear theory is outside its
+range there), not a chordwise one. The 3/4-chord point carries the pitch-rate effect of quasi-steady
+theory; there is no wake, no induced downwash (each strip is 2D) and no apparent mass. For a plate
+pitched by alpha in a stream V along the chord C_L = 2 pi sin(alpha) cos(alpha); in plunge h(t) along n,
+C_L = -2 pi (h'/V) sqrt(1 + (h'/V)^2).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lattice import Lattice
+from .loads import Loads, resultants, zero_loads
+
+
+@dataclass
+class StripState:
+    """time s; started; loads (loads.Loads)."""
+    time: float
+    started: bool
+    loads: Loads
+
+    def copy(self):
+        return StripState(self.time, self.started, self.loads.copy())
+
+
+class StripTheory:
+    """Quasi-steady strip theory on N strips per body (module docstring)."""
+
+    def __init__(self, topology, spanwise):
+        self.topology = topology
+        self.lattice = Lattice(topology, 1, spanwise)
+
+    def initial_state(self) -> StripState:
+        return StripState(0.0, False, zero_loads(self.lattice, self.topology.n_coordinates))
+
+    def advance(self, state, t_end, E, dE, U, density, direction) -> StripState:
+        """Strip forces at t_end for E, dE (n_coordinates,), free stream U (3,) m/s, density kg/m^3, unit
+        free-stream direction (3,). Memoryless: only the current E, dE matter."""
+        lat = self.lattice
+        geometry = lat.geometry(E)
+        relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)    # V_rel (P, 3)
+        normal_flow = np.sum(relative * geometry.normal, axis=1)                              # V_rel . n
+        chord = np.sqrt(np.sum(geometry.r_y ** 2, axis=1)) * lat.chord                        # |r_y| c
+        in_plane = np.sqrt(np.sum(np.cross(geometry.r_x, relative) ** 2, axis=1))              # |V_perp| |r_x|
+        forces = (np.pi * density * chord * normal_flow * in_plane * lat.panel_span)[:, None] * geometry.normal
+        loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, 0)
+        return StripState(float(t_end), True, loads)

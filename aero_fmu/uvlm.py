@@ -1,0 +1,191 @@
+"""Unsteady vortex-lattice method (000 Sec. V; Katz & Plotkin, Low-Speed Aerodynamics, Sec. 13.8).
+
+One call `UVLM.advance(state, t_end, E, dE, U, rho, d)` gives the aero state at t_end for the structure's
+coordinates E and rates dE at t_end (one aero time step from state.time):
+
+  1. geometry of the rings from the fixed shape matrices: one matrix product (000 Eqs. 20, 21, 24);
+     body velocities at the collocation points r' = S(x_CP, y_CP) dE (the same matrix);
+  2. wake: shed and convected (`wake.py`) or flat horseshoes (no state);
+  3. no penetration (000 Eq. 22 with the relative flow, docs/aero_api.md):
+        A Gamma = -(U + w_wake - r') . n
+     w_wake from the shed wake's segments with the vortex core wake.WAKE_CORE_FRACTION x the smallest
+     panel dimension (its head row, lying on the bound trailing segments, with the bound core);
+     A holds the bound rings (and, for the flat wake, the horseshoes); it and its LU are reused while
+     the lattice moves rigidly (`factorization.BoundSystem`);
+  4. pressure jump (000 Eq. 23) with V = U + w - r' at the collocation point (w induced by bound rings
+     and wake), dGamma/dt by the second-order backward difference of Gamma(t_n), Gamma(t_{n-1}),
+     Gamma(t_{n-2}) (`circulation_rate`; first order on the step after the start), panel forces
+     (Eq. 25) at the rings' bound-segment midpoints, Q by Eq. (12) (`loads.py`).
+
+Why second order: the dGamma/dt term is not small in Eq. (23) (for a heaving plate about 0.75 x 2k of
+the rho V Gamma term), and the first-order difference lags it by omega dt / 2. Measured on the 000
+VI.D heaving wing (M = 10, dt = c/(MV)), C_L amplitude error against Theodorsen: k = 0.25: 1.75% first
+order, 0.85% second order; k = 0.5: 6.1% and 3.1%; Wagner at s = 1: +6.1% and +4.1%.
+
+Time convention. The first call is the start of the motion (an impulsive start at its t_end): no wake
+yet (a shed-wake model has only the bound rings; the flat model its horseshoes) and dGamma/dt = 0 (the
+delta-function impulse of a sudden start is not resolved by any step). A later call with t_end > time
+takes a step; a call with t_end == time repeats the last step for new E, dE (the wake keeps its rows,
+its head row follows the trailing edge, dGamma/dt uses the same earlier circulations and steps).
+
+Wake models (`wake` argument; aero.model = uvlm-<wake>):
+  "prescribed": shed rings convected with U;  "free": convected with U + w;  "flat": no shed vorticity.
+
+The flat wake (000 Sec. V) and its closed form. Each trailing-edge ring carries a horseshoe along the
+free-stream direction, L_w chords long (closed by a segment there) or semi-infinite. The bound
+circulation is quasi-steady: the steady solution for the instantaneous relative normal flow, with no
+memory of earlier circulation; the unsteadiness enters only through dGamma/dt in Eq. (23). For a 2D
+flat plate (aspect ratio -> inf, semi-infinite legs) in plunge h(t) along its normal n (the lift
+direction), at zero incidence in a stream V along the chord:
+  * the relative normal flow is uniform, w0 = -dh/dt, so the bound circulation is the thin-airfoil one,
+    total Gamma = pi c w0, and the ring lattice reproduces it exactly for any M (vortex at 1/4, control
+    point at 3/4 of each panel); the lumped vortices also have their exact centroid c/4;
+  * Eq. (23) summed over the chord gives the lift per unit span
+        L' = rho V Gamma + rho sum_i (dGamma_i/dt) c/M,   sum_i Gamma_i c/M = (3/4 + 1/(4M)) c Gamma
+    (Gamma_i = sum_{k<=i} g_k, the vortex g_k at x_k = (k + 1/4) c/M: sum_k g_k (c - x_k + c/(4M)),
+    with sum_k g_k x_k = Gamma c/4), so
+        L' = -pi rho V c dh/dt - (3/4 + 1/(4M)) pi rho c^2 d2h/dt2,
+  * for h = h0 sin(omega t), k = omega c / (2 V), in complex form h = h0 e^{i omega t}:
+        C_L = (h0 / c) [ -4 pi i k + (6 + 2/M) pi k^2 ] e^{i omega t}
+    i.e. Theodorsen's C_L = (h0 / c) [ -4 pi i k C(k) + 2 pi k^2 ] e^{i omega t} with C(k) = 1 (no wake
+    lag) and an apparent-mass term (3 + 1/M) times Theodorsen's (M -> inf: 3 times). The discrete
+    dGamma/dt (second-order backward difference) changes the k^2 term by O((omega dt)^2).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from . import wake as wakes
+from .biot_savart import influence
+from .factorization import BoundSystem
+from .lattice import Lattice
+from .loads import Loads, resultants, zero_loads
+from .vlm import pressure_jump_forces, ring_segments
+
+WAKE_MODELS = ("flat", "prescribed", "free")
+
+
+@dataclass
+class UVLMState:
+    """time s; started; gamma (n_panels,) m^2/s at time; history: the circulations at the two previous step
+    times (t_{n-1}, t_{n-2}) and the steps (t_n - t_{n-1}, t_{n-1} - t_{n-2}) s (0: none); corners
+    (n_corners, 3) m of the rings at time; wake (wake.ShedWake or None); loads (loads.Loads)."""
+    time: float
+    started: bool
+    gamma: np.ndarray
+    history: tuple
+    steps: tuple
+    corners: np.ndarray
+    wake: object
+    loads: Loads
+
+    def copy(self):
+        return UVLMState(self.time, self.started, self.gamma.copy(), tuple(g.copy() for g in self.history),
+                         tuple(self.steps), self.corners.copy(), None if self.wake is None else self.wake.copy(),
+                         self.loads.copy())
+
+
+def circulation_rate(gamma, history, steps):
+    """dGamma/dt (n_panels,) m^2/s^2 at t_n from Gamma(t_n) and history = (Gamma(t_{n-1}), Gamma(t_{n-2})),
+    steps = (h1, h2) = (t_n - t_{n-1}, t_{n-1} - t_{n-2}): the derivative of the quadratic through the
+    three (second-order backward difference, variable steps; 3/2, -2, 1/2 over h for equal steps), the
+    first-order difference if h2 = 0, None if h1 = 0 (no previous step)."""
+    (g1, g2), (h1, h2) = history, steps
+    if h1 <= 0:
+        return None
+    if h2 <= 0:
+        return (gamma - g1) / h1
+    return (gamma * ((2 * h1 + h2) / (h1 * (h1 + h2))) - g1 * ((h1 + h2) / (h1 * h2))
+            + g2 * (h1 / (h2 * (h1 + h2))))
+
+
+class UVLM:
+    """UVLM of a topology: M chordwise x N spanwise rings per body, wake model "flat", "prescribed" or
+    "free", truncated at wake_length chords (inf: never; flat: semi-infinite legs), at most max_wake_rows
+    shed rows. The solver itself is stateless apart from the reusable factorization."""
+
+    def __init__(self, topology, chordwise, spanwise, wake="prescribed", wake_length=np.inf,
+                 max_wake_rows=wakes.MAX_WAKE_ROWS):
+        if wake not in WAKE_MODELS:
+            raise ValueError(f"wake model {wake!r}: one of {WAKE_MODELS}")
+        self.topology = topology
+        self.lattice = Lattice(topology, chordwise, spanwise)
+        self.rings = ring_segments(self.lattice)
+        self.wake_model = wake
+        self.wake_length = float(wake_length)
+        self.max_wake_rows = int(max_wake_rows)
+        self.system = BoundSystem(self.lattice, self.rings, flat_wake=wake == "flat", wake_length=wake_length)
+        lat = self.lattice
+        self.body_chords = lat.chord[lat.trailing_panels[:, 0]]                 # (B,)
+        smallest = float(min(lat.panel_span.min(), lat.panel_chord.min()))
+        self.convection_core = wakes.CONVECTION_CORE_FRACTION * smallest
+        self.wake_core = wakes.WAKE_CORE_FRACTION * smallest
+
+    def initial_state(self) -> UVLMState:
+        n, lat = self.lattice.n_panels, self.lattice
+        return UVLMState(0.0, False, np.zeros(n), (np.zeros(n), np.zeros(n)), (0.0, 0.0),
+                         np.zeros((lat.n_corners, 3)), None, zero_loads(lat, self.topology.n_coordinates))
+
+    # ------------------------------------------------------------------ one call
+    def advance(self, state: UVLMState, t_end, E, dE, U, density, direction) -> UVLMState:
+        """The state at t_end (see the module docstring). E, dE (n_coordinates,); U (3,) m/s the free
+        stream; density kg/m^3; direction (3,) the unit free-stream direction (the flat wake's legs, the
+        drag axis; defined also when |U| = 0)."""
+        lat = self.lattice
+        dt = float(t_end) - state.time
+        geometry = lat.geometry(E)
+        head = geometry.corners[lat.trailing_corners]                            # (B, N + 1, 3)
+        n = lat.n_panels
+        if not state.started:
+            history, steps = (np.zeros(n), np.zeros(n)), (0.0, 0.0)
+        elif dt > 0:
+            history, steps = (state.gamma, state.history[0]), (dt, state.steps[0])
+        else:
+            history, steps = state.history, state.steps
+        wake = None
+        if self.wake_model != "flat":
+            if not state.started:
+                wake = wakes.ShedWake.empty(head)
+            elif dt > 0:
+                wake = wakes.shed(state.wake, head, state.gamma[lat.trailing_panels],
+                                  self._displacement(state, U, dt))
+            else:
+                wake = wakes.with_head(state.wake, head)
+            wake = wakes.truncate(wake, self.wake_length * self.body_chords, self.max_wake_rows)
+        gamma, forces = self._solve(geometry, dE, U, density, direction, wake, history, steps)
+        wake_panels = lat.N * len(lat.body_names) if wake is None else wake.n_panels
+        loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, wake_panels)
+        return UVLMState(float(t_end), True, gamma, tuple(np.array(g) for g in history),
+                         tuple(float(h) for h in steps), geometry.corners, wake, loads)
+
+    def _displacement(self, state, U, dt):
+        """Corner displacements over the step: U dt (prescribed) or (U + w) dt with w at t_{n-1} (free)."""
+        if self.wake_model == "prescribed":
+            return U * dt
+        points = state.wake.corners.reshape(-1, 3)
+        circulation = self.rings.incidence @ state.gamma
+        w = self._bound_velocity(points, state.corners, circulation) + wakes.velocity(points, state.wake,
+                                                                                     self.convection_core)
+        return (U + w).reshape(state.wake.corners.shape) * dt
+
+    def _bound_velocity(self, points, corners, circulation):
+        """Velocity (P, 3) m/s of the bound rings (ring corners (n_corners, 3), unique-segment circulations
+        incidence @ Gamma) at points (P, 3), with the convection core."""
+        live = circulation != 0.0
+        starts, ends = corners[self.rings.start[live]], corners[self.rings.end[live]]
+        return influence(points, starts, ends, circulation[live, None], self.convection_core)[:, :, 0]
+
+    def _solve(self, geometry, dE, U, density, direction, wake, history, steps):
+        """Gamma (000 Eq. 22) and the panel forces (Eqs. 23, 25)."""
+        lat = self.lattice
+        A_x, A_y, lu = self.system.matrices(geometry, direction)
+        relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)   # U - r'
+        if wake is not None:
+            relative = relative + wakes.velocity(geometry.collocation, wake, self.wake_core, lat.core_radius)
+        rhs = -np.sum(relative * geometry.normal, axis=1)
+        gamma = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+        v_x = np.sum(relative * geometry.r_x, axis=1) + A_x @ gamma          # V . r_x, V = U + w - r'
+        v_y = np.sum(relative * geometry.r_y, axis=1) + A_y @ gamma
+        rate = circulation_rate(gamma, history, steps)
+        return gamma, pressure_jump_forces(lat, geometry, gamma, v_x, v_y, density, rate)

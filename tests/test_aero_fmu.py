@@ -1,0 +1,365 @@
+"""The aero FMU and the coupled run: build and validation, fmu vs direct backends, bad input, topology
+check, rollback, and the Gauss-Seidel / Jacobi exchange order of the master."""
+import json
+import os
+import subprocess
+import sys
+import types
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+from fmpy import read_model_description  # noqa: E402
+from fmpy.validation import validate_fmu  # noqa: E402
+
+import aero_fmu  # noqa: E402
+from orchestrator import units as real_units  # noqa: E402
+from orchestrator.build import build_fmus, fmus_up_to_date  # noqa: E402
+from orchestrator.master import CouplingError, check_connection, run_scene  # noqa: E402
+from orchestrator.scene import load_scene  # noqa: E402
+from orchestrator.units import UnitError, make_unit  # noqa: E402
+from structure_fmu.topology import Topology  # noqa: E402
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+CODE_ROOT = Path(aero_fmu.__file__).parents[1]   # the sources under test (PYTHONPATH of the CLI)
+# 000 Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
+HEAVE = ["time.stop=0.5", "aero.wake_length=3"]
+H = 0.1
+
+
+def heave_scene(*overrides):
+    return load_scene(SCENES / "heaving_wing.toml", [*HEAVE, *overrides])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return heave_scene()
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(scene, tmp_path_factory):
+    out = tmp_path_factory.mktemp("fmus")
+    assert build_fmus(scene, out) == [out / "structure.fmu", out / "aero.fmu"]
+    return out
+
+
+@pytest.fixture
+def units(scene, fmu_dir):
+    made = []
+
+    def make(kind, backend, **kw):
+        made.append(make_unit(kind, kw.pop("scene", scene), backend, kw.pop("fmu_dir", fmu_dir), **kw))
+        return made[-1]
+    yield make
+    for u in reversed(made):
+        u.terminate()
+
+
+def coupled(structure, aero, steps, t0=0.0, q=None, lift=False):
+    """The master's Gauss-Seidel loop by hand: Q and CL (and the lift) after each step."""
+    q = np.zeros(structure.n) if q is None else q
+    qs, cls, lifts = [], [], []
+    for k in range(steps):
+        t = t0 + k * H
+        structure.set_inputs(q)
+        structure.do_step(t, H)
+        aero.set_inputs(*structure.get_outputs())
+        aero.do_step(t, H)
+        q, = aero.get_outputs()
+        qs.append(q)
+        m = aero.monitors()
+        cls.append(m["CL"])
+        lifts.append(m["lift"])
+    return (np.array(qs), np.array(cls)) + ((np.array(lifts),) if lift else ())
+
+
+# --- build ----------------------------------------------------------------------------------------
+
+def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
+    fmu = fmu_dir / "aero.fmu"
+    assert validate_fmu(str(fmu)) == []
+    names = zipfile.ZipFile(fmu).namelist()
+    for member in ("resources/scene.json", "resources/aero_slave.py", "resources/aero_fmu/solver.py",
+                   "resources/structure_fmu/topology.py", "binaries/linux64/aero.so"):
+        assert member in names
+    assert "resources/structure_slave.py" not in names      # distinct slave module names (DESIGN §10)
+    assert fmus_up_to_date(scene, fmu_dir)
+    assert not fmus_up_to_date({**scene, "aero": {**scene["aero"], "chordwise_panels": 3}}, fmu_dir)
+    md = read_model_description(str(fmu))
+    assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+    topology = Topology.from_scene(scene)
+    n = topology.n_coordinates
+    v = {x.name: x for x in md.modelVariables}
+    for k, (name, causality) in enumerate([("e", "input"), ("de", "input"), ("Q", "output")]):
+        group = [v[f"{name}[{i}]"] for i in range(1, n + 1)]
+        assert [x.valueReference for x in group] == list(range(k * n, (k + 1) * n))  # contiguous
+        assert {x.causality for x in group} == {causality}
+    assert [v[f"e[{i}]"].unit for i in range(1, 10)] == ["m"] * 3 + ["1"] * 6
+    assert [v[f"de[{i}]"].unit for i in range(1, 10)] == ["m/s"] * 3 + ["1/s"] * 6
+    assert [v[f"Q[{i}]"].unit for i in range(1, 10)] == ["N"] * 3 + ["N.m"] * 6
+    assert [v[x].valueReference for x in ("CL", "lift", "wake_panels")] == [3 * n, 3 * n + 1, 3 * n + 2]
+    assert (v["CL"].unit, v["lift"].unit, v["lift"].causality) == ("1", "N", "output")
+    for name in ("flow.speed", "flow.density", "flow.direction_x"):
+        assert (v[name].causality, v[name].variability) == ("parameter", "fixed")
+    assert float(v["flow.speed"].start) == scene["flow"]["speed"]
+    assert v["topology_hash"].type == "String" and v["topology_hash"].start == topology.topology_hash
+    structure_md = read_model_description(str(fmu_dir / "structure.fmu"))
+    assert {x.name: x.start for x in structure_md.modelVariables}["topology_hash"] == topology.topology_hash
+
+
+def test_aero_fmu_runs_alone_in_a_fresh_host_from_its_embedded_packages(fmu_dir, tmp_path):
+    """Any FMI host: the aero FMU alone, inputs at their start values (the scene's initial geometry)."""
+    code = ("import sys, fmpy\n"
+            f"r = fmpy.simulate_fmu({str(fmu_dir / 'aero.fmu')!r}, stop_time=0.3, output_interval=0.1)\n"
+            "print(sys.modules['aero_fmu.solver'].__file__)\n"
+            "print(r['CL'][-1])\n")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    solver_file, cl = out.stdout.split()[-2:]
+    assert f"resources{os.sep}aero_fmu" in solver_file
+    assert np.isfinite(float(cl))
+
+
+# --- the two backends -----------------------------------------------------------------------------
+
+def test_fmu_and_direct_backends_give_the_same_CL_and_Q(units):
+    runs = {b: coupled(units("structure", b), units("aero", b), 5) for b in ("fmu", "direct")}
+    (q_f, cl_f), (q_d, cl_d) = runs["fmu"], runs["direct"]
+    assert np.max(np.abs(q_f - q_d)) <= 1e-10 and np.max(np.abs(cl_f - cl_d)) <= 1e-10
+    assert np.max(np.abs(q_f)) > 0 and np.all(np.isfinite(cl_f))       # the heaving wing is loaded
+
+
+def test_master_fmu_and_direct_runs_record_the_same_CL(scene, fmu_dir):
+    results = {b: run_scene(scene, backend=b, fmu_dir=fmu_dir) for b in ("fmu", "direct")}
+    for r in results.values():
+        assert r.status == "ok", r.message
+        assert r.series.columns[-2:] == ["CL", "lift"]
+        assert len(r.series) == 6 and np.all(np.isfinite(r.series.CL))
+    np.testing.assert_allclose(results["fmu"].series.CL, results["direct"].series.CL, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(results["fmu"].series.lift, results["direct"].series.lift, rtol=0, atol=1e-10)
+
+
+# --- bad input ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("backend", ["fmu", "direct"])
+@pytest.mark.parametrize("block, bad", [("e", np.nan), ("de", np.inf)])
+def test_non_finite_input_to_the_aero_unit_is_reported_and_host_survives(units, backend, block, bad):
+    structure, aero = units("structure", backend), units("aero", backend)
+    coupled(structure, aero, 2)
+    q0, = aero.get_outputs()
+    saved = aero.get_state()
+    e, de = structure.get_outputs()
+    (e if block == "e" else de)[4] = bad
+    aero.set_inputs(e, de)
+    with pytest.raises(UnitError) as info:
+        aero.do_step(2 * H, H)
+    word = "NaN" if np.isnan(bad) else "inf"
+    assert f"{block}[5]" in str(info.value) and word in str(info.value) and not info.value.diverged
+    assert np.array_equal(aero.get_outputs()[0], q0)           # state unchanged
+    aero.set_state(saved)                                       # and the host goes on
+    aero.set_inputs(*structure.get_outputs())
+    aero.do_step(2 * H, H)
+    assert np.all(np.isfinite(aero.get_outputs()[0]))
+
+
+def test_nan_into_the_aero_unit_mid_run_stops_the_master_with_its_reason(scene, fmu_dir):
+    def make_unit(**kwargs):
+        unit = real_units.make_unit(**kwargs)
+        if kwargs["kind"] == "aero":
+            send, calls = unit.set_inputs, [0]
+
+            def set_inputs(e, de):
+                calls[0] += 1
+                e = np.array(e, dtype=float)
+                if calls[0] >= 3:     # call 1 at t = 0, calls 2, 3 after the steps from 0 and 0.1 s
+                    e[4] = np.nan
+                send(e, de)
+            unit.set_inputs = set_inputs
+        return unit
+    fake = types.SimpleNamespace(make_unit=make_unit, UnitError=real_units.UnitError)
+    result = run_scene(scene, backend="fmu", fmu_dir=fmu_dir, units=fake)
+    assert result.status == "error"
+    assert "e[5]" in result.message and "NaN" in result.message and "aero" in result.message
+    np.testing.assert_allclose(result.series.time, [0.0, 0.1])   # samples before the failing step kept
+
+
+# --- topology check -------------------------------------------------------------------------------
+
+def test_units_of_different_topology_are_refused_before_the_run(scene, fmu_dir, tmp_path):
+    other = heave_scene("structure.bodies.wing.length=999.0")      # another structure, its own FMUs
+    build_fmus(other, tmp_path)
+
+    def make_unit(**kwargs):
+        if kwargs["kind"] == "aero":
+            kwargs.update(scene=other, fmu_dir=tmp_path)
+        return real_units.make_unit(**kwargs)
+    fake = types.SimpleNamespace(make_unit=make_unit, UnitError=real_units.UnitError)
+    result = run_scene(scene, backend="fmu", fmu_dir=fmu_dir, units=fake)
+    assert result.status == "error" and len(result.series) == 0 and result.simulated_time_s == 0.0
+    assert "topolog" in result.message and "rebuild both FMUs from one scene" in result.message
+    assert Topology.from_scene(scene).topology_hash in result.message
+
+
+def test_check_connection_compares_hash_and_size():
+    unit = lambda h, n: types.SimpleNamespace(topology_hash=h, n=n, label=f"unit {h}")
+    check_connection(unit("abc", 18), unit("abc", 18))
+    with pytest.raises(CouplingError, match="abc vs abd"):
+        check_connection(unit("abc", 18), unit("abd", 18))
+    with pytest.raises(CouplingError, match="18 coordinates but the aero unit 27"):
+        check_connection(unit("abc", 18), unit("abc", 27))
+
+
+def test_a_stale_aero_fmu_is_refused(scene, fmu_dir):
+    changed = {**scene, "flow": {**scene["flow"], "speed": 2.0}}
+    with pytest.raises(UnitError, match=r"flow\.speed.*rebuild"):
+        make_unit("aero", changed, "fmu", fmu_dir)
+
+
+# --- rollback -------------------------------------------------------------------------------------
+
+def test_rollback_of_the_aero_unit_reproduces_steps_exactly_through_fmpy(units):
+    structure, aero = units("structure", "fmu"), units("aero", "fmu")
+    coupled(structure, aero, 2)
+    s_saved, a_saved = structure.get_state(), aero.get_state()
+    q_saved, = aero.get_outputs()
+    q1, cl1 = coupled(structure, aero, 3, t0=2 * H, q=q_saved)
+    for _ in range(2):   # the same state can be restored more than once
+        structure.set_state(s_saved)
+        aero.set_state(a_saved)
+        q2, cl2 = coupled(structure, aero, 3, t0=2 * H, q=q_saved)
+        assert np.array_equal(q1, q2) and np.array_equal(cl1, cl2)
+    # --serialize-state: bytes out and back in (the wake included)
+    data = aero.serialize_state(a_saved)
+    assert isinstance(data, bytes) and data
+    structure.set_state(s_saved)
+    aero.set_state(aero.deserialize_state(data))
+    q3, cl3 = coupled(structure, aero, 3, t0=2 * H, q=q_saved)
+    assert np.array_equal(q1, q3) and np.array_equal(cl1, cl3)
+
+
+def test_parameters_of_the_aero_unit_are_applied_in_both_backends(scene, units):
+    density = 2.0 * scene["flow"]["density"]
+    runs = {b: coupled(units("structure", b), units("aero", b, parameters={"flow.density": density}), 3,
+                       lift=True) for b in ("fmu", "direct")}
+    _, cl_ref, lift_ref = coupled(units("structure", "direct"), units("aero", "direct"), 3, lift=True)
+    _, cl_f, lift_f = runs["fmu"]
+    _, cl_d, lift_d = runs["direct"]
+    np.testing.assert_allclose(lift_f, lift_d, rtol=0, atol=1e-10)
+    assert np.max(np.abs(lift_ref)) > 0
+    np.testing.assert_allclose(lift_d, 2.0 * lift_ref, rtol=1e-9, atol=1e-12)   # lift ~ density
+    np.testing.assert_allclose(cl_d, cl_ref, rtol=1e-9, atol=1e-12)             # CL is not
+    with pytest.raises(UnitError, match="unknown parameter"):
+        units("aero", "direct", parameters={"flow.sped": 1.0})
+
+
+# --- the exchange order of the master, with stand-in units -----------------------------------------
+
+class _Structure:
+    n, topology_hash, kind = 9, "h", "structure"
+
+    def __init__(self, log):
+        self.log, self.t = log, 0.0
+
+    def get_outputs(self):
+        return np.full(self.n, self.t), np.full(self.n, 10 * self.t)
+
+    def set_inputs(self, q):
+        self.log.append(("structure.set_inputs", float(q[0])))
+
+    def do_step(self, t, h):
+        self.log.append(("structure.do_step", t))
+        self.t = t + h
+
+    def monitors(self):
+        return {"energy": 0.0, "kinetic_energy": 0.0, "constraint_residual": 0.0, "fold_angles_deg": {}}
+
+    def terminate(self):
+        pass
+
+
+class _Aero(_Structure):
+    kind = "aero"
+
+    def __init__(self, log):
+        super().__init__(log)
+        self.e = None
+
+    def get_outputs(self):
+        return (np.full(self.n, 100 + self.t),)
+
+    def set_inputs(self, e, de):
+        self.e = float(e[0])
+        self.log.append(("aero.set_inputs", self.e))
+
+    def do_step(self, t, h):
+        self.log.append(("aero.do_step", t))
+        self.t = t + h
+
+    def monitors(self):
+        return {"CL": self.t, "lift": 2 * self.t, "wake_panels": 0.0}
+
+
+class _Topology:
+    n_coordinates = 9
+
+    @staticmethod
+    def point_position(e, body, span, chord):
+        return np.array([e[0], 0.0, 0.0])
+
+
+def _fake_run(algorithm):
+    log = []
+    scene = {"name": "fake", "time": {"stop": 0.2}, "coupling": {"step": 0.1, "algorithm": algorithm},
+             "aero": {"model": "uvlm-flat"}, "probes": [], "structure": {"joints": []}}
+    made = {"structure": _Structure(log), "aero": _Aero(log)}
+    fake = types.SimpleNamespace(make_unit=lambda **kw: made[kw["kind"]], UnitError=UnitError)
+    result = run_scene(scene, backend="direct", units=fake, topology=_Topology())
+    assert result.status == "ok", result.message
+    return log, result
+
+
+def test_gauss_seidel_steps_the_structure_then_the_aero_unit_with_the_new_coordinates():
+    log, result = _fake_run("gauss-seidel")
+    assert log == [("aero.set_inputs", 0.0),                                 # initial e at t = 0
+                   ("structure.set_inputs", 100.0), ("structure.do_step", 0.0),   # Q(0)
+                   ("aero.set_inputs", 0.1), ("aero.do_step", 0.0),              # e(0.1)
+                   ("structure.set_inputs", 100.1), ("structure.do_step", 0.1),   # Q(0.1)
+                   ("aero.set_inputs", 0.2), ("aero.do_step", 0.1)]
+    np.testing.assert_allclose(result.series.CL, [0.0, 0.1, 0.2])
+    np.testing.assert_allclose(result.series.lift, [0.0, 0.2, 0.4])
+
+
+def test_jacobi_steps_both_units_from_the_outputs_at_the_start_of_the_step():
+    log, _ = _fake_run("jacobi")
+    assert log == [("aero.set_inputs", 0.0),
+                   ("structure.set_inputs", 100.0), ("aero.do_step", 0.0), ("structure.do_step", 0.0),
+                   ("aero.set_inputs", 0.1),
+                   ("structure.set_inputs", 100.1), ("aero.do_step", 0.1), ("structure.do_step", 0.1),
+                   ("aero.set_inputs", 0.2)]
+
+
+# --- end to end -----------------------------------------------------------------------------------
+
+def wingsim(*args, cwd):
+    env = {**os.environ, "PYTHONPATH": str(CODE_ROOT), "CI": "true"}
+    env.pop("WINGSIM_DEBUG", None)
+    return subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_strip_theory_scene_runs_end_to_end(tmp_path):
+    out = tmp_path / "out"
+    proc = wingsim("run", SCENES / "steady_wing.toml", "--set", "aero.model=strip", "--out", out, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["scene"]["aero"]["model"] == "strip"
+    assert summary["aero"]["model"] == "strip" and 0.2 < summary["aero"]["CL_final"] < 0.6   # 5 deg, AR 8
+    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "time" and header[-2:] == ["CL", "lift"]
+    assert (out / "lift_coefficient.png").stat().st_size > 1000
+    assert (tmp_path / "fmus" / "steady_wing" / "aero.fmu").is_file()
