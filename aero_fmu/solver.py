@@ -125,6 +125,29 @@ class AeroSolver:
         """(points (P, 3) m, forces (P, 3) N) of the last step: the panel forces and where they act."""
         return self.state.loads.points.copy(), self.state.loads.forces.copy()
 
+    def vortex_geometry(self) -> dict:
+        """Read-only view of the vortex system at the last step, for pictures (arrays copied; m, global frame):
+
+        "rings": (B, M + 1, N + 1, 3) the bound vortex-ring corners (`lattice.Lattice` numbering), None for
+                 strip theory and before the first step;
+        "wake", "wake_gamma": (B, R + 1, N + 1, 3) the shed wake's ring corners and (B, R, N) m^2/s their
+                 circulations (`wake.ShedWake`), None without a shed wake (strip, uvlm-flat, before the
+                 first step);
+        "legs": uvlm-flat only (else None): (direction (3,), length (B,) m), the horseshoe legs leaving the
+                 trailing corners rings[:, -1] along the unit free-stream direction, wake_length chords of
+                 each body long (inf: semi-infinite), as `vlm.horseshoe_wake` builds them."""
+        state, model = self.state, self.model
+        out = {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
+        if self.model_name == "strip" or not state.started:
+            return out
+        lat = model.lattice
+        out["rings"] = state.corners.reshape(len(lat.body_names), lat.M + 1, lat.N + 1, 3).copy()
+        if state.wake is not None:
+            out["wake"], out["wake_gamma"] = state.wake.corners.copy(), state.wake.gamma.copy()
+        if model.wake_model == "flat":
+            out["legs"] = (self.direction.copy(), model.wake_length * model.body_chords)
+        return out
+
     def get_state(self):
         """Complete state including the wake, arrays copied."""
         return self.state.copy()

@@ -24,6 +24,11 @@ unit with ``n``, ``topology_hash``, ``get_outputs()`` (structure: ``(e, de)``; a
 FMI error or discard, with the unit's logged reason), ``monitors()`` (structure: ``energy``,
 ``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``; aero: ``CL``, ``lift``, ...) and
 ``terminate()``.
+
+With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
+as the aero unit was given them), so that the aero unit can be replayed in-process after the run, e.g. for
+the 3D picture of wing and wake (``orchestrator.wake_view``): with explicit coupling the aero unit's
+state is a deterministic function of these inputs.
 """
 
 from __future__ import annotations
@@ -55,6 +60,40 @@ class CouplingError(RuntimeError):
 
 
 @dataclass
+class AeroInputs:
+    """The aero unit's steps in order: each ``do_step(t, h)`` (s) with the e (m, 1) and de (m/s, 1/s),
+    (n,) each, it held at that step. The tunable parameters were the unit's defaults (``run_scene`` sets
+    none). Recording stops (``complete`` False) once ``max_values`` numbers are held (about 8 bytes each):
+    a replay then covers only the recorded steps. Explicit coupling only: a master that repeats steps
+    (implicit coupling, rollback) must record only the accepted iterate of each step."""
+
+    t: list[float]
+    h: list[float]
+    e: list[np.ndarray]
+    de: list[np.ndarray]
+    complete: bool = True
+    max_values: int = 20_000_000
+
+    @classmethod
+    def empty(cls) -> "AeroInputs":
+        return cls([], [], [], [])
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def append(self, t: float, h: float, e: np.ndarray, de: np.ndarray) -> None:
+        if not self.complete:
+            return
+        if (len(self.t) + 1) * 2 * len(e) > self.max_values:
+            self.complete = False
+            return
+        self.t.append(float(t))
+        self.h.append(float(h))
+        self.e.append(np.array(e, dtype=float))
+        self.de.append(np.array(de, dtype=float))
+
+
+@dataclass
 class RunResult:
     """Outcome of one run: what ``summary.json`` and ``timeseries.csv`` are written from."""
 
@@ -64,6 +103,7 @@ class RunResult:
     simulated_time_s: float   # s, last communication point reached
     scene: dict               # the resolved scene
     series: TimeSeries
+    aero_inputs: AeroInputs | None = None   # the aero unit's steps (aero scenes), for a replay
 
 
 def communication_times(stop: float, step: float) -> np.ndarray:
@@ -147,6 +187,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     algorithm = scene.get("coupling", {}).get("algorithm", "gauss-seidel")
     status, message, reached = "ok", "", 0.0
     structure = aero = None
+    aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     phase = "starting the structure unit"
     try:
         if has_aero(scene) and algorithm not in ALGORITHMS:
@@ -167,6 +208,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
         e, de = structure.get_outputs()
         if aero is not None:
             aero.set_inputs(e, de)
+            aero_e, aero_de = e, de                  # what the aero unit holds
             q, = aero.get_outputs()
         _record(series, e, structure, aero, topology, scene["probes"], times[0])
         for t0, t1 in zip(times[:-1], times[1:]):
@@ -174,15 +216,18 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             structure.set_inputs(q)
             if aero is not None and algorithm == "jacobi":
                 aero.do_step(t0, t1 - t0)           # with e, de of t0, set at the end of the last step
+                aero_inputs.append(t0, t1 - t0, aero_e, aero_de)
             structure.do_step(t0, t1 - t0)
             e, de = structure.get_outputs()
             if aero is not None:
                 if algorithm == "jacobi":
                     q, = aero.get_outputs()
                     aero.set_inputs(e, de)
+                    aero_e, aero_de = e, de
                 else:                                # gauss-seidel: the aero unit sees the new e, de
                     aero.set_inputs(e, de)
                     aero.do_step(t0, t1 - t0)
+                    aero_inputs.append(t0, t1 - t0, e, de)
                     q, = aero.get_outputs()
             _record(series, e, structure, aero, topology, scene["probes"], t1)
             reached = t1
@@ -203,4 +248,4 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                     message += f" (terminating the {getattr(unit, 'kind', 'structure')} unit failed: {err})"
     if progress is not None:
         progress.finish(reached, status)
-    return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series)
+    return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs)

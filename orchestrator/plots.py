@@ -4,7 +4,10 @@
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
 - ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s);
-- ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s).
+- ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
+- ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
+  aero unit in-process with the recorded inputs (``orchestrator.wake_view``; capped in wall time). A
+  failure there prints a warning and never affects the other plots or the run's status.
 
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
 that name from an earlier run in the same folder is removed.
@@ -12,6 +15,7 @@ that name from an earlier run in the same folder is removed.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -116,4 +120,13 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         fig.tight_layout()
         fig.savefig(path, dpi=DPI)
         written.append(path)
+    try:
+        from orchestrator.wake_view import write_wake_view
+
+        path = write_wake_view(result, out_dir)
+        if path is not None:
+            written.append(path)
+    except Exception as err:  # the picture is a courtesy: never fail the run or the other plots
+        (out_dir / "wake_3d.png").unlink(missing_ok=True)  # no stale picture of an earlier run
+        print(f"warning: wake picture not written: {type(err).__name__}: {err}", file=sys.stderr)
     return written

@@ -144,6 +144,17 @@ def test_master_fmu_and_direct_runs_record_the_same_CL(scene, fmu_dir):
     np.testing.assert_allclose(results["fmu"].series.lift, results["direct"].series.lift, rtol=0, atol=1e-10)
 
 
+def test_replay_of_the_aero_fmu_reproduces_its_CL_bit_for_bit(scene, fmu_dir):
+    """The wake picture replays the aero unit in-process (orchestrator/wake_view.py): through fmpy the unit
+    gets exactly the recorded e, de and step times, so the replay's CL is the FMU's, bit for bit."""
+    from orchestrator.wake_view import replay
+
+    result = run_scene(scene, backend="fmu", fmu_dir=fmu_dir)
+    assert result.status == "ok", result.message
+    snapshots, _, _ = replay(scene, result.aero_inputs, range(len(result.aero_inputs)))
+    assert np.array_equal([s.outputs["CL"] for s in snapshots], result.series.CL[1:])
+
+
 # --- bad input ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("backend", ["fmu", "direct"])
