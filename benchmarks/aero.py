@@ -9,7 +9,9 @@ Three measurements, wall time per `AeroSolver.advance` (mean of the last steps, 
      non-rigid E each step (matrix and LU rebuilt every step, as in a deployment);
   2. wake panels: M x N = 4 x 16, wake 2.5 to 20 chords (10 to 80 rows), prescribed and free wakes;
   3. the 000 deployment mesh: scenes/deploy_rigid.toml (two bodies, M = 2, N = 7 per body, L_w = 5) at
-     15 m/s, the structure run by its own solver, only the aero step timed, over the first 0.1 s.
+     15 m/s, the structure run by its own solver, only the aero step timed, over the first 0.1 s;
+  4. Biot-Savart throughput (000 Eq. 19): segment-point pairs per second for an influence matrix (normal
+     wash, ring weights) and for the induced velocity of known circulations.
 The machines are shared and noisy: compare the ratios of one run, not absolute times across runs.
 """
 import argparse
@@ -119,6 +121,30 @@ def deployment(duration):
           f"(flat {100 * (1 - times['uvlm-flat'] / times['uvlm-free']):.0f}% cheaper; 000 reports 95%)")
 
 
+def biot_savart_throughput(points=2000, segments=4000, repeats=3):
+    """Pairs per second of aero_fmu.biot_savart on random geometry (the kernel is geometry-independent)."""
+    from scipy import sparse
+
+    from aero_fmu.biot_savart import induced_velocity, influence
+    rng = np.random.default_rng(0)
+    p, a = rng.standard_normal((points, 3)), rng.standard_normal((segments, 3))
+    b = a + 0.1 * rng.standard_normal((segments, 3))
+    normals = rng.standard_normal((points, 3))
+    rings = sparse.random(segments, segments // 4, density=4 / segments, random_state=0, format="csr")
+    gamma = rng.standard_normal(segments)
+    print(f"4. Biot-Savart throughput, {points} points x {segments} segments")
+    for label, call in (("influence matrix (normal wash)", lambda: influence(p, a, b, rings, 1e-3, normals=normals)),
+                        ("induced velocity of known circulations", lambda: induced_velocity(p, a, b, gamma, 1e-3))):
+        best = min(_timed(call) for _ in range(repeats))
+        print(f"   {label:<40} {points * segments / best / 1e6:8.1f} million pairs per second")
+
+
+def _timed(call):
+    start = time.perf_counter()
+    call()
+    return time.perf_counter() - start
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes, fewer steps")
@@ -126,6 +152,7 @@ def main():
     bound_scaling([(2, 7), (4, 16)] if quick else [(2, 7), (4, 16), (8, 32), (8, 64)], 3 if quick else 5)
     wake_scaling([2.5, 5.0] if quick else [2.5, 5.0, 10.0, 20.0], 3 if quick else 5)
     deployment(0.02 if quick else 0.1)
+    biot_savart_throughput(500 if quick else 2000, 1000 if quick else 4000)
 
 
 if __name__ == "__main__":
