@@ -3,7 +3,8 @@
 - ``wingsim build SCENE [--out DIR]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
   run, write ``timeseries.csv``, ``summary.json`` and PNG plots into DIR (default ``results/<scene>/``).
-- ``wingsim sweep`` (issue 5) and ``wingsim validate`` (issue 4): not implemented yet.
+- ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
+- ``wingsim sweep`` (issue 5): not implemented yet.
 
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), or
 an unexpected error; 2 bad scene, bad arguments or a command not implemented yet.
@@ -22,7 +23,7 @@ from typing import Sequence
 
 from structure_fmu.errors import SceneError
 
-NOT_IMPLEMENTED = {"sweep": "issue 5", "validate": "issue 4"}
+NOT_IMPLEMENTED = {"sweep": "issue 5"}
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
@@ -55,9 +56,21 @@ def build_parser() -> argparse.ArgumentParser:
                      help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
     run.set_defaults(func=cmd_run)
 
+    validate = commands.add_parser("validate", help="check built FMUs: model description and a short simulation",
+                                   description="Check built FMUs as another FMI tool would: fmpy's model "
+                                               "description validation and a short simulation of each.")
+    validate.add_argument("fmus", type=Path, nargs="*", metavar="FMU", help="FMU files (default: fmus/**/*.fmu)")
+    validate.set_defaults(func=cmd_validate)
+
     for command, issue in NOT_IMPLEMENTED.items():
         commands.add_parser(command, help=f"not implemented yet ({issue})")
     return parser
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from orchestrator.validate import main as validate_main
+
+    return validate_main(args.fmus)
 
 
 def cmd_build(args: argparse.Namespace) -> int:

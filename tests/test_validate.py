@@ -1,0 +1,26 @@
+"""`wingsim validate`: built FMUs pass, broken ones are reported with a reason and exit code 1."""
+import zipfile
+
+from orchestrator.build import build_fmus
+from orchestrator.cli import main
+from orchestrator.scene import load_scene
+
+
+def test_validate_passes_built_structure_and_aero_fmus(tmp_path, capsys):
+    scene = load_scene("scenes/deploy_rigid.toml", ["aero.model=uvlm-flat", "flow.speed=10"])
+    fmus = build_fmus(scene, tmp_path)
+    assert {p.name for p in fmus} == {"structure.fmu", "aero.fmu"}
+    assert main(["validate", *map(str, fmus)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("ok (model description valid, 10 steps simulated)") == 2
+
+
+def test_validate_reports_broken_fmus(tmp_path, capsys):
+    not_zip = tmp_path / "broken.fmu"
+    not_zip.write_text("not an FMU")
+    no_description = tmp_path / "empty.fmu"
+    with zipfile.ZipFile(no_description, "w") as z:
+        z.writestr("resources/readme.txt", "nothing")
+    assert main(["validate", str(not_zip), str(no_description), str(tmp_path / "missing.fmu")]) == 1
+    out = capsys.readouterr().out
+    assert out.count("FAILED") == 3 and "no such file" in out
