@@ -8,27 +8,55 @@ before it.
 
 Structure only (``aero.model = "none"``): the generalized force Q = 0 is held.
 
-With an aero unit, explicit coupling at the same communication points (DESIGN §6); before the run both
-units' ``topology_hash`` must agree, else the run is refused (status "error") before any step.
+With an aero unit the units are coupled at the same communication points (DESIGN §6); before the run
+both units' ``topology_hash`` must agree, else the run is refused (status "error") before any step.
+At t = 0 the aero unit gets the structure's initial e, de and its Q is its initial output (zero: no
+circulation yet). A prescribed-motion structure ignores Q, but Q is still passed (and checked by the
+structure unit). ``coupling.algorithm``:
 
-- ``gauss-seidel`` (staggered, the default): for each step [t, t + h]: the structure steps with the Q
-  of the aero unit at t; the aero unit then steps with the structure's new e, de at t + h, and its Q
-  at t + h is held for the next structure step. At t = 0 the aero unit gets the structure's initial
-  e, de and its Q is its initial output (zero: no circulation yet). A prescribed-motion structure
-  ignores Q, but Q is still passed (and checked by the structure unit).
-- ``jacobi``: both units step from the outputs at t (the aero unit with e, de of t held), then exchange.
+- ``gauss-seidel`` (staggered, explicit, the default): for each step [t, t + h]: the structure steps
+  with the Q of the aero unit at t; the aero unit then steps with the structure's new e, de at t + h,
+  and its Q at t + h is held for the next structure step.
+- ``jacobi`` (explicit): both units step from the outputs at t (the aero unit with e, de of t held),
+  then exchange.
+- ``implicit``: each step is repeated until the interface force agrees with the motion it produces,
+  i.e. a fixed point Q = H(Q) of one Gauss-Seidel pass H: Q_used -> structure step with Q_used held
+  over [t, t + h] -> e, de at t + h -> aero step -> Q_new at t + h. Per step:
+
+  1. save both units' states (``get_state``); the first iterate Q_used is the accepted Q at t;
+  2. the structure steps with Q_used, the aero unit with its new e, de, giving Q_new;
+  3. r = Q_new - Q_used; the step is accepted when ||r|| / max(||Q_new||, ``acceleration.RESIDUAL_FLOOR``) is below
+     ``coupling.tolerance`` (2-norms over all n coordinates, N and N m mixed as the unit gives them);
+     Q_new is then the Q at t + h, the first iterate of the next step;
+  4. else both units are rolled back (``set_state``) and the step is repeated with the next Q_used
+     from the acceleration (``coupling.acceleration``), both starting with a relaxed first update
+     Q_used + omega_0 r, omega_0 = ``coupling.relaxation``:
+     ``aitken``: Aitken's dynamic relaxation (Kuettler and Wall 2008):
+     omega_k = -omega_(k-1) r_(k-1).(r_k - r_(k-1)) / |r_k - r_(k-1)|^2, Q_used += omega_k r_k;
+     ``iqn-ils``: interface quasi-Newton with an inverse Jacobian from a least-squares model
+     (Degroote, Bathe and Vierendeels 2009; as in preCICE, Bungartz et al. 2016, Mehl et al. 2016)
+     built from this step's iterations only (``IQNILS``).
+  5. after ``coupling.max_iterations`` iterations without convergence (or a non-finite residual, or a
+     failed rollback) the run stops with status "diverged", naming the step, the residual and a hint;
+     the samples of the accepted steps are kept.
+
+  Recorded per step: the iterations taken and the accepted residual (``timeseries.csv`` columns
+  ``coupling_iterations``, ``coupling_residual``; ``summary.json`` ``coupling``). A prescribed-motion
+  structure (which ignores Q) still iterates: Q converges to the aero force of the prescribed motion.
 
 The unit interface (``orchestrator.units``): ``make_unit(kind, scene, backend, fmu_dir)`` returns a
 unit with ``n``, ``topology_hash``, ``get_outputs()`` (structure: ``(e, de)``; aero: ``(Q,)``),
 ``set_inputs(...)`` (structure: ``Q``; aero: ``e, de``), ``do_step(t, h)`` (raises ``UnitError`` on an
 FMI error or discard, with the unit's logged reason), ``monitors()`` (structure: ``energy``,
-``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``; aero: ``CL``, ``lift``, ...) and
-``terminate()``.
+``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``; aero: ``CL``, ``lift``, ...),
+``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
-as the aero unit was given them), so that the aero unit can be replayed in-process after the run, e.g. for
-the 3D picture of wing and wake (``orchestrator.wake_view``): with explicit coupling the aero unit's
-state is a deterministic function of these inputs.
+as the aero unit was given them; with implicit coupling those of the accepted iterate only), so that the
+aero unit can be replayed in-process after the run, e.g. for the 3D picture of wing and wake
+(``orchestrator.wake_view``): with explicit coupling the aero unit's state is a deterministic function of
+these inputs; with implicit coupling too, up to the aero unit's reuse of its factorization within a
+rigid-motion tolerance across the rejected iterates (about 1e-10 relative, see ``orchestrator.wake_view``).
 """
 
 from __future__ import annotations
@@ -44,19 +72,30 @@ from typing import Any
 
 import numpy as np
 
+from orchestrator.acceleration import interface_residual, make_acceleration
 from orchestrator.progress import Progress
 from orchestrator.scene import hinge_joints
-from orchestrator.timeseries import AERO_COLUMNS, TimeSeries
+from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
 from structure_fmu.errors import SolverDiverged
 
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error")
-ALGORITHMS = ("gauss-seidel", "jacobi")
+ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
+ACCELERATIONS = ("aitken", "iqn-ils")
+"""N and N m: the smallest ||Q_new|| the implicit coupling's residual is relative to (a still interface,
+Q = 0, then converges on the absolute residual instead of dividing by zero)."""
 
 
 class CouplingError(RuntimeError):
     """The units cannot be connected (different topologies or sizes); raised before any step."""
+
+
+class CouplingDiverged(RuntimeError):
+    """The implicit coupling did not converge in a step, or could not roll the units back (status
+    "diverged")."""
+
+    diverged = True
 
 
 @dataclass
@@ -64,8 +103,8 @@ class AeroInputs:
     """The aero unit's steps in order: each ``do_step(t, h)`` (s) with the e (m, 1) and de (m/s, 1/s),
     (n,) each, it held at that step. The tunable parameters were the unit's defaults (``run_scene`` sets
     none). Recording stops (``complete`` False) once ``max_values`` numbers are held (about 8 bytes each):
-    a replay then covers only the recorded steps. Explicit coupling only: a master that repeats steps
-    (implicit coupling, rollback) must record only the accepted iterate of each step."""
+    a replay then covers only the recorded steps. With implicit coupling only the accepted iterate of each
+    step is recorded (the rejected iterates were rolled back)."""
 
     t: list[float]
     h: list[float]
@@ -91,6 +130,53 @@ class AeroInputs:
         self.h.append(float(h))
         self.e.append(np.array(e, dtype=float))
         self.de.append(np.array(de, dtype=float))
+
+
+# ---- implicit coupling: the accelerations -------------------------------------------------------------
+def _rollback(units: tuple, states: tuple, t0: float, iteration: int) -> None:
+    for unit, state in zip(units, states):
+        try:
+            unit.set_state(state)
+        except Exception as err:
+            raise CouplingDiverged(
+                f"implicit coupling: rolling the {getattr(unit, 'kind', 'unit')} unit back to t = {t0:.6g} s "
+                f"for iteration {iteration} failed: {err}. Hint: the unit must support fmi2SetFMUstate "
+                "(canGetAndSetFMUstate); use coupling.algorithm = 'gauss-seidel' otherwise") from err
+
+
+def implicit_step(structure: Any, aero: Any, t0: float, h: float, q: np.ndarray, acceleration: Any,
+                  tolerance: float, max_iterations: int):
+    """One implicit communication step [t0, t0 + h] from the accepted Q at t0 (module docstring).
+
+    Returns (e, de, q_new, iterations, residual) of the accepted iterate, both units then at t0 + h;
+    raises CouplingDiverged when it does not converge in ``max_iterations`` or cannot roll back.
+    """
+    states = (structure.get_state(), aero.get_state())
+    acceleration.start()
+    x = np.array(q, dtype=float)
+    residual = math.inf
+    for k in range(1, max_iterations + 1):
+        if k > 1:
+            _rollback((structure, aero), states, t0, k)
+        structure.set_inputs(x)
+        structure.do_step(t0, h)
+        e, de = structure.get_outputs()
+        aero.set_inputs(e, de)
+        aero.do_step(t0, h)
+        q_new, = aero.get_outputs()
+        residual = interface_residual(q_new, x)
+        if residual < tolerance:
+            return e, de, q_new, k, residual
+        if not math.isfinite(residual):
+            break
+        x = acceleration.update(x, q_new)
+    kind = getattr(acceleration, "name", type(acceleration).__name__)
+    raise CouplingDiverged(
+        f"implicit coupling diverged in the step from t = {t0:.6g} s to {t0 + h:.6g} s: interface residual "
+        f"{residual:.3g} after {k} iterations (coupling.tolerance = {tolerance:g}, "
+        f"coupling.max_iterations = {max_iterations}, coupling.acceleration = {kind!r}). Hint: reduce coupling.step, "
+        "try coupling.acceleration = 'iqn-ils' or a smaller coupling.relaxation, or raise "
+        "coupling.max_iterations")
 
 
 @dataclass
@@ -119,14 +205,20 @@ def has_aero(scene: dict) -> bool:
     return scene.get("aero", {}).get("model", "none") != "none"
 
 
+def is_implicit(scene: dict) -> bool:
+    """True when the scene couples an aero unit implicitly (``coupling.algorithm = "implicit"``)."""
+    return has_aero(scene) and scene.get("coupling", {}).get("algorithm") == "implicit"
+
+
 def new_series(scene: dict) -> TimeSeries:
-    """An empty series with the scene's probe and hinge columns (and CL, lift for an aero scene)."""
+    """An empty series with the scene's probe and hinge columns (and CL, lift for an aero scene, and
+    coupling_iterations, coupling_residual for an implicit one)."""
     return TimeSeries([p["name"] for p in scene["probes"]], [j["name"] for j in hinge_joints(scene)],
-                      aero=has_aero(scene))
+                      aero=has_aero(scene), coupling=is_implicit(scene))
 
 
 def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topology: Any, probes: list[dict],
-            t: float) -> None:
+            t: float, coupling: tuple[int, float] | None = None) -> None:
     positions = np.array([topology.point_position(e, p["body"], p["span"], p["chord"]) for p in probes],
                          dtype=float).reshape(len(probes), 3)
     monitors = structure.monitors()
@@ -136,7 +228,8 @@ def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topolo
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
-                  kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads)
+                  kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
+                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)))
 
 
 def check_connection(structure: Any, aero: Any) -> None:
@@ -156,7 +249,7 @@ def check_connection(structure: Any, aero: Any) -> None:
 def _classify(err: BaseException, unit_error: type, phase: str) -> tuple[str, str]:
     """(status, message) for a failure during ``phase``."""
     diverged = getattr(err, "diverged", False) or "diverged" in str(err)
-    if isinstance(err, (unit_error, SolverDiverged)) and diverged:
+    if isinstance(err, (unit_error, SolverDiverged, CouplingDiverged)) and diverged:
         return "diverged", str(err)
     if isinstance(err, KeyboardInterrupt):
         return "error", f"interrupted by the user during {phase}"
@@ -210,32 +303,52 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             aero.set_inputs(e, de)
             aero_e, aero_de = e, de                  # what the aero unit holds
             q, = aero.get_outputs()
-        _record(series, e, structure, aero, topology, scene["probes"], times[0])
+        implicit = aero is not None and algorithm == "implicit"
+        if implicit:
+            coupling = scene["coupling"]
+            acceleration = make_acceleration(coupling)
+            tolerance, max_iterations = coupling.get("tolerance", 1e-6), coupling.get("max_iterations", 50)
+            total_iterations = most_iterations = 0
+        _record(series, e, structure, aero, topology, scene["probes"], times[0],
+                coupling=(0, np.nan) if implicit else None)
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
-            structure.set_inputs(q)
-            if aero is not None and algorithm == "jacobi":
-                aero.do_step(t0, t1 - t0)           # with e, de of t0, set at the end of the last step
-                aero_inputs.append(t0, t1 - t0, aero_e, aero_de)
-            structure.do_step(t0, t1 - t0)
-            e, de = structure.get_outputs()
-            if aero is not None:
-                if algorithm == "jacobi":
-                    q, = aero.get_outputs()
-                    aero.set_inputs(e, de)
-                    aero_e, aero_de = e, de
-                else:                                # gauss-seidel: the aero unit sees the new e, de
-                    aero.set_inputs(e, de)
-                    aero.do_step(t0, t1 - t0)
-                    aero_inputs.append(t0, t1 - t0, e, de)
-                    q, = aero.get_outputs()
-            _record(series, e, structure, aero, topology, scene["probes"], t1)
+            step_coupling = None
+            if implicit:
+                e, de, q, iterations, residual = implicit_step(structure, aero, t0, t1 - t0, q, acceleration,
+                                                               tolerance, max_iterations)
+                aero_inputs.append(t0, t1 - t0, e, de)     # the accepted iterate only
+                total_iterations += iterations
+                most_iterations = max(most_iterations, iterations)
+                step_coupling = (iterations, residual)
+            else:
+                structure.set_inputs(q)
+                if aero is not None and algorithm == "jacobi":
+                    aero.do_step(t0, t1 - t0)           # with e, de of t0, set at the end of the last step
+                    aero_inputs.append(t0, t1 - t0, aero_e, aero_de)
+                structure.do_step(t0, t1 - t0)
+                e, de = structure.get_outputs()
+                if aero is not None:
+                    if algorithm == "jacobi":
+                        q, = aero.get_outputs()
+                        aero.set_inputs(e, de)
+                        aero_e, aero_de = e, de
+                    else:                                # gauss-seidel: the aero unit sees the new e, de
+                        aero.set_inputs(e, de)
+                        aero.do_step(t0, t1 - t0)
+                        aero_inputs.append(t0, t1 - t0, e, de)
+                        q, = aero.get_outputs()
+            _record(series, e, structure, aero, topology, scene["probes"], t1, coupling=step_coupling)
             reached = t1
             if progress is not None:
                 progress.update(t1)
         message = f"reached t = {stop:g} s in {len(times) - 1} communication steps"
         if aero is not None:
-            message += f" ({algorithm} coupling with the {scene['aero']['model']} aero unit)"
+            message += f" ({algorithm} coupling with the {scene['aero']['model']} aero unit"
+            if implicit:
+                message += (f", {coupling.get('acceleration', 'aitken')}: {total_iterations / (len(times) - 1):.3g} "
+                            f"iterations per step, at most {most_iterations}")
+            message += ")"
     except (Exception, KeyboardInterrupt) as err:
         log.debug("run failed during %s", phase, exc_info=True)
         status, message = _classify(err, units.UnitError, phase)

@@ -16,7 +16,10 @@ Summary fields (SI units, angles in degrees):
 - ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
   ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position;
 - ``aero`` (only for a scene with an aero unit): ``model``, ``CL_final``, ``CL_min``, ``CL_max`` (-) and
-  ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet).
+  ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet);
+- ``coupling`` (only for an implicitly coupled aero scene): ``algorithm``, ``acceleration``,
+  ``total_iterations`` (over the accepted communication steps), ``max_iterations_used`` (in one step) and
+  ``max_residual`` (the largest accepted relative interface residual, -).
 
 Values that do not apply, or are NaN/inf, are written as null (the JSON stays strict).
 """
@@ -37,8 +40,9 @@ from orchestrator.timeseries import TimeSeries
 
 SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                   "max_constraint_residual", "energy_drift", "probes")
-"""The fields of every summary; an aero scene adds AERO_FIELD."""
+"""The fields of every summary; an aero scene adds AERO_FIELD, an implicitly coupled one COUPLING_FIELD."""
 AERO_FIELD = "aero"
+COUPLING_FIELD = "coupling"
 ENERGY_FLOOR_J = 1e-12
 """Smallest energy scale (J) the energy drift is relative to, so that a structure at rest with E_0 = 0
 does not divide by zero."""
@@ -135,8 +139,23 @@ def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     return out
 
 
+def coupling_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
+    """algorithm, acceleration, total_iterations, max_iterations_used, max_residual over the steps after t = 0."""
+    coupling = scene.get("coupling", {})
+    out: dict[str, Any] = {"algorithm": coupling.get("algorithm"), "acceleration": coupling.get("acceleration"),
+                           "total_iterations": 0, "max_iterations_used": None, "max_residual": None}
+    if len(series) < 2:
+        return out
+    iterations = series.column("coupling_iterations")[1:]
+    residual = series.column("coupling_residual")[1:]
+    out.update(total_iterations=int(np.nansum(iterations)), max_iterations_used=int(np.nanmax(iterations)),
+               max_residual=float(np.nanmax(residual)) if np.isfinite(residual).any() else None)
+    return out
+
+
 def summarize(result: RunResult) -> dict[str, Any]:
-    """The summary.json content (SUMMARY_FIELDS, and AERO_FIELD for an aero scene), JSON-safe."""
+    """The summary.json content (SUMMARY_FIELDS, AERO_FIELD for an aero scene, COUPLING_FIELD for an
+    implicitly coupled one), JSON-safe."""
     series = result.series
     summary = {
         "status": result.status,
@@ -151,6 +170,8 @@ def summarize(result: RunResult) -> dict[str, Any]:
     }
     if series.has_aero:
         summary[AERO_FIELD] = aero_summary(series, result.scene)
+    if series.has_coupling:
+        summary[COUPLING_FIELD] = coupling_summary(series, result.scene)
     return json_safe(summary)
 
 

@@ -172,6 +172,11 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
     "coupling": {
         "step": (1e-3, positive("communication step, s")),
         "algorithm": ("gauss-seidel", choice("gauss-seidel", "jacobi", "implicit")),
+        # implicit coupling only (orchestrator.master):
+        "tolerance": (1e-6, positive("relative interface residual ||Q_new - Q_used|| / ||Q_new||, -")),
+        "max_iterations": (50, integer_at_least(1)),
+        "acceleration": ("aitken", choice("aitken", "iqn-ils")),
+        "relaxation": (0.5, _number("a number in (0, 1] (initial relaxation factor, -)", lambda x: 0 < x <= 1)),
     },
     "flow": {
         "speed": (0.0, non_negative("free-stream speed, m/s")),
@@ -260,14 +265,6 @@ def _allowed_text(check: Checker, key: str) -> str:
     except SceneError as err:
         return err.allowed
     return "a value"
-
-
-def _check_coupling(scene: dict) -> None:
-    """The coupling algorithms the master implements (only used with an aero unit)."""
-    algorithm = scene["coupling"]["algorithm"]
-    if scene["aero"]["model"] != "none" and algorithm == "implicit":
-        raise SceneError("coupling.algorithm", algorithm, "'gauss-seidel' or 'jacobi': the implicit "
-                                                          "coupling is not implemented yet")
 
 
 def _default_flow_direction(scene: dict) -> None:
@@ -420,7 +417,6 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
         scene["load"] = optional_table("parameter, direction, body, span, law, ramp_time")("load", copy.deepcopy(raw["load"]))
     _apply_shorthands(raw, scene)
     _default_flow_direction(scene)
-    _check_coupling(scene)
     scene["probes"] = _resolve_probes(copy.deepcopy(raw.get("probes", [])), scene["structure"]["bodies"])
     return scene
 

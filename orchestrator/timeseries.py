@@ -2,7 +2,10 @@
 
 One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
 the structure's energy (J), its kinetic energy (J) and its constraint residual (-), and, for a scene
-with an aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N). The column names are those of
+with an aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the
+iterations ``coupling_iterations`` the master took in the communication step ending at that sample and
+the relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column
+names are those of
 ``timeseries.csv`` (DESIGN §7); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
@@ -17,16 +20,22 @@ MONITOR_COLUMNS = ("energy", "kinetic_energy", "constraint_residual")
 """The scalar monitor columns, in ``timeseries.csv`` order, after the fold angles."""
 
 AERO_COLUMNS = ("CL", "lift")
-"""The aero unit's columns (lift coefficient, -; lift, N), last, only for scenes with an aero unit."""
+"""The aero unit's columns (lift coefficient, -; lift, N), only for scenes with an aero unit."""
+
+COUPLING_COLUMNS = ("coupling_iterations", "coupling_residual")
+"""The implicit coupling's columns (iterations of the communication step, -; its final relative interface
+residual, -), last, only for implicitly coupled aero scenes."""
 
 
 class TimeSeries:
     """Recorded samples; append during the run, read as numpy arrays afterwards."""
 
-    def __init__(self, probe_names: Sequence[str], hinge_names: Sequence[str], aero: bool = False):
+    def __init__(self, probe_names: Sequence[str], hinge_names: Sequence[str], aero: bool = False,
+                 coupling: bool = False):
         self.probe_names = list(probe_names)
         self.hinge_names = list(hinge_names)
         self.aero_names = list(AERO_COLUMNS) if aero else []
+        self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
         self._rows: list[np.ndarray] = []
         # named column positions (time, probes, hinges, monitors, aero), from the layout of ``columns``
         k = 3 * len(self.probe_names)
@@ -35,45 +44,57 @@ class TimeSeries:
         self._monitor = {name: self._folds.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
         start = self._folds.stop + len(MONITOR_COLUMNS)
         self._monitor.update({name: start + i for i, name in enumerate(self.aero_names)})
+        start += len(self.aero_names)
+        self._monitor.update({name: start + i for i, name in enumerate(self.coupling_names)})
 
     @property
     def has_aero(self) -> bool:
         """True when the series has the aero columns (CL, lift)."""
         return bool(self.aero_names)
 
+    @property
+    def has_coupling(self) -> bool:
+        """True when the series has the implicit coupling's columns (coupling_iterations, coupling_residual)."""
+        return bool(self.coupling_names)
+
     @classmethod
     def from_arrays(cls, probe_names: Sequence[str], hinge_names: Sequence[str], time, positions,
                     fold_angles_deg, energy, constraint_residual, kinetic_energy=None,
-                    aero: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
+                    aero: Mapping[str, Sequence[float]] | None = None,
+                    coupling: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
         energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN.
-        ``aero``: {"CL": (m,), "lift": (m,)} for a series with the aero columns (a missing one is NaN)."""
-        series = cls(probe_names, hinge_names, aero=aero is not None)
+        ``aero``: {"CL": (m,), "lift": (m,)} for a series with the aero columns (a missing one is NaN);
+        ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise."""
+        series = cls(probe_names, hinge_names, aero=aero is not None, coupling=coupling is not None)
         m = len(time)
         kinetic = np.full(m, np.nan) if kinetic_energy is None else kinetic_energy
         monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual}
-        aero = aero or {}
+        aero, coupling = aero or {}, coupling or {}
         table = np.column_stack([
             np.asarray(time, float),
             np.asarray(positions, float).reshape(m, 3 * len(series.probe_names)),
             np.asarray(fold_angles_deg, float).reshape(m, len(series.hinge_names)),
             *(np.asarray(monitors[name], float).reshape(m) for name in MONITOR_COLUMNS),
             *(np.asarray(aero.get(name, np.full(m, np.nan)), float).reshape(m) for name in series.aero_names),
+            *(np.asarray(coupling.get(name, np.full(m, np.nan)), float).reshape(m)
+              for name in series.coupling_names),
         ])
         series._rows = list(table)
         return series
 
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
                energy: float, constraint_residual: float, kinetic_energy: float = np.nan,
-               aero: Mapping[str, float] | None = None) -> None:
+               aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None) -> None:
         """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
-        energies are in J; ``aero`` {"CL": -, "lift": N} (missing values, or no dict, give NaN)."""
+        energies are in J; ``aero`` {"CL": -, "lift": N} and ``coupling`` {"coupling_iterations": -,
+        "coupling_residual": -} (missing values, or no dict, give NaN)."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
-        aero = aero or {}
+        aero, coupling = aero or {}, coupling or {}
         self._rows.append(np.concatenate((
             [time], np.asarray(positions, float).reshape(-1), angles, [monitors[n] for n in MONITOR_COLUMNS],
-            [aero.get(n, np.nan) for n in self.aero_names],
+            [aero.get(n, np.nan) for n in self.aero_names], [coupling.get(n, np.nan) for n in self.coupling_names],
         )).astype(float))
 
     def __len__(self) -> int:
@@ -84,7 +105,7 @@ class TimeSeries:
         """Column names in ``timeseries.csv`` order, ``time`` first."""
         probes = [f"{p}_{axis}" for p in self.probe_names for axis in "xyz"]
         hinges = [f"fold_angle_{h}" for h in self.hinge_names]
-        return ["time", *probes, *hinges, *MONITOR_COLUMNS, *self.aero_names]
+        return ["time", *probes, *hinges, *MONITOR_COLUMNS, *self.aero_names, *self.coupling_names]
 
     def table(self) -> np.ndarray:
         """All samples, shape (samples, columns)."""

@@ -90,7 +90,8 @@ def test_override_inside_a_value_is_refused(raw):
 def test_defaults_follow_docs_scenes_md():
     scene = resolve_scene({"time": {"stop": 1.0}}, default_name="minimal")
     assert scene["name"] == "minimal" and scene["description"] == ""
-    assert scene["coupling"] == {"step": 1e-3, "algorithm": "gauss-seidel"}
+    assert scene["coupling"] == {"step": 1e-3, "algorithm": "gauss-seidel", "tolerance": 1e-6,
+                                 "max_iterations": 50, "acceleration": "aitken", "relaxation": 0.5}
     assert scene["flow"] == {"speed": 0.0, "density": 1.2}
     assert scene["aero"] == {"model": "none", "chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
     assert scene["structure"] == {
@@ -136,8 +137,12 @@ MALFORMED = [
     (["structure.rho_inf=1.5"], "structure.rho_inf", 1.5, "a number in [0, 1]"),
     (["coupling.algorithm=newton"], "coupling.algorithm", "newton", "'gauss-seidel', 'jacobi', 'implicit'"),
     (["aero.model=vortex"], "aero.model", "vortex", "one of 'none', 'strip', 'uvlm-flat'"),
-    (["aero.model=strip", "coupling.algorithm=implicit"], "coupling.algorithm", "implicit",
-     "the implicit coupling is not implemented yet"),
+    (["coupling.tolerance=0"], "coupling.tolerance", 0, "a finite number > 0"),
+    (["coupling.max_iterations=0"], "coupling.max_iterations", 0, "an integer >= 1"),
+    (["coupling.max_iterations=2.5"], "coupling.max_iterations", 2.5, "an integer >= 1"),
+    (["coupling.acceleration=broyden"], "coupling.acceleration", "broyden", "'aitken', 'iqn-ils'"),
+    (["coupling.relaxation=0"], "coupling.relaxation", 0, "a number in (0, 1]"),
+    (["coupling.relaxation=1.5"], "coupling.relaxation", 1.5, "a number in (0, 1]"),
     (["flow.direction=[0,0,0]"], "flow.direction", [0, 0, 0], "a non-zero array of 3 finite numbers"),
     (["flow.direction=[1,0]"], "flow.direction", [1, 0], "an array of 3 finite numbers"),
     (["aero.chordwise_panels=0"], "aero.chordwise_panels", 0, "an integer >= 1"),
