@@ -58,13 +58,8 @@ def _kernel(points, starts, ends, core, semi_infinite):
     cy -= r0[0] * r1z
     cz = r0[0] * r1y
     cz -= r0[1] * r1x
-    n1 = r1x * r1x
-    n1 += r1y * r1y
-    n1 += r1z * r1z
-    np.sqrt(n1, out=n1)
-    k = r0[0] * r1x
-    k += r0[1] * r1y
-    k += r0[2] * r1z
+    n1 = _norm(r1x, r1y, r1z)
+    k = _dot(r0, r1x, r1y, r1z)
     _safe_divide(k, n1)                                        # r0 . r1 / |r1| (0 when r1 = 0)
     if semi_infinite:
         k += 1.0                                               # 1 + d . r1 / |r1|
@@ -73,13 +68,8 @@ def _kernel(points, starts, ends, core, semi_infinite):
         r1x -= r0[0]                                           # r2 = r1 - r0, reusing r1's arrays
         r1y -= r0[1]
         r1z -= r0[2]
-        n2 = r1x * r1x
-        n2 += r1y * r1y
-        n2 += r1z * r1z
-        np.sqrt(n2, out=n2)
-        d2 = r0[0] * r1x
-        d2 += r0[1] * r1y
-        d2 += r0[2] * r1z
+        n2 = _norm(r1x, r1y, r1z)
+        d2 = _dot(r0, r1x, r1y, r1z)
         k -= _safe_divide(d2, n2)                              # r0 . (r1 / |r1| - r2 / |r2|)
         l2 = r0[0] * r0[0] + r0[1] * r0[1] + r0[2] * r0[2]     # |r0|^2, (1, S)
     den = cx * cx
@@ -90,6 +80,22 @@ def _kernel(points, starts, ends, core, semi_infinite):
     np.maximum(den, _TINY, out=den)                            # zero-length segment: 0 / tiny = 0
     k /= den
     return cx, cy, cz, k
+
+
+def _norm(x, y, z):
+    """sqrt(x^2 + y^2 + z^2) of component arrays, in a new array (in-place arithmetic)."""
+    out = x * x
+    out += y * y
+    out += z * z
+    return np.sqrt(out, out=out)
+
+
+def _dot(v, x, y, z):
+    """v . (x, y, z) for a vector v given by components broadcasting against the arrays."""
+    out = v[0] * x
+    out += v[1] * y
+    out += v[2] * z
+    return out
 
 
 def _safe_divide(x, y):

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 RESIDUAL_FLOOR = 1e-12
-"""Smallest ||Q_new|| the interface residual is relative to (N), so that Q = 0 does not divide by zero."""
+"""Smallest ||Q_new|| (N and N m) the interface residual is relative to: a still interface (Q = 0) then
+converges on the absolute residual instead of dividing by zero."""
 
 
 class Aitken:
@@ -79,15 +80,16 @@ class IQNILS:
         return x_tilde + W[:, keep] @ alpha
 
 
+ACCELERATIONS = {"aitken": Aitken, "iqn-ils": IQNILS}
+"""Scene value of ``coupling.acceleration`` -> scheme."""
+
+
 def make_acceleration(coupling: dict):
     """The implicit coupling's acceleration from the scene's ``coupling`` table."""
     name = coupling.get("acceleration", "aitken")
-    omega0 = coupling.get("relaxation", 0.5)
-    if name == "aitken":
-        return Aitken(omega0)
-    if name == "iqn-ils":
-        return IQNILS(omega0)
-    raise CouplingError(f"coupling.acceleration = {name!r} is not implemented; use one of {', '.join(ACCELERATIONS)}")
+    if name not in ACCELERATIONS:
+        raise ValueError(f"coupling.acceleration = {name!r} is not implemented; use one of {', '.join(ACCELERATIONS)}")
+    return ACCELERATIONS[name](coupling.get("relaxation", 0.5))
 
 
 def interface_residual(q_new: np.ndarray, q_used: np.ndarray) -> float:

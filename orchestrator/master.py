@@ -82,9 +82,6 @@ log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error")
 ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
-ACCELERATIONS = ("aitken", "iqn-ils")
-"""N and N m: the smallest ||Q_new|| the implicit coupling's residual is relative to (a still interface,
-Q = 0, then converges on the absolute residual instead of dividing by zero)."""
 
 
 class CouplingError(RuntimeError):

@@ -33,6 +33,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from orchestrator.acceleration import ACCELERATIONS
 from orchestrator.overrides import apply_overrides
 from structure_fmu.errors import SceneError, reject_unknown_keys
 
@@ -175,7 +176,7 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
         # implicit coupling only (orchestrator.master):
         "tolerance": (1e-6, positive("relative interface residual ||Q_new - Q_used|| / ||Q_new||, -")),
         "max_iterations": (50, integer_at_least(1)),
-        "acceleration": ("aitken", choice("aitken", "iqn-ils")),
+        "acceleration": ("aitken", choice(*ACCELERATIONS)),
         "relaxation": (0.5, _number("a number in (0, 1] (initial relaxation factor, -)", lambda x: 0 < x <= 1)),
     },
     "flow": {

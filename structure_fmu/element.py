@@ -78,12 +78,6 @@ def shape_row(x, y, length):
     return np.concatenate([N[..., :2], y * L[..., :1], N[..., 2:], y * L[..., 1:]], axis=-1)
 
 
-def shape_matrix(x, y, length):
-    """S(x, y) of 000 Eq. (2): (..., 3, 18) so that r = S e."""
-    s = shape_row(x, y, length)
-    return np.einsum("...a,ij->...iaj", s, np.eye(3)).reshape(s.shape[:-1] + (3, 18))
-
-
 def point_positions(e, x, y, length):
     """r(x, y) = S(x, y) e for each element: e (n, 18), x, y, length (n,) -> (n, 3), metres."""
     s = shape_row(x, y, length)

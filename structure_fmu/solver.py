@@ -133,33 +133,33 @@ class StructureSolver:
             if t_end - (self.state.t + h) < 1e-9 * self.step_size:
                 h = t_end - self.state.t
             previous = self.state
+            E_previous = self._coordinates()[0]            # cached: computed at the end of the last step
             try:
                 new = self.integrator.step(self.model, previous, h, Q)
             except np.linalg.LinAlgError as exc:
                 raise SolverDiverged(previous.t, f"singular system ({exc})",
                                      _DIVERGENCE_HINT[self.integrator.name]) from None
-            self._check(new)
-            self._update_latches(previous, new)
-            self.state = new
+            coordinates = self.model.coordinates(new.q, new.dq, new.t)   # once per step, for all checks
+            self._check(new, coordinates[0])
+            self._update_latches(previous, E_previous, new, coordinates[0])
+            self.state, self._cache = new, (new, coordinates)
 
-    def _check(self, state):
+    def _check(self, state, E):
         hint = _DIVERGENCE_HINT[self.integrator.name]
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.dq))):
             raise SolverDiverged(state.t, "the state became NaN/inf", hint)
-        residual = self.constraint_residual(state)
+        residual = self._residual(E)
         if residual > 1e-4:
             raise SolverDiverged(state.t, f"constraint residual {residual:.3g} (limit 1e-4)", hint)
-        E, _, _ = self.model.coordinates(state.q, state.dq, state.t)
         size = np.max(np.abs(E.reshape(-1, 3, 3)[:, 1:]))   # gradients stay O(1) in any physical motion
         if size > 1e3:
             raise SolverDiverged(state.t, f"gradient vectors grew to {size:.3g}", hint)
 
-    def _update_latches(self, previous, new):
+    def _update_latches(self, previous, E_previous, new, E_new):
         hinges = [h for h in self.model.hinges if h.stop_angle is not None and not previous.latched.get(h.name)]
         if not hinges:
             return
-        old = self.topology.fold_angles(self.model.coordinates(previous.q, previous.dq, previous.t)[0])
-        now = self.topology.fold_angles(self.model.coordinates(new.q, new.dq, new.t)[0])
+        old, now = self.topology.fold_angles(E_previous), self.topology.fold_angles(E_new)
         for h in hinges:
             a, b = old[h.name] - h.stop_angle, now[h.name] - h.stop_angle
             if a > 0 >= b:       # the fold angle reached the stop moving toward it
@@ -184,12 +184,14 @@ class StructureSolver:
     def de(self) -> np.ndarray:
         return self._coordinates()[1].copy()
 
-    def constraint_residual(self, state=None) -> float:
-        state = state or self.state
+    def _residual(self, E) -> float:
         if self.model.constraints.count == 0:
             return 0.0
-        E, _, _ = self.model.coordinates(state.q, state.dq, state.t)
         return float(np.max(np.abs(self.model.constraints.residual(E))))
+
+    def constraint_residual(self) -> float:
+        """Largest |Phi| of the internal constraints at the current state."""
+        return self._residual(self._coordinates()[0])
 
     def fold_angles_deg(self) -> dict:
         return {k: float(np.degrees(v)) for k, v in self.topology.fold_angles(self._coordinates()[0]).items()}

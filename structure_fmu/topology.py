@@ -18,6 +18,7 @@ import numpy as np
 
 from . import element
 from .errors import SceneError, reject_unknown_keys
+from .joints import fold_angle
 from .motion import Fixed, HeavePitch, SpinUp, rotation_about
 from .section import section_from_scene
 
@@ -462,13 +463,14 @@ class Topology:
     def point_position(self, e, body, span, chord_fraction):
         """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
         k, x, y = self.locate(body, span, chord_fraction)
-        dofs = self.element_dofs()[k]
+        a, b = self.element_nodes[k]
+        dofs = np.r_[9 * a:9 * a + 9, 9 * b:9 * b + 9]
+        length = self.bodies[body].length / len(self.bodies[body].elements)
         return element.point_positions(np.asarray(e)[dofs][None, :], np.array([x]), np.array([y]),
-                                       np.array([self.element_lengths()[k]]))[0]
+                                       np.array([length]))[0]
 
     def fold_angles(self, e):
         """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""
-        from .joints import fold_angle
         e = np.asarray(e)
         return {h.name: float(fold_angle(e[3 * h.parent_slot:3 * h.parent_slot + 3],
                                          e[3 * h.child_slot:3 * h.child_slot + 3],

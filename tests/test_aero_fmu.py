@@ -2,8 +2,6 @@
 check, rollback, and the Gauss-Seidel / Jacobi exchange order of the master."""
 import json
 import os
-import subprocess
-import sys
 import types
 import zipfile
 from pathlib import Path
@@ -15,16 +13,15 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-import aero_fmu  # noqa: E402
 from orchestrator import units as real_units  # noqa: E402
 from orchestrator.build import build_fmus, fmus_up_to_date  # noqa: E402
 from orchestrator.master import CouplingError, check_connection, run_scene  # noqa: E402
 from orchestrator.scene import load_scene  # noqa: E402
 from orchestrator.units import UnitError, make_unit  # noqa: E402
 from structure_fmu.topology import Topology  # noqa: E402
+from subprocesses import simulate_in_fresh_python, wingsim  # noqa: E402
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
-CODE_ROOT = Path(aero_fmu.__file__).parents[1]   # the sources under test (PYTHONPATH of the CLI)
 # 000 Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
 HEAVE = ["time.stop=0.5", "aero.wake_length=3"]
 H = 0.1
@@ -112,17 +109,9 @@ def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
 
 def test_aero_fmu_runs_alone_in_a_fresh_host_from_its_embedded_packages(fmu_dir, tmp_path):
     """Any FMI host: the aero FMU alone, inputs at their start values (the scene's initial geometry)."""
-    code = ("import sys, fmpy\n"
-            f"r = fmpy.simulate_fmu({str(fmu_dir / 'aero.fmu')!r}, stop_time=0.3, output_interval=0.1)\n"
-            "print(sys.modules['aero_fmu.solver'].__file__)\n"
-            "print(r['CL'][-1])\n")
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
-                         timeout=300)
-    assert out.returncode == 0, out.stderr
-    solver_file, cl = out.stdout.split()[-2:]
+    solver_file, cl = simulate_in_fresh_python(fmu_dir / "aero.fmu", 0.3, 0.1, "aero_fmu.solver", "CL", tmp_path)
     assert f"resources{os.sep}aero_fmu" in solver_file
-    assert np.isfinite(float(cl))
+    assert np.isfinite(cl)
 
 
 # --- the two backends -----------------------------------------------------------------------------
@@ -355,13 +344,6 @@ def test_jacobi_steps_both_units_from_the_outputs_at_the_start_of_the_step():
 
 
 # --- end to end -----------------------------------------------------------------------------------
-
-def wingsim(*args, cwd):
-    env = {**os.environ, "PYTHONPATH": str(CODE_ROOT), "CI": "true"}
-    env.pop("WINGSIM_DEBUG", None)
-    return subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=600)
-
 
 def test_strip_theory_scene_runs_end_to_end(tmp_path):
     out = tmp_path / "out"

@@ -5,8 +5,6 @@ import csv
 import io
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -19,6 +17,7 @@ from orchestrator.progress import Progress
 from orchestrator.results import crossing_time, deployment_time, energy_drift, summarize, write_results
 from orchestrator.scene import read_scene_file, resolve_scene
 from orchestrator.timeseries import TimeSeries
+from subprocesses import wingsim
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"
@@ -295,13 +294,6 @@ def test_plots_are_written(scene, tmp_path):
 
 
 # --- the command line -----------------------------------------------------------------------------
-
-def wingsim(*args, cwd):
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "CI": "true"}
-    env.pop("WINGSIM_DEBUG", None)
-    return subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=600)
-
 
 def test_bad_scene_exits_2_with_a_clear_message(tmp_path):
     bad = tmp_path / "bad.toml"

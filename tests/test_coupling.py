@@ -44,7 +44,7 @@ def fold(result, times):
 # --- the accelerations on a linear fixed point x = A x + b ------------------------------------------
 
 def _iterate(acceleration, A, b, tolerance=1e-12, max_iterations=50):
-    x, acceleration_iterations = np.zeros(len(b)), 0
+    x = np.zeros(len(b))
     acceleration.start()
     for k in range(1, max_iterations + 1):
         x_tilde = A @ x + b
@@ -93,7 +93,7 @@ def test_implicit_coupling_converges_at_every_step_and_reports_its_iterations(im
                                                                             tmp_path):
     result = implicit_runs[acceleration]
     assert result.status == "ok", result.message
-    assert f"implicit coupling" in result.message and acceleration in result.message
+    assert "implicit coupling" in result.message and acceleration in result.message
     series = result.series
     assert series.columns[-4:] == ["CL", "lift", "coupling_iterations", "coupling_residual"]
     iterations, residual = series.column("coupling_iterations"), series.column("coupling_residual")
@@ -301,3 +301,9 @@ def test_implicit_coupling_of_the_two_fmus_matches_the_direct_backend(tmp_path):
     # the replay of the accepted inputs reproduces the FMU's CL (to the factorization reuse, see above)
     snapshots, _, _ = wake_view.replay(implicit, runs["fmu"].aero_inputs, range(len(runs["fmu"].aero_inputs)))
     np.testing.assert_allclose([s.outputs["CL"] for s in snapshots], runs["fmu"].series.CL[1:], rtol=1e-8, atol=0)
+
+
+def test_unknown_acceleration_is_refused_with_the_allowed_names():
+    from orchestrator.acceleration import make_acceleration
+    with pytest.raises(ValueError, match="aitken, iqn-ils"):
+        make_acceleration({"acceleration": "broyden"})

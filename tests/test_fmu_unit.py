@@ -1,8 +1,6 @@
 """The structure FMU: build, model description, fmu vs direct backend, bad input, rollback (deploy_rigid)."""
 import json
 import os
-import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
@@ -17,6 +15,7 @@ from orchestrator.build import build_fmus, embedded_scene, fmus_up_to_date  # no
 from orchestrator.units import UnitError, make_unit  # noqa: E402
 from structure_fmu.solver import StructureSolver  # noqa: E402
 from structure_fmu.topology import Topology  # noqa: E402
+from subprocesses import simulate_in_fresh_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "deploy_rigid.toml"
@@ -211,14 +210,7 @@ def test_stale_or_missing_fmu_and_bad_arguments_are_refused(scene, fmu_dir, tmp_
 
 def test_fmu_runs_in_a_fresh_host_from_its_embedded_package(fmu_dir, tmp_path):
     """A host that never imported structure_fmu: the slave must import the copy inside the FMU."""
-    code = ("import sys, fmpy\n"
-            f"r = fmpy.simulate_fmu({str(fmu_dir / 'structure.fmu')!r}, stop_time=0.003, output_interval=0.001)\n"
-            "print(sys.modules['structure_fmu.solver'].__file__)\n"
-            "print(r['fold_angle_fold'][-1])\n")
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
-                         timeout=120)
-    assert out.returncode == 0, out.stderr
-    solver_file, angle = out.stdout.split()[-2:]
+    solver_file, angle = simulate_in_fresh_python(fmu_dir / "structure.fmu", 0.003, 0.001, "structure_fmu.solver",
+                                                  "fold_angle_fold", tmp_path, timeout=120)
     assert f"resources{os.sep}structure_fmu" in solver_file
-    assert 0.0 < float(angle) <= 180.0
+    assert 0.0 < angle <= 180.0
