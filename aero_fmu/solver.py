@@ -1,26 +1,77 @@
 """AeroSolver: the aero unit's solver API (docs/aero_api.md), a thin owner of one aero model and its state.
 
 Scene keys used: aero.model (strip | uvlm-flat | uvlm-prescribed | uvlm-free), aero.chordwise_panels,
-aero.spanwise_panels, aero.wake_length (chords; inf allowed), flow.speed, flow.density; the structure
-table builds the same `Topology` as the structure unit. Tunable parameters: flow.speed (m/s),
-flow.density (kg/m^3), flow.direction_x/_y/_z (normalized; default the first body's chord axis r_y).
+aero.spanwise_panels, aero.wake_length (chords; inf allowed), aero.step (s, optional), flow.speed,
+flow.density; the structure table builds the same `Topology` as the structure unit. Tunable parameters:
+flow.speed (m/s), flow.density (kg/m^3), flow.direction_x/_y/_z (normalized; default the first body's
+chord axis r_y).
+
+Multi-rate (aero.step): `advance(t_end, e, de)` takes k = ceil((t_end - t) / aero.step) equal model steps
+over [t, t_end] when t_end - t exceeds aero.step (1e-9 relative slack, so a communication step equal to
+k aero steps up to rounding is k steps, not k + 1). The unit only receives e, de at t_end, so the inner
+steps use e, de interpolated linearly in time from the inputs of the previous advance (at t; held at the
+first advance), the last one the inputs themselves. Those previous inputs are part of the saved state
+(`AeroState`). Without aero.step every advance is one model step, exactly as before the key existed.
 
 Errors: SceneError (bad scene value or parameter, naming it), InputError (e or de of the wrong size or
 with NaN/inf, naming the first bad entry by its FMI name e[k], de[k], 1-based; t_end before the current
 time), SolverDiverged (a singular influence matrix from degenerate panels, or a non-finite result).
 """
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from structure_fmu.errors import InputError, SceneError, SolverDiverged, checked_input
 from structure_fmu.topology import Topology
 
-from .strip import StripTheory
+from .strip import SPAN_CORRECTIONS, StripTheory
 from .uvlm import UVLM
 from .wake import MAX_WAKE_ROWS
 
 MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
-_DEFAULTS = {"chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
+_DEFAULTS = {"chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0, "span_correction": "helmbold"}
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
+_STEP_SLACK = 1e-9      # relative: an interval within rounding of aero.step (or of k aero.steps) is not split
+
+
+@dataclass
+class AeroState:
+    """What AeroSolver.get_state() saves: `model`, the model's state (uvlm.UVLMState or strip.StripState),
+    and `inputs`, the (e, de) (n,) of the last advance, at model.time (None before the first): where the
+    next multi-rate advance starts its interpolation. The model state's attributes (time, gamma, wake,
+    loads, ...) read through, so a saved state looks like the model's."""
+    model: object
+    inputs: tuple | None
+
+    def copy(self) -> "AeroState":
+        return AeroState(self.model.copy(), _copied(self.inputs))
+
+    def __getattr__(self, name):
+        if name == "model":         # not set yet (unpickling looks up __setstate__ first): no recursion
+            raise AttributeError(name)
+        return getattr(self.model, name)
+
+
+def _copied(inputs):
+    return None if inputs is None else tuple(a.copy() for a in inputs)
+
+
+def substep_count(interval: float, step) -> int:
+    """Number k of equal aero steps over a communication interval (s) for the internal aero step `step`
+    (s; None: 1): ceil(interval / step), with a 1e-9 relative slack so that rounding never adds a step."""
+    if step is None or not interval > step * (1 + _STEP_SLACK):
+        return 1
+    return math.ceil(interval / step - _STEP_SLACK)
+
+
+def interpolated_inputs(previous, e, de, k: int):
+    """[(s_j, e_j, de_j)] for j = 1..k: the time fraction s_j = j / k of the interval and the inputs
+    linearly interpolated between `previous` (e, de at its start; None: held at e, de) and e, de at its end;
+    the last one is e, de themselves (no rounding)."""
+    e0, de0 = previous if previous is not None else (e, de)
+    inner = [(j / k, e0 + (j / k) * (e - e0), de0 + (j / k) * (de - de0)) for j in range(1, k)]
+    return inner + [(1.0, e, de)]
 
 
 class AeroSolver:
@@ -42,6 +93,15 @@ class AeroSolver:
         wake_length = settings["wake_length"]
         if isinstance(wake_length, bool) or not isinstance(wake_length, (int, float)) or not wake_length > 0:
             raise SceneError("aero.wake_length", wake_length, "a wake length > 0 (chords; inf for no truncation)")
+        if settings["span_correction"] not in SPAN_CORRECTIONS:
+            raise SceneError("aero.span_correction", settings["span_correction"],
+                             f"one of {', '.join(SPAN_CORRECTIONS)} (strip theory's finite-span lift slope)")
+        step = aero.get("step")
+        if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
+                                 or not (np.isfinite(step) and step > 0)):
+            raise SceneError("aero.step", step, "a finite number > 0 (internal aero step, s; absent: one aero "
+                                                "step per communication step)")
+        self.step = None if step is None else float(step)
         self.model_name = model
         values = {name: spec[0] for name, spec in self.tunable_parameters(scene, self.topology).items()}
         for name, value in (parameters or {}).items():
@@ -62,12 +122,13 @@ class AeroSolver:
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
         if model == "strip":
-            self.model = StripTheory(self.topology, settings["spanwise_panels"])
+            self.model = StripTheory(self.topology, settings["spanwise_panels"], settings["span_correction"])
         else:
             self.model = UVLM(self.topology, settings["chordwise_panels"], settings["spanwise_panels"],
                               wake=model.removeprefix("uvlm-"), wake_length=float(wake_length),
                               max_wake_rows=max_wake_rows)
         self.state = self.model.initial_state()
+        self.inputs = None          # (e, de) of the last advance, at self.state.time
 
     @staticmethod
     def tunable_parameters(scene: dict, topology=None) -> dict:
@@ -93,22 +154,33 @@ class AeroSolver:
         return self.model.lattice
 
     def advance(self, t_end: float, e, de) -> None:
-        """The aero state at t_end for the coordinates e and rates de at t_end (docs/aero_api.md)."""
+        """The aero state at t_end for the coordinates e and rates de at t_end (docs/aero_api.md): one model
+        step, or with aero.step k substeps on interpolated inputs (module docstring). On an error the state
+        is unchanged."""
         n = self.topology.n_coordinates
         e, de = checked_input("e", e, n, self.state.time), checked_input("de", de, n, self.state.time)
         t_end = float(t_end)
         if not np.isfinite(t_end) or t_end < self.state.time - 1e-12 * max(1.0, abs(self.state.time)):
             raise InputError(f"t_end = {t_end} s is before the aero time {self.state.time} s: restore a saved "
                              "state (set_state) to repeat a step")
-        t_end = max(t_end, self.state.time)
+        t, t_end = self.state.time, max(t_end, self.state.time)
+        k = substep_count(t_end - t, self.step)
+        state = self.state
+        for s, e_s, de_s in interpolated_inputs(self.inputs, e, de, k):
+            state = self._model_step(state, t_end if s == 1.0 else t + s * (t_end - t), e_s, de_s)
+        self.state, self.inputs = state, (e.copy(), de.copy())
+
+    def _model_step(self, state, t_end, e, de):
+        """The model's state at t_end (s) from `state` for e, de at t_end; SolverDiverged on a singular
+        system or non-finite forces."""
         try:
-            new = self.model.advance(self.state, t_end, e, de, self.U, self.density, self.direction)
+            new = self.model.advance(state, t_end, e, de, self.U, self.density, self.direction)
         except np.linalg.LinAlgError as exc:
             raise SolverDiverged(t_end, str(exc), _HINT) from None
         loads = new.loads
         if not (np.all(np.isfinite(loads.Q)) and np.all(np.isfinite(loads.forces))):
             raise SolverDiverged(t_end, "the aerodynamic forces became NaN/inf", _HINT)
-        self.state = new
+        return new
 
     # ---------------------------------------------------------------- outputs
     @property
@@ -148,9 +220,11 @@ class AeroSolver:
             out["legs"] = (self.direction.copy(), model.wake_length * model.body_chords)
         return out
 
-    def get_state(self):
-        """Complete state including the wake, arrays copied."""
-        return self.state.copy()
+    def get_state(self) -> AeroState:
+        """Complete state including the wake and the last inputs (for the multi-rate interpolation), arrays
+        copied."""
+        return AeroState(self.state.copy(), _copied(self.inputs))
 
-    def set_state(self, state) -> None:
-        self.state = state.copy()
+    def set_state(self, state: AeroState) -> None:
+        """Restore a state from get_state() (copied: the caller's object stays its own)."""
+        self.state, self.inputs = state.model.copy(), _copied(state.inputs)

@@ -23,6 +23,17 @@ range there), not a chordwise one. The 3/4-chord point carries the pitch-rate ef
 theory; there is no wake, no induced downwash (each strip is 2D) and no apparent mass. For a plate
 pitched by alpha in a stream V along the chord C_L = 2 pi sin(alpha) cos(alpha); in plunge h(t) along n,
 C_L = -2 pi (h'/V) sqrt(1 + (h'/V)^2).
+
+Finite span (aero.span_correction): each strip is 2D, so on a wing of aspect ratio A the 2 pi lift slope
+overestimates the wing's by 1/(finite-span factor). With "helmbold" (the default) every strip force is
+scaled by Helmbold's lifting-line lift slope over 2 pi,
+
+    a / (2 pi) = A / (2 + sqrt(A^2 + 4)),   A = b^2 / S,
+
+b the sum of the body lengths (the deployed span of a folding wing) and S the sum of length x chord. It
+tends to 1 for a slender wing (0.998 at A = 1000) and to A / 4 (slender-wing theory, pi A / 2) for a
+short one; for a rectangular wing it is within about 7% of our vortex lattice between A = 4 and 8
+(docs/aero.md). "none" keeps the 2D slope (the formulas above, exactly).
 """
 from dataclasses import dataclass
 
@@ -30,6 +41,21 @@ import numpy as np
 
 from .lattice import Lattice
 from .loads import Loads, resultants, zero_loads
+
+
+SPAN_CORRECTIONS = ("helmbold", "none")
+
+
+def aspect_ratio(topology) -> float:
+    """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of length x chord (m^2)."""
+    bodies = topology.bodies.values()
+    span = sum(b.length for b in bodies)
+    return span ** 2 / sum(b.length * b.section.chord for b in bodies)
+
+
+def helmbold_factor(aspect: float) -> float:
+    """Helmbold's lift slope of a wing of aspect ratio A over the 2D 2 pi: A / (2 + sqrt(A^2 + 4))."""
+    return aspect / (2.0 + np.sqrt(aspect ** 2 + 4.0))
 
 
 @dataclass
@@ -46,9 +72,11 @@ class StripState:
 class StripTheory:
     """Quasi-steady strip theory on N strips per body (module docstring)."""
 
-    def __init__(self, topology, spanwise):
+    def __init__(self, topology, spanwise, span_correction="helmbold"):
         self.topology = topology
         self.lattice = Lattice(topology, 1, spanwise)
+        self.lift_slope_factor = (helmbold_factor(aspect_ratio(topology)) if span_correction == "helmbold"
+                                  else 1.0)
 
     def initial_state(self) -> StripState:
         return StripState(0.0, False, zero_loads(self.lattice, self.topology.n_coordinates))
@@ -62,6 +90,7 @@ class StripTheory:
         normal_flow = np.sum(relative * geometry.normal, axis=1)                              # V_rel . n
         chord = np.sqrt(np.sum(geometry.r_y ** 2, axis=1)) * lat.chord                        # |r_y| c
         in_plane = np.sqrt(np.sum(np.cross(geometry.r_x, relative) ** 2, axis=1))              # |V_perp| |r_x|
-        forces = (np.pi * density * chord * normal_flow * in_plane * lat.panel_span)[:, None] * geometry.normal
+        forces = ((self.lift_slope_factor * np.pi * density) * chord * normal_flow * in_plane
+                  * lat.panel_span)[:, None] * geometry.normal
         loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, 0)
         return StripState(float(t_end), True, loads)

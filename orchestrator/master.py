@@ -208,16 +208,21 @@ def is_implicit(scene: dict) -> bool:
 
 
 def new_series(scene: dict) -> TimeSeries:
-    """An empty series with the scene's probe and hinge columns (and CL, lift for an aero scene, and
-    coupling_iterations, coupling_residual for an implicit one)."""
+    """An empty series with the scene's probe, hinge and strain gauge columns (and CL, lift for an aero
+    scene, and coupling_iterations, coupling_residual for an implicit one)."""
     return TimeSeries([p["name"] for p in scene["probes"]], [j["name"] for j in hinge_joints(scene)],
-                      aero=has_aero(scene), coupling=is_implicit(scene))
+                      aero=has_aero(scene), coupling=is_implicit(scene),
+                      strain_names=[g["name"] for g in scene.get("strain_gauges", [])])
 
 
-def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topology: Any, probes: list[dict],
+def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topology: Any, scene: dict,
             t: float, coupling: tuple[int, float] | None = None) -> None:
+    probes = scene["probes"]
     positions = np.array([topology.point_position(e, p["body"], p["span"], p["chord"]) for p in probes],
                          dtype=float).reshape(len(probes), 3)
+    # surface strain = distance to the surface x bending curvature (003 Sec. 5: h/2 x kappa_y)
+    strains = {g["name"]: g["surface_distance"] * topology.flap_curvature(e, g["body"], g["span"])
+               for g in scene.get("strain_gauges", [])}
     monitors = structure.monitors()
     loads = None
     if aero is not None:
@@ -226,7 +231,7 @@ def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topolo
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
-                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)))
+                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)), strains=strains)
 
 
 def check_connection(structure: Any, aero: Any) -> None:
@@ -306,7 +311,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             acceleration = make_acceleration(coupling)
             tolerance, max_iterations = coupling.get("tolerance", 1e-6), coupling.get("max_iterations", 50)
             total_iterations = most_iterations = 0
-        _record(series, e, structure, aero, topology, scene["probes"], times[0],
+        _record(series, e, structure, aero, topology, scene, times[0],
                 coupling=(0, np.nan) if implicit else None)
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
@@ -335,7 +340,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         aero.do_step(t0, t1 - t0)
                         aero_inputs.append(t0, t1 - t0, e, de)
                         q, = aero.get_outputs()
-            _record(series, e, structure, aero, topology, scene["probes"], t1, coupling=step_coupling)
+            _record(series, e, structure, aero, topology, scene, t1, coupling=step_coupling)
             reached = t1
             if progress is not None:
                 progress.update(t1)

@@ -3,6 +3,7 @@
 - ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle;
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
+- ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
 - ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s);
 - ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
 - ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
@@ -25,7 +26,8 @@ from matplotlib.figure import Figure
 from orchestrator.master import RunResult
 from orchestrator.scene import hinge_joints
 
-PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "energy_residual.png", "lift_coefficient.png")
+PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
+              "lift_coefficient.png")
 DPI = 120
 
 
@@ -70,6 +72,24 @@ def probe_displacements_figure(result: RunResult) -> Figure | None:
     return fig
 
 
+def strain_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.strain_names:
+        return None
+    gauges = {g["name"]: g for g in result.scene.get("strain_gauges", [])}
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    for i, name in enumerate(series.strain_names):
+        g = gauges.get(name, {})
+        where = f" ({g['body']}, {1e3 * g['span']:g} mm)" if g else ""
+        ax.plot(series.time, 1e6 * series.strains[:, i], label=name + where)
+    ax.set(title=_title(result, "surface strain (bending curvature x distance to the surface)"),
+           xlabel="time (s)", ylabel="strain (microstrain)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
 def monitors_figure(result: RunResult) -> Figure:
     series = result.series
     fig = Figure(figsize=(7, 6))
@@ -108,8 +128,8 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     empty = len(result.series) == 0
     figures = dict(zip(PLOT_FILES, (None,) * len(PLOT_FILES) if empty else (
-        fold_angles_figure(result), probe_displacements_figure(result), monitors_figure(result),
-        lift_figure(result))))
+        fold_angles_figure(result), probe_displacements_figure(result), strain_figure(result),
+        monitors_figure(result), lift_figure(result))))
     written = []
     for filename, fig in figures.items():
         path = out_dir / filename

@@ -15,6 +15,8 @@ Summary fields (SI units, angles in degrees):
   its potential datum); the 1e-12 J floor only avoids a division by zero for a structure at rest;
 - ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
   ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position;
+- ``strain_gauges`` (only for a scene with strain gauges): per gauge ``min``, ``max`` (-), ``peak`` (the
+  largest |strain|, -) and ``peak_time_s`` (s) over the samples;
 - ``aero`` (only for a scene with an aero unit): ``model``, ``CL_final``, ``CL_min``, ``CL_max`` (-) and
   ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet);
 - ``coupling`` (only for an implicitly coupled aero scene): ``algorithm``, ``acceleration``,
@@ -40,7 +42,9 @@ from orchestrator.timeseries import TimeSeries
 
 SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                   "max_constraint_residual", "energy_drift", "probes")
-"""The fields of every summary; an aero scene adds AERO_FIELD, an implicitly coupled one COUPLING_FIELD."""
+"""The fields of every summary; a scene with strain gauges adds STRAIN_FIELD, an aero scene AERO_FIELD, an
+implicitly coupled one COUPLING_FIELD."""
+STRAIN_FIELD = "strain_gauges"
 AERO_FIELD = "aero"
 COUPLING_FIELD = "coupling"
 ENERGY_FLOOR_J = 1e-12
@@ -125,6 +129,21 @@ def probe_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
     }
 
 
+def strain_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
+    """Per strain gauge: min, max, peak (largest |strain|) (-) and the time of the peak (s)."""
+    out = {}
+    for i, name in enumerate(series.strain_names):
+        strain = series.strains[:, i]
+        finite = np.isfinite(strain)
+        if not finite.any():
+            out[name] = dict.fromkeys(("min", "max", "peak", "peak_time_s"))
+            continue
+        k = int(np.argmax(np.where(finite, np.abs(strain), -np.inf)))
+        out[name] = {"min": float(strain[finite].min()), "max": float(strain[finite].max()),
+                     "peak": float(abs(strain[k])), "peak_time_s": float(series.time[k])}
+    return out
+
+
 def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     """model, CL_final, CL_min, CL_max (-) and lift_final (N) over the samples after the first."""
     keys = ("CL_final", "CL_min", "CL_max", "lift_final")
@@ -154,8 +173,8 @@ def coupling_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
 
 
 def summarize(result: RunResult) -> dict[str, Any]:
-    """The summary.json content (SUMMARY_FIELDS, AERO_FIELD for an aero scene, COUPLING_FIELD for an
-    implicitly coupled one), JSON-safe."""
+    """The summary.json content (SUMMARY_FIELDS, STRAIN_FIELD for a scene with strain gauges, AERO_FIELD
+    for an aero scene, COUPLING_FIELD for an implicitly coupled one), JSON-safe."""
     series = result.series
     summary = {
         "status": result.status,
@@ -168,6 +187,8 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "energy_drift": energy_drift(series.energy, series.kinetic_energy),
         "probes": probe_summary(series),
     }
+    if series.strain_names:
+        summary[STRAIN_FIELD] = strain_summary(series)
     if series.has_aero:
         summary[AERO_FIELD] = aero_summary(series, result.scene)
     if series.has_coupling:

@@ -4,8 +4,8 @@ The format is docs/scenes.md. The resolved scene is a plain, JSON-serialisable d
 top-level section present and every default filled in; it is what the units are built from and
 what ``summary.json`` records. SI units throughout (s, m, kg, N, m/s, kg/m^3).
 
-This module checks the top level and the scalar keys (time, coupling, flow, aero, probes and the
-scalar ``structure`` keys). The physics tables (bodies, joints, masses, loads) are checked by
+This module checks the top level and the scalar keys (time, coupling, flow, aero, probes, strain gauges
+and the scalar ``structure`` keys). The physics tables (bodies, joints, masses, loads) are checked by
 ``structure_fmu.topology.Topology.from_scene``, and an aero scene by ``aero_fmu.solver.AeroSolver``,
 which ``load_scene`` calls last, so that every bad scene fails before anything runs with a
 ``SceneError`` naming the key, the value and what is allowed.
@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterable
 
 from orchestrator.acceleration import ACCELERATIONS
 from orchestrator.overrides import apply_overrides
+from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS
 from structure_fmu.errors import SceneError, reject_unknown_keys
 
 Checker = Callable[[str, Any], Any]
@@ -189,6 +190,8 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
         "chordwise_panels": (2, integer_at_least(1)),
         "spanwise_panels": (7, integer_at_least(1)),
         "wake_length": (5.0, positive("wake length, chords")),
+        "step": (None, optional(positive("internal aero step, s; absent: one per communication step"))),
+        "span_correction": ("helmbold", choice("helmbold", "none")),   # strip theory only (aero_fmu/strip.py)
     },
     "structure": {
         "fidelity": ("flexible", choice("prescribed", "rigid", "flexible")),
@@ -196,6 +199,7 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
         "integrator": ("generalized-alpha", choice("rk4", "generalized-alpha")),
         "step": (1e-4, positive("internal time step, s")),
         "rho_inf": (0.8, between(0.0, 1.0, "spectral radius at infinity")),
+        "damping_model": ("deformation", choice("deformation", "mass-proportional")),
         "gravity": ([0.0, 0.0, 0.0], vector3("m/s^2")),
         "bodies": ([], table_list("body")),
         "joints": ([], table_list("joint")),
@@ -219,8 +223,9 @@ SHORTHANDS: dict[str, dict[str, tuple[Any, Checker]]] = {
 }
 """Top-level tables translated into structure keys (see the module docstring)."""
 
-TOP_LEVEL = ("name", "description", *SECTIONS, "probes", "load", *SHORTHANDS)
+TOP_LEVEL = ("name", "description", *SECTIONS, "probes", "strain_gauges", "load", *SHORTHANDS)
 PROBE_KEYS = ("name", "body", "span", "chord")
+STRAIN_GAUGE_KEYS = ("name", "body", "span", "surface_distance")
 DEFAULT_AXIS_POSITION = 0.5
 """Reference line position, fraction of chord from the leading edge, when a body does not say."""
 
@@ -351,28 +356,42 @@ def _apply_shorthands(raw: dict, scene: dict) -> None:
                                            f"motion.amplitude = {heave['amplitude']:g} chords")
 
 
+def _body_point(prefix: str, table: dict, by_name: dict[str, dict]) -> tuple[str, dict, float]:
+    """(body name, body table, span in m) of a probe or strain gauge table, checked."""
+    body_name = table.get("body", MISSING)
+    if not isinstance(body_name, str) or body_name not in by_name:
+        listed = ", ".join(repr(n) for n in by_name) or "the scene has no named bodies"
+        raise SceneError(f"{prefix}.body", body_name, f"the name of a body in structure.bodies: {listed}")
+    body = by_name[body_name]
+    span = non_negative("m from the body root")(f"{prefix}.span", table.get("span", MISSING))
+    length = body.get("length")
+    if _is_number(length) and 0 < length < span / (1 + 1e-12):  # a bad length is Topology's to report
+        raise SceneError(f"{prefix}.span", span, f"a number in [0, {length:g}] "
+                                                 f"(m from the root of body '{body_name}', {length:g} m long)")
+    return body_name, body, span
+
+
+def _named_tables(kind: str, key: str, tables: Any, allowed: tuple[str, ...], taken: set[str]):
+    """(prefix, name, table) of each table of the array ``key``, with unknown keys refused and names unique
+    among themselves and not in ``taken`` (the other column names)."""
+    table_list(kind)(key, tables)
+    seen = set()
+    for index, table in enumerate(tables):
+        prefix = f"{key}.{table['name'] if _is_name(table.get('name')) else index}"
+        reject_unknown_keys(table, prefix, allowed)
+        table_name = name(f"{prefix}.name", table.get("name", MISSING))
+        if table_name in seen or table_name in taken:
+            raise SceneError(f"{prefix}.name", table_name, f"a {kind} name not used by another {kind} "
+                                                           "or column of timeseries.csv")
+        seen.add(table_name)
+        yield prefix, table_name, table
+
+
 def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
-    table_list("probe")("probes", probes)
     by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
-    resolved, seen = [], set()
-    for index, probe in enumerate(probes):
-        label = probe["name"] if _is_name(probe.get("name")) else str(index)
-        prefix = f"probes.{label}"
-        reject_unknown_keys(probe, prefix, PROBE_KEYS)
-        probe_name = name(f"{prefix}.name", probe.get("name", MISSING))
-        if probe_name in seen:
-            raise SceneError(f"{prefix}.name", probe_name, "a probe name not used by another probe")
-        seen.add(probe_name)
-        body_name = probe.get("body", MISSING)
-        if not isinstance(body_name, str) or body_name not in by_name:
-            listed = ", ".join(repr(n) for n in by_name) or "the scene has no named bodies"
-            raise SceneError(f"{prefix}.body", body_name, f"the name of a body in structure.bodies: {listed}")
-        body = by_name[body_name]
-        span = non_negative("m from the body root")(f"{prefix}.span", probe.get("span", MISSING))
-        length = body.get("length")
-        if _is_number(length) and 0 < length < span / (1 + 1e-12):  # a bad length is Topology's to report
-            raise SceneError(f"{prefix}.span", span, f"a number in [0, {length:g}] "
-                                                     f"(m from the root of body '{body_name}', {length:g} m long)")
+    resolved = []
+    for prefix, probe_name, probe in _named_tables("probe", "probes", probes, PROBE_KEYS, set()):
+        body_name, body, span = _body_point(prefix, probe, by_name)
         section = body.get("section") if isinstance(body.get("section"), dict) else {}
         axis = section.get("axis_position", DEFAULT_AXIS_POSITION)
         chord_default = axis if _is_number(axis) else DEFAULT_AXIS_POSITION
@@ -380,6 +399,33 @@ def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
             f"{prefix}.chord", probe.get("chord", chord_default))
         resolved.append({"name": probe_name, "body": body_name, "span": span, "chord": chord})
     return resolved
+
+
+def _resolve_strain_gauges(gauges: Any, bodies: list[dict], taken: set[str]) -> list[dict]:
+    """Each gauge with ``surface_distance`` (m) filled with half its body's plate thickness."""
+    by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
+    resolved = []
+    for prefix, gauge_name, gauge in _named_tables("strain gauge", "strain_gauges", gauges, STRAIN_GAUGE_KEYS,
+                                                   taken):
+        body_name, body, span = _body_point(prefix, gauge, by_name)
+        section = body.get("section") if isinstance(body.get("section"), dict) else {}
+        thickness = section.get("thickness")
+        half = 0.5 * thickness if _is_number(thickness) and thickness > 0 else MISSING
+        if "surface_distance" not in gauge and half is MISSING:
+            raise SceneError(f"{prefix}.surface_distance", MISSING,
+                             f"required: body '{body_name}' has no section.thickness (a distance > 0 from the "
+                             "reference line to the gauged surface, m)")
+        distance = positive("distance from the reference line to the gauged surface, m")(
+            f"{prefix}.surface_distance", gauge.get("surface_distance", half))
+        resolved.append({"name": gauge_name, "body": body_name, "span": span, "surface_distance": distance})
+    return resolved
+
+
+def _column_names(scene: dict) -> set[str]:
+    """The timeseries.csv columns the scene's probes, hinges and monitors take (strain gauges excepted)."""
+    probes = {f"{p['name']}_{axis}" for p in scene["probes"] for axis in "xyz"}
+    hinges = {f"fold_angle_{j.get('name')}" for j in hinge_joints(scene)}
+    return {"time", *probes, *hinges, *MONITOR_COLUMNS, *AERO_COLUMNS, *COUPLING_COLUMNS}
 
 
 def _reject_dates(value: Any, key: str) -> None:
@@ -399,8 +445,9 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     """Fill defaults into a raw scene and check everything but the physics tables.
 
     Returns a new dict: ``name``, ``description``, the sections time, coupling, flow, aero,
-    structure (numbers as float, counts as int) and ``probes`` (each with ``chord`` filled from
-    its body's ``section.axis_position``). Raises SceneError at the first bad key.
+    structure (numbers as float, counts as int), ``probes`` (each with ``chord`` filled from
+    its body's ``section.axis_position``) and ``strain_gauges`` (each with ``surface_distance`` filled
+    with half its body's ``section.thickness``). Raises SceneError at the first bad key.
     """
     if not isinstance(raw, dict):
         raise SceneError("<top level>", raw, "a TOML table")
@@ -419,6 +466,8 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     _apply_shorthands(raw, scene)
     _default_flow_direction(scene)
     scene["probes"] = _resolve_probes(copy.deepcopy(raw.get("probes", [])), scene["structure"]["bodies"])
+    scene["strain_gauges"] = _resolve_strain_gauges(copy.deepcopy(raw.get("strain_gauges", [])),
+                                                    scene["structure"]["bodies"], _column_names(scene))
     return scene
 
 

@@ -1,7 +1,7 @@
 """The samples a run records at each communication point.
 
 One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
-the structure's energy (J), its kinetic energy (J) and its constraint residual (-), and, for a scene
+each strain gauge's surface strain (-, a column named as the gauge), the structure's energy (J), its kinetic energy (J) and its constraint residual (-), and, for a scene
 with an aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the
 iterations ``coupling_iterations`` the master took in the communication step ending at that sample and
 the relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column
@@ -31,18 +31,20 @@ class TimeSeries:
     """Recorded samples; append during the run, read as numpy arrays afterwards."""
 
     def __init__(self, probe_names: Sequence[str], hinge_names: Sequence[str], aero: bool = False,
-                 coupling: bool = False):
+                 coupling: bool = False, strain_names: Sequence[str] = ()):
         self.probe_names = list(probe_names)
         self.hinge_names = list(hinge_names)
+        self.strain_names = list(strain_names)
         self.aero_names = list(AERO_COLUMNS) if aero else []
         self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
         self._rows: list[np.ndarray] = []
-        # named column positions (time, probes, hinges, monitors, aero), from the layout of ``columns``
+        # named column positions (time, probes, hinges, strains, monitors, aero), from the layout of ``columns``
         k = 3 * len(self.probe_names)
         self._positions = slice(1, 1 + k)
         self._folds = slice(1 + k, 1 + k + len(self.hinge_names))
-        self._monitor = {name: self._folds.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
-        start = self._folds.stop + len(MONITOR_COLUMNS)
+        self._strains = slice(self._folds.stop, self._folds.stop + len(self.strain_names))
+        self._monitor = {name: self._strains.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
+        start = self._strains.stop + len(MONITOR_COLUMNS)
         self._monitor.update({name: start + i for i, name in enumerate(self.aero_names)})
         start += len(self.aero_names)
         self._monitor.update({name: start + i for i, name in enumerate(self.coupling_names)})
@@ -61,12 +63,16 @@ class TimeSeries:
     def from_arrays(cls, probe_names: Sequence[str], hinge_names: Sequence[str], time, positions,
                     fold_angles_deg, energy, constraint_residual, kinetic_energy=None,
                     aero: Mapping[str, Sequence[float]] | None = None,
-                    coupling: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
+                    coupling: Mapping[str, Sequence[float]] | None = None,
+                    strains: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
         energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN.
         ``aero``: {"CL": (m,), "lift": (m,)} for a series with the aero columns (a missing one is NaN);
-        ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise."""
-        series = cls(probe_names, hinge_names, aero=aero is not None, coupling=coupling is not None)
+        ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise; ``strains``:
+        {gauge name: (m,)} for a series with strain gauge columns."""
+        strains = strains or {}
+        series = cls(probe_names, hinge_names, aero=aero is not None, coupling=coupling is not None,
+                     strain_names=list(strains))
         m = len(time)
         kinetic = np.full(m, np.nan) if kinetic_energy is None else kinetic_energy
         monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual}
@@ -75,6 +81,7 @@ class TimeSeries:
             np.asarray(time, float),
             np.asarray(positions, float).reshape(m, 3 * len(series.probe_names)),
             np.asarray(fold_angles_deg, float).reshape(m, len(series.hinge_names)),
+            *(np.asarray(strains[name], float).reshape(m) for name in series.strain_names),
             *(np.asarray(monitors[name], float).reshape(m) for name in MONITOR_COLUMNS),
             *(np.asarray(aero.get(name, np.full(m, np.nan)), float).reshape(m) for name in series.aero_names),
             *(np.asarray(coupling.get(name, np.full(m, np.nan)), float).reshape(m)
@@ -85,15 +92,18 @@ class TimeSeries:
 
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
                energy: float, constraint_residual: float, kinetic_energy: float = np.nan,
-               aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None) -> None:
+               aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None,
+               strains: Mapping[str, float] | None = None) -> None:
         """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
-        energies are in J; ``aero`` {"CL": -, "lift": N} and ``coupling`` {"coupling_iterations": -,
-        "coupling_residual": -} (missing values, or no dict, give NaN)."""
+        energies are in J; ``aero`` {"CL": -, "lift": N}, ``coupling`` {"coupling_iterations": -,
+        "coupling_residual": -} and ``strains`` {gauge name: -} (missing values, or no dict, give NaN)."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
+        strains = strains or {}
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
         aero, coupling = aero or {}, coupling or {}
         self._rows.append(np.concatenate((
-            [time], np.asarray(positions, float).reshape(-1), angles, [monitors[n] for n in MONITOR_COLUMNS],
+            [time], np.asarray(positions, float).reshape(-1), angles, [strains.get(n, np.nan) for n in self.strain_names],
+            [monitors[n] for n in MONITOR_COLUMNS],
             [aero.get(n, np.nan) for n in self.aero_names], [coupling.get(n, np.nan) for n in self.coupling_names],
         )).astype(float))
 
@@ -105,7 +115,8 @@ class TimeSeries:
         """Column names in ``timeseries.csv`` order, ``time`` first."""
         probes = [f"{p}_{axis}" for p in self.probe_names for axis in "xyz"]
         hinges = [f"fold_angle_{h}" for h in self.hinge_names]
-        return ["time", *probes, *hinges, *MONITOR_COLUMNS, *self.aero_names, *self.coupling_names]
+        return ["time", *probes, *hinges, *self.strain_names, *MONITOR_COLUMNS, *self.aero_names,
+                *self.coupling_names]
 
     def table(self) -> np.ndarray:
         """All samples, shape (samples, columns)."""
@@ -134,6 +145,11 @@ class TimeSeries:
     def fold_angles_deg(self) -> np.ndarray:
         """Hinge fold angles, degrees, shape (samples, hinges)."""
         return self.table()[:, self._folds]
+
+    @property
+    def strains(self) -> np.ndarray:
+        """Strain gauge surface strains, -, shape (samples, gauges)."""
+        return self.table()[:, self._strains]
 
     @property
     def energy(self) -> np.ndarray:

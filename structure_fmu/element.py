@@ -84,6 +84,25 @@ def point_positions(e, x, y, length):
     return np.einsum("na,nai->ni", s, e.reshape(-1, 6, 3))
 
 
+def flap_curvature(e, x, length):
+    """Bending curvature out of the wing plane at span x of each element, 1/m, shape (n,).
+
+    The geometric curvature of the reference line projected on the unit section normal,
+    kappa_y = r'' . n / |r'|^2 with n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above,
+    normalized so that it is the curvature itself, also where the line stretches. Positive when the line
+    bends toward +n. e (n, 18), x and length (n,) in metres. On a plate of thickness h, h/2 kappa_y is the
+    extensional strain of the -n face (the +n face has its opposite): 003 Sec. 5's h/2 x kappa_y.
+    """
+    _, dN, ddN, L = hermite(np.asarray(x) / length, length)
+    v = e.reshape(-1, 6, 3)
+    r_span = [v[:, 0], v[:, 1], v[:, 3], v[:, 4]]                 # r^A, r_x^A, r^B, r_x^B
+    r1 = sum(dN[:, k:k + 1] * r_span[k] for k in range(4))
+    r2 = sum(ddN[:, k:k + 1] * r_span[k] for k in range(4))
+    ry = L[:, :1] * v[:, 2] + L[:, 1:] * v[:, 5]
+    normal = cross(r1, ry)
+    return _dot(r2, normal) / (np.sqrt(_dot(normal, normal)) * _dot(r1, r1))
+
+
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia):
     """Constant element mass matrix (000 Eq. 5) by exact quadrature of rho * int S^T S dA dx.
 

@@ -20,7 +20,7 @@ from .joints import actuator_forces
 class StructureModel:
     """Mass, forces, constraints and energy of a Topology with given tunable parameters."""
 
-    def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None):
+    def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         self.top = topology
         self.n = topology.n_coordinates
         self.T, self.P = topology.maps()
@@ -49,6 +49,9 @@ class StructureModel:
         self.constraints = Constraints(topology)
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
+        # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
+        # literal 000 Sec. II.C / 003 Sec. 5 force, which also damps the bodies' rigid motion
+        self.damping_model = damping_model
         if self.flexible:
             for name, body in topology.bodies.items():
                 alpha = (body_damping or {}).get(name, body.damping)
@@ -119,6 +122,11 @@ class StructureModel:
                 for dofs, j in zip(self.dofs, jac):
                     K[np.ix_(dofs, dofs)] += j
         for alpha, idx, mass in self.damped_bodies:
+            if self.damping_model == "mass-proportional":
+                F[idx] -= alpha * (mass @ dE[idx])
+                if with_tangent:
+                    C[np.ix_(idx, idx)] += alpha * mass
+                continue
             F[idx] += deformation_damping_force(E[idx], dE[idx], mass, alpha)
             if with_tangent:
                 C[np.ix_(idx, idx)] += deformation_damping_matrix(E[idx], mass, alpha)

@@ -11,7 +11,7 @@ class Section:
     axial (EA, N), flap (EI_yy, N m^2, out of the wing plane), chordwise (EI_zz, N m^2),
     torsion (GJ, N m^2), mass_per_length (rho A, kg/m), first_moment (rho Q_z, kg),
     chord_inertia (rho I_zz, kg m), chord (m), axis_position (reference line, fraction of chord from the
-    leading edge).
+    leading edge), thickness (h, m; None for a section given by explicit stiffnesses).
     """
 
     axial: float
@@ -23,6 +23,7 @@ class Section:
     chord_inertia: float
     chord: float
     axis_position: float
+    thickness: float | None = None
 
     @property
     def stiffness(self):
@@ -60,7 +61,7 @@ def section_from_scene(key: str, table: dict) -> Section:
     if not isinstance(axis, (int, float)) or not 0.0 <= axis <= 1.0:
         raise SceneError(f"{key}.axis_position", axis, "a fraction of chord in [0, 1]")
     torsion = _positive(key, table, "torsional_rigidity")
-    derived = {}
+    derived, h = {}, None
     if any(name in table for name in _PLATE):
         h, rho, E = (_positive(key, table, name) for name in _PLATE)
         derived = {"axial_stiffness": E * chord * h, "bending_stiffness_flap": E * chord * h**3 / 12,
@@ -79,4 +80,5 @@ def section_from_scene(key: str, table: dict) -> Section:
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
                    chordwise=values["bending_stiffness_chord"], torsion=torsion, mass_per_length=mu,
                    first_moment=mu * (trail**2 - lead**2) / (2 * chord),
-                   chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=float(axis))
+                   chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=float(axis),
+                   thickness=h)

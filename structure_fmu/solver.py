@@ -19,6 +19,10 @@ _DIVERGENCE_HINT = {
 }
 
 
+DAMPING_MODELS = ("deformation", "mass-proportional")
+"""structure.damping_model: what the bodies' alpha damps (structure_fmu.model.StructureModel)."""
+
+
 class StructureSolver:
     """The structural solver of one scene. See docs/solver_api.md."""
 
@@ -42,7 +46,10 @@ class StructureSolver:
                 raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
         body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
         gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
-        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping)
+        damping_model = structure.get("damping_model", "deformation")
+        if damping_model not in DAMPING_MODELS:
+            raise SceneError("structure.damping_model", damping_model, f"one of {', '.join(DAMPING_MODELS)}")
+        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping, damping_model)
         self.step_size = values["structure.step"]
         integrator = structure.get("integrator", "generalized-alpha")
         if integrator == "rk4":
@@ -92,7 +99,8 @@ class StructureSolver:
                "gravity_z": (float(gravity[2]), "m/s2", "gravity, z component")}
         for body in structure.get("bodies", []):
             out[f"{body['name']}.damping"] = (float(body.get("damping", 0.0)), "1/s",
-                                              "mass-proportional damping of deformation, alpha")
+                                              "mass-proportional damping alpha (of deformation, or of all motion: "
+                                              "structure.damping_model)")
         for joint in structure.get("joints", []):
             if joint.get("type") == "hinge":
                 name = joint["name"]

@@ -460,14 +460,24 @@ class Topology:
         k = min(int(span / l_el), n_el - 1)
         return body.elements[k], span - k * l_el, body.section.chord_offset(chord_fraction)
 
-    def point_position(self, e, body, span, chord_fraction):
-        """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
+    def _element_at(self, e, body, span, chord_fraction=0.0):
+        """(element coordinates (1, 18), x (m), y (m), element length (m)) of a material point."""
         k, x, y = self.locate(body, span, chord_fraction)
         a, b = self.element_nodes[k]
         dofs = np.r_[9 * a:9 * a + 9, 9 * b:9 * b + 9]
         length = self.bodies[body].length / len(self.bodies[body].elements)
-        return element.point_positions(np.asarray(e)[dofs][None, :], np.array([x]), np.array([y]),
-                                       np.array([length]))[0]
+        return np.asarray(e)[dofs][None, :], x, y, length
+
+    def point_position(self, e, body, span, chord_fraction):
+        """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
+        e_el, x, y, length = self._element_at(e, body, span, chord_fraction)
+        return element.point_positions(e_el, np.array([x]), np.array([y]), np.array([length]))[0]
+
+    def flap_curvature(self, e, body, span):
+        """Bending curvature out of the wing plane (1/m) of `body`'s reference line at `span` (m)
+        (element.flap_curvature; positive toward the section normal r_x x r_y)."""
+        e_el, x, _, length = self._element_at(e, body, span)
+        return float(element.flap_curvature(e_el, np.array([x]), np.array([length]))[0])
 
     def fold_angles(self, e):
         """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from orchestrator.master import RunResult, communication_times, run_scene
+from orchestrator.overrides import apply_overrides
 from orchestrator.plots import write_plots
 from orchestrator.progress import Progress
 from orchestrator.results import crossing_time, deployment_time, energy_drift, summarize, write_results
@@ -27,7 +28,8 @@ DESIGN_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s",
 
 @pytest.fixture
 def scene():
-    return resolve_scene(read_scene_file(EXAMPLE), "deploy_rigid")
+    """The example scene, structure only (the fake units below are one structure unit)."""
+    return resolve_scene(apply_overrides(read_scene_file(EXAMPLE), ["aero.model=none"]), "deploy_rigid")
 
 
 # A synthetic deployment: the fold angle crosses its stop (0 deg) between t = 0.03 s (+10 deg) and
@@ -237,6 +239,10 @@ class FakeTopology:
     def point_position(e, body, span, chord_fraction):
         return np.array([e[0], 0.0, span])
 
+    @staticmethod
+    def flap_curvature(e, body, span):
+        return 0.0
+
 
 def fake_run(scene, unit, stop=0.0105, progress=None):
     scene["time"]["stop"] = stop
@@ -337,13 +343,16 @@ def test_run_example_scene(tmp_path, backend):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["simulated_time_s"] == pytest.approx(0.3)
-    assert set(summary) == DESIGN_SUMMARY_FIELDS
+    # the example couples the uvlm-flat aero unit and has a strain gauge: their summaries are added
+    assert set(summary) == DESIGN_SUMMARY_FIELDS | {"aero", "strain_gauges"}
     with (tmp_path / "out" / "timeseries.csv").open() as f:
         header = next(csv.reader(f))
     assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header
+    assert "strain_20mm" in header and "CL" in header
     assert header[header.index("energy") + 1] == "kinetic_energy" and "constraint_residual" in header
     assert {p.name for p in (tmp_path / "out").glob("*.png")} == {
-        "fold_angles.png", "probe_displacements.png", "energy_residual.png"}
+        "fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
+        "lift_coefficient.png", "wake_3d.png"}
     assert "results in" in proc.stdout
 
 

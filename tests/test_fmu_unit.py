@@ -23,12 +23,10 @@ H = 1e-3  # communication step, s
 
 
 def load(path=SCENE):
-    try:
-        from orchestrator.scene import load_scene
-    except ImportError:  # the loader is optional here: a plain TOML dict is a valid resolved scene
-        import tomllib
-        return tomllib.loads(Path(path).read_text())
-    return load_scene(path)
+    """The scene in still air: the structure unit alone."""
+    from orchestrator.scene import load_scene
+
+    return load_scene(path, ["aero.model=none"])
 
 
 @pytest.fixture(scope="module")

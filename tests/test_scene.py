@@ -45,8 +45,8 @@ def test_overrides_dotted_keys_with_types(raw):
 
 
 def test_override_creates_missing_section(raw):
-    assert "flow" not in raw
-    assert resolved(raw, "flow.density=0.02")["flow"] == {"speed": 0.0, "density": 0.02}
+    del raw["flow"]
+    assert resolved(raw, "aero.model=none", "flow.density=0.02")["flow"] == {"speed": 0.0, "density": 0.02}
 
 
 def test_override_addresses_array_of_tables_by_name_or_index(raw):
@@ -56,7 +56,7 @@ def test_override_addresses_array_of_tables_by_name_or_index(raw):
     assert outer["damping"] == 0.5 and inner["damping"] == 0.2
     assert scene["structure"]["joints"][1]["stiffness"] == 0.03
     assert scene["structure"]["masses"][0]["mass"] == 0.05
-    assert scene["probes"][0]["span"] == 0.1
+    assert scene["probes"][1]["span"] == 0.1
 
 
 def test_overrides_leave_the_raw_scene_alone(raw):
@@ -93,12 +93,15 @@ def test_defaults_follow_docs_scenes_md():
     assert scene["coupling"] == {"step": 1e-3, "algorithm": "gauss-seidel", "tolerance": 1e-6,
                                  "max_iterations": 50, "acceleration": "aitken", "relaxation": 0.5}
     assert scene["flow"] == {"speed": 0.0, "density": 1.2}
-    assert scene["aero"] == {"model": "none", "chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
+    assert scene["aero"] == {"model": "none", "chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0,
+                             "step": None, "span_correction": "helmbold"}
     assert scene["structure"] == {
         "fidelity": "flexible", "elements_per_body": 4, "integrator": "generalized-alpha", "step": 1e-4,
-        "rho_inf": 0.8, "gravity": [0.0, 0.0, 0.0], "bodies": [], "joints": [], "masses": [], "loads": []}
+        "rho_inf": 0.8, "damping_model": "deformation", "gravity": [0.0, 0.0, 0.0], "bodies": [], "joints": [],
+        "masses": [], "loads": []}
     assert scene["probes"] == []
-    assert list(scene) == ["name", "description", *SECTIONS, "probes"]
+    assert scene["strain_gauges"] == []
+    assert list(scene) == ["name", "description", *SECTIONS, "probes", "strain_gauges"]
     json.dumps(scene, allow_nan=False)
 
 
@@ -107,13 +110,17 @@ def test_resolved_example_keeps_its_values(raw):
     assert scene["name"] == "deploy_rigid"
     assert scene["structure"]["fidelity"] == "rigid" and scene["structure"]["integrator"] == "rk4"
     assert scene["structure"]["bodies"] == raw["structure"]["bodies"]
-    assert scene["probes"] == [{"name": "tip", "body": "outer", "span": 0.15, "chord": 0.5}]
+    assert scene["probes"] == [{"name": "bending_100mm", "body": "inner", "span": 0.1, "chord": 0.5},
+                               {"name": "tip", "body": "outer", "span": 0.15, "chord": 0.5}]
+    # the surface distance defaults to half the 2 mm plate thickness
+    assert scene["strain_gauges"] == [{"name": "strain_20mm", "body": "inner", "span": 0.02,
+                                       "surface_distance": 0.001}]
 
 
 def test_probe_chord_defaults_to_the_body_axis(raw):
     raw["structure"]["bodies"][1]["section"]["axis_position"] = 0.25
-    del raw["probes"][0]["chord"]
-    assert resolved(raw)["probes"][0]["chord"] == 0.25
+    del raw["probes"][1]["chord"]
+    assert resolved(raw)["probes"][1]["chord"] == 0.25
 
 
 # --- malformed scenes -----------------------------------------------------------------------------
@@ -154,7 +161,15 @@ MALFORMED = [
     (["probes.tip.span=0.2"], "probes.tip.span", 0.2, "a number in [0, 0.15]"),
     (["probes.tip.chord=2"], "probes.tip.chord", 2, "a number in [0, 1]"),
     (["probes.tip.side=2"], "probes.tip.side", 2, "allowed in [probes.tip]: name, body, span, chord"),
-    (["probes.tip.name=x,y"], "probes.0.name", "x,y", "letters, digits"),
+    (["probes.tip.name=x,y"], "probes.1.name", "x,y", "letters, digits"),
+    (["strain_gauges.strain_20mm.body=wing"], "strain_gauges.strain_20mm.body", "wing", "'inner', 'outer'"),
+    (["strain_gauges.strain_20mm.span=0.2"], "strain_gauges.strain_20mm.span", 0.2, "a number in [0, 0.15]"),
+    (["strain_gauges.strain_20mm.surface_distance=-1"], "strain_gauges.strain_20mm.surface_distance", -1,
+     "a finite number > 0"),
+    (["strain_gauges.strain_20mm.name=tip_x"], "strain_gauges.tip_x.name", "tip_x",
+     "not used by another strain gauge or column of timeseries.csv"),
+    (["strain_gauges.strain_20mm.chord=0.5"], "strain_gauges.strain_20mm.chord", 0.5,
+     "allowed in [strain_gauges.strain_20mm]: name, body, span, surface_distance"),
     (["flow.speed=1979-05-27"], "flow.speed", "1979-05-27", "not a date or time"),
 ]
 
@@ -177,8 +192,21 @@ def test_missing_required_key(raw):
     assert "required" in str(err.value)
 
 
+def test_strain_gauge_on_a_section_without_thickness_needs_its_surface_distance(raw):
+    section = raw["structure"]["bodies"][0]["section"]
+    for key in ("thickness", "density", "youngs_modulus"):
+        del section[key]
+    section.update(axial_stiffness=1e6, bending_stiffness_flap=0.1, bending_stiffness_chord=10.0,
+                   mass_per_length=0.1)
+    with pytest.raises(SceneError) as err:
+        resolved(raw)
+    assert err.value.key == "strain_gauges.strain_20mm.surface_distance" and "no section.thickness" in str(err.value)
+    gauge = resolved(raw, "strain_gauges.strain_20mm.surface_distance=0.003")["strain_gauges"][0]
+    assert gauge["surface_distance"] == 0.003
+
+
 def test_duplicate_probe_names(raw):
-    raw["probes"].append(dict(raw["probes"][0]))
+    raw["probes"].append(dict(raw["probes"][1]))
     with pytest.raises(SceneError) as err:
         resolved(raw)
     assert err.value.key == "probes.tip.name" and "not used by another probe" in str(err.value)
@@ -223,7 +251,8 @@ def aero_raw(name):
 
 
 def test_flow_direction_defaults_to_the_chord_axis_of_an_aero_scene_only(raw):
-    assert "direction" not in resolved(raw)["flow"]                        # structure only: not recorded
+    del raw["flow"]["direction"]
+    assert "direction" not in resolved(raw, "aero.model=none")["flow"]     # structure only: not recorded
     scene = resolved(raw, "aero.model=uvlm-flat")
     assert scene["flow"]["direction"] == [1.0, 0.0, 0.0]                  # chord_axis of body 'inner'
     assert resolved(raw, "aero.model=strip", "flow.direction=[1,0,1]")["flow"]["direction"] == [1.0, 0.0, 1.0]
