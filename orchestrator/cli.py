@@ -4,7 +4,10 @@
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
   run, write ``timeseries.csv``, ``summary.json`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
-- ``wingsim sweep`` (issue 5): not implemented yet.
+- ``wingsim sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--set KEY=VALUE ...] [--out DIR]
+  [--backend direct|fmu] [--jobs N] [--scheduler ADDRESS] [--plots]``: every combination of the grid
+  values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
+  ``results/<scene>/sweep/``); local processes, or a Dask cluster with ``--scheduler`` (docs/sweep.md).
 
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), or
 an unexpected error; 2 bad scene, bad arguments or a command not implemented yet.
@@ -23,7 +26,7 @@ from typing import Sequence
 
 from structure_fmu.errors import SceneError
 
-NOT_IMPLEMENTED = {"sweep": "issue 5"}
+NOT_IMPLEMENTED: dict[str, str] = {}
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
@@ -61,6 +64,27 @@ def build_parser() -> argparse.ArgumentParser:
                                                "description validation and a short simulation of each.")
     validate.add_argument("fmus", type=Path, nargs="*", metavar="FMU", help="FMU files (default: fmus/**/*.fmu)")
     validate.set_defaults(func=cmd_validate)
+
+    sweep = commands.add_parser("sweep", help="run every combination of --grid values, one row per run in sweep.csv",
+                                description="Run the scene for every combination of the --grid values "
+                                            "(after the --set overrides); write DIR/runs/<run>/ and DIR/sweep.csv. "
+                                            "Rerunning the same command resumes: finished runs are skipped.")
+    sweep.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    sweep.add_argument("--grid", dest="grid", action="append", default=[], metavar="KEY=V1,V2,...",
+                       help="a dotted scene key and its values, e.g. --grid flow.speed=0,10,20 (repeatable; "
+                            "required)")
+    sweep.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a dotted scene key in every run (repeatable)")
+    sweep.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<scene name>/sweep/)")
+    sweep.add_argument("--backend", choices=("fmu", "direct"), default="direct",
+                       help="direct: the slaves in-process in each worker (default for sweeps); fmu: build "
+                            "each run's FMUs into DIR/fmus/<run>/ first, then run them through fmpy")
+    sweep.add_argument("--jobs", type=int, default=None, metavar="N",
+                       help="local worker processes (default: the number of CPUs)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on a Dask distributed cluster, e.g. tcp://127.0.0.1:8786, instead of locally")
+    sweep.add_argument("--plots", action="store_true", help="write PNG plots into each run folder (off by default)")
+    sweep.set_defaults(func=cmd_sweep)
 
     for command, issue in NOT_IMPLEMENTED.items():
         commands.add_parser(command, help=f"not implemented yet ({issue})")
@@ -133,6 +157,33 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"{scene['name']}: {result.status}: {result.message}")
     print(f"results in {out}")
     return 0 if result.status == "ok" else 1
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from orchestrator.sweep import plan_sweep, run_sweep
+
+    if args.jobs is not None and args.jobs < 1:
+        raise SceneError("--jobs", args.jobs, "a number of worker processes >= 1")
+    if not args.grid:
+        raise SceneError("--grid", None, "give at least one --grid KEY=V1,V2,..., e.g. --grid flow.speed=0,10,20")
+    runs = plan_sweep(args.scene, args.grid, args.overrides)   # SceneError (exit 2) before anything runs
+    out = args.out or RESULTS_ROOT / runs[0].scene["name"] / "sweep"
+    where = f"the Dask cluster at {args.scheduler}" if args.scheduler else "local processes"
+    print(f"sweep: {len(runs)} runs of {args.scene} on {where}, results in {out}", file=sys.stderr)
+    outcome = run_sweep(runs, out, backend=args.backend, jobs=args.jobs, scheduler=args.scheduler,
+                        plots=args.plots)
+    counts = ", ".join(f"{status} {n}" for status, n in sorted(outcome.statuses.items())) or "none run"
+    print(f"sweep: {outcome.runs} runs, {outcome.ran} run now ({counts}), {outcome.skipped} already done")
+    print(f"results in {outcome.table}")
+    rows_ok = all(row["status"] == "ok" for row in _read_rows(outcome.table))
+    return 0 if rows_ok else 1
+
+
+def _read_rows(path: Path) -> list[dict]:
+    import csv
+
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

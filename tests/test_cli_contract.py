@@ -318,12 +318,6 @@ def test_bad_override_and_missing_file_exit_2(tmp_path):
     assert proc.returncode == 2 and "no such file" in proc.stderr and "Traceback" not in proc.stderr
 
 
-@pytest.mark.parametrize("command, issue", [("sweep", "issue 5")])
-def test_unimplemented_commands_say_so(tmp_path, command, issue):
-    proc = wingsim(command, EXAMPLE, "--grid", "flow.speed=1,2", cwd=tmp_path)
-    assert proc.returncode == 2 and "not implemented yet" in proc.stderr and issue in proc.stderr
-
-
 def test_ci_runs_the_readme_test_command():
     readme = (ROOT / "README.md").read_text()
     blocks = [b.split("```", 1)[0].strip() for b in readme.split("```sh\n")[1:]]

@@ -1,0 +1,399 @@
+"""``wingsim sweep``: run every combination of ``--grid KEY=V1,V2,...`` values (issue 5; docs/sweep.md).
+
+Each combination is one run of the scene with the ``--set`` overrides followed by the grid overrides
+(``load_scene(path, [*sets, *grid])`` then ``run_scene``). Every combination is loaded and checked
+before anything runs, so a bad key or value exits 2 and runs nothing. The runs go to local worker
+processes (``jobs``, default ``os.cpu_count()``) or, with ``scheduler``, to a Dask distributed
+cluster. Workers only compute: they return the RunResult and this process writes every file, so
+Dask workers need no shared file system (except with ``backend="fmu"``, whose FMUs are built here
+before any run starts and opened by the workers from ``OUT/fmus/<run>/``).
+
+Layout of the output folder ``OUT``:
+
+- ``OUT/runs/<index>_<key=value_...>/``: ``timeseries.csv``, ``summary.json`` (as ``wingsim run``),
+  ``sweep_run.json`` (the run's overrides and backend, for resuming), PNG plots with ``plots=True``;
+- ``OUT/sweep.csv``: one row per run, appended as runs finish (a killed sweep keeps the finished
+  rows) and rewritten complete, in grid order, at the end.
+
+Resume: a run whose folder holds a ``summary.json`` (status ok, diverged or error) for the same
+overrides, backend and resolved scene is not run again.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):   # one BLAS thread per worker
+    os.environ.setdefault(_var, "1")   # inherited by the (spawned) workers, which import numpy afresh
+
+import csv
+import itertools
+import json
+import math
+import multiprocessing
+import re
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence, TextIO
+
+from orchestrator.overrides import INDEX_PATTERN, parse_value
+from structure_fmu.errors import SceneError
+
+DONE_STATUSES = ("ok", "diverged", "error")
+FIXED_COLUMNS = ("index",)
+RESULT_COLUMNS = ("status", "deployment_time_s", "wall_time_s", "message", "run_dir")
+SKIPPED_FIGURES = {"status", "message", "wall_time_s", "deployment_time_s", "scene"}
+RUN_FILE = "sweep_run.json"
+SWEEP_CSV = "sweep.csv"
+GRID_HELP = "KEY=V1,V2,... with a dotted scene key and at least one value, e.g. --grid flow.speed=0,10,20"
+AXES = ("x", "y", "z")
+
+
+# --- the grid ---------------------------------------------------------------------------------------
+
+def split_values(raw: str) -> list[str]:
+    """``0,5,[0,0,-9.8]`` -> ``['0', '5', '[0,0,-9.8]']``: commas inside brackets or quotes do not split."""
+    values, depth, quote, current = [], 0, "", []
+    for ch in raw:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            values.append("".join(current).strip())
+            current = []
+            continue
+        current.append(ch)
+    values.append("".join(current).strip())
+    return values
+
+
+def parse_grid(items: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """``--grid`` arguments -> [(dotted key, [raw value, ...]), ...] in the order given; SceneError if bad."""
+    grid: list[tuple[str, list[str]]] = []
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = INDEX_PATTERN.sub(r".\1", key.strip())
+        if not sep or not key or not all(part.strip() for part in key.split(".")):
+            raise SceneError("--grid", item, GRID_HELP)
+        values = split_values(raw)
+        if not raw.strip() or not all(values):
+            raise SceneError(key, raw, f"--grid: empty value in {item!r}; {GRID_HELP}")
+        if key in (k for k, _ in grid):
+            raise SceneError(key, raw, "--grid given twice for this key; give all its values in one --grid")
+        grid.append((key, values))
+    if not grid:
+        raise SceneError("--grid", "", GRID_HELP)
+    return grid
+
+
+def _folder_part(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._=+-]+", "-", text).strip("-")
+
+
+@dataclass
+class Run:
+    """One combination of the grid."""
+
+    index: int
+    values: dict[str, str]          # grid key -> raw value text, in grid order
+    overrides: list[str]            # --set items, then the grid items
+    name: str                       # the run folder's name
+    scene: dict = field(default_factory=dict)   # resolved scene (filled by plan_sweep)
+
+
+def combinations(grid: list[tuple[str, list[str]]], sets: Sequence[str] = ()) -> list[Run]:
+    """Every combination (cartesian product, last key varying fastest) as a Run."""
+    keys = [key for key, _ in grid]
+    products = list(itertools.product(*(values for _, values in grid)))
+    width = max(3, len(str(len(products) - 1)))
+    runs = []
+    for index, combo in enumerate(products):
+        values = dict(zip(keys, combo))
+        label = "_".join(f"{key}={value}" for key, value in values.items())
+        name = f"{index:0{width}d}_{_folder_part(label)}"[:150]
+        runs.append(Run(index, values, [*sets, *(f"{k}={v}" for k, v in values.items())], name))
+    return runs
+
+
+def plan_sweep(scene_path: Path, grid_items: Sequence[str], sets: Sequence[str] = ()) -> list[Run]:
+    """The runs of a sweep, each with its resolved scene; SceneError (nothing run) for any bad input."""
+    from orchestrator.scene import load_scene
+
+    runs = combinations(parse_grid(grid_items), sets)
+    for run in runs:
+        run.scene = load_scene(scene_path, run.overrides)
+    return runs
+
+
+# --- one run (in a worker) --------------------------------------------------------------------------
+
+def run_one(scene: dict, backend: str, fmu_dir: str | None) -> Any:
+    """Run one resolved scene; the worker-side task (returns the RunResult; never writes files)."""
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")   # effective if this worker has not imported numpy yet
+    from orchestrator.master import run_scene
+
+    return run_scene(scene, backend=backend, fmu_dir=Path(fmu_dir) if fmu_dir else None, progress=None)
+
+
+def _failed(scene: dict, message: str, wall: float = 0.0) -> Any:
+    from orchestrator.master import RunResult, new_series
+
+    return RunResult("error", message, wall, 0.0, scene, new_series(scene))
+
+
+# --- resume -----------------------------------------------------------------------------------------
+
+def _run_record(run: Run, backend: str) -> dict:
+    return {"index": run.index, "grid": run.values, "overrides": run.overrides, "backend": backend}
+
+
+def finished_summary(run: Run, run_dir: Path, backend: str) -> dict | None:
+    """The run folder's summary if it holds a finished run of the same overrides, backend and scene."""
+    try:
+        record = json.loads((run_dir / RUN_FILE).read_text())
+        summary = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    from orchestrator.results import json_safe
+
+    same = (record.get("overrides") == run.overrides and record.get("backend") == backend
+            and summary.get("status") in DONE_STATUSES
+            and summary.get("scene") == json.loads(json.dumps(json_safe(run.scene))))
+    return summary if same else None
+
+
+# --- sweep.csv --------------------------------------------------------------------------------------
+
+def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _flatten(item, f"{prefix}.{key}" if prefix else str(key), out)
+    elif isinstance(value, list):
+        if len(value) == 3 and all(isinstance(v, (int, float)) or v is None for v in value):
+            for axis, item in zip(AXES, value):
+                out[f"{prefix}_{axis}"] = item
+        elif all(isinstance(v, (int, float, str, bool)) or v is None for v in value):
+            for i, item in enumerate(value):
+                out[f"{prefix}.{i}"] = item
+    else:
+        out[prefix] = value
+
+
+def summary_figures(summary: dict) -> dict[str, Any]:
+    """The scalar figures of a summary.json, flattened with dotted names (``probes.tip.max_displacement_z``),
+    plus ``probes.<probe>.max_abs_displacement`` (m, largest |component| of min/max displacement)."""
+    out: dict[str, Any] = {}
+    for key, value in summary.items():
+        if key not in SKIPPED_FIGURES:
+            _flatten(value, key, out)
+    for probe, figures in (summary.get("probes") or {}).items():
+        parts = [abs(v) for k in ("min_displacement", "max_displacement") for v in (figures.get(k) or [])
+                 if isinstance(v, (int, float))]
+        if parts:
+            out[f"probes.{probe}.max_abs_displacement"] = max(parts)
+    return out
+
+
+def sweep_row(run: Run, summary: dict, run_dir: Path, out: Path) -> dict[str, Any]:
+    row: dict[str, Any] = {"index": run.index, **run.values}
+    row.update(status=summary.get("status"), deployment_time_s=summary.get("deployment_time_s"),
+               wall_time_s=summary.get("wall_time_s"), message=summary.get("message", ""),
+               run_dir=str(run_dir.relative_to(out)))
+    row.update(summary_figures(summary))
+    return row
+
+
+def _columns(grid_keys: Iterable[str], rows: Iterable[dict]) -> list[str]:
+    columns = [*FIXED_COLUMNS, *grid_keys, *RESULT_COLUMNS]
+    seen = set(columns)
+    for row in rows:
+        for key in row:
+            if key not in seen:
+                seen.add(key)
+                columns.append(key)
+    return columns
+
+
+def _cell(value: Any) -> Any:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return ""
+    return value
+
+
+class SweepTable:
+    """sweep.csv, appended row by row (header from the first row) and rewritten complete by ``close``."""
+
+    def __init__(self, path: Path, grid_keys: list[str]):
+        self.path, self.grid_keys = path, grid_keys
+        self.rows: dict[int, dict] = {}
+        self._file: TextIO | None = None
+        self._writer: csv.DictWriter | None = None
+
+    def add(self, row: dict) -> None:
+        self.rows[row["index"]] = row
+        if self._writer is None:
+            self._file = self.path.open("w", newline="")
+            self._writer = csv.DictWriter(self._file, _columns(self.grid_keys, [row]), extrasaction="ignore")
+            self._writer.writeheader()
+        self._writer.writerow({k: _cell(v) for k, v in row.items()})
+        self._file.flush()
+
+    def close(self) -> None:
+        """Rewrite the file with every row so far, sorted by index, with the union of all columns."""
+        if self._file is not None:
+            self._file.close()
+            self._file = self._writer = None
+        rows = [self.rows[i] for i in sorted(self.rows)]
+        tmp = self.path.with_suffix(".csv.tmp")
+        with tmp.open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, _columns(self.grid_keys, rows))
+            writer.writeheader()
+            for row in rows:
+                writer.writerow({k: _cell(v) for k, v in row.items()})
+        tmp.replace(self.path)
+
+
+# --- the sweep --------------------------------------------------------------------------------------
+
+@dataclass
+class SweepOutcome:
+    runs: int
+    ran: int
+    skipped: int
+    statuses: dict[str, int]
+    table: Path
+
+
+def _build_fmus(runs: list[Run], todo: list[Run], out: Path, stream: TextIO) -> dict[int, Any]:
+    """Build (if needed) each run's FMUs into OUT/fmus/<run>/ before any run starts; failed builds
+    as RunResults by run index."""
+    from orchestrator.build import build_fmus, fmus_up_to_date
+
+    failed = {}
+    for run in todo:
+        fmu_dir = out / "fmus" / run.name
+        start = time.perf_counter()
+        try:
+            if not fmus_up_to_date(run.scene, fmu_dir):
+                print(f"building the FMUs of {run.name} into {fmu_dir} ...", file=stream)
+                build_fmus(run.scene, fmu_dir)
+        except SceneError:
+            raise
+        except Exception as err:
+            failed[run.index] = _failed(run.scene, f"building the FMUs into {fmu_dir} failed: "
+                                                   f"{type(err).__name__}: {err}", time.perf_counter() - start)
+    return failed
+
+
+def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | None = None,
+              scheduler: str | None = None, plots: bool = False, stream: TextIO | None = None) -> SweepOutcome:
+    """Run (or resume) the planned runs; writes the run folders and OUT/sweep.csv."""
+    from orchestrator.results import write_results
+
+    stream = stream if stream is not None else sys.stderr
+    out = Path(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    grid_keys = list(runs[0].values) if runs else []
+    table = SweepTable(out / SWEEP_CSV, grid_keys)
+    by_index = {run.index: run for run in runs}
+    total, done = len(runs), 0
+    todo = []
+    for run in runs:
+        run_dir = out / "runs" / run.name
+        summary = finished_summary(run, run_dir, backend)
+        if summary is None:
+            todo.append(run)
+        else:
+            table.add(sweep_row(run, summary, run_dir, out))
+            done += 1
+    skipped = done
+    if skipped:
+        print(f"sweep: {skipped}/{total} runs already done in {out / 'runs'}, running the other {len(todo)}",
+              file=stream)
+    statuses: dict[str, int] = {}
+
+    def finish(run: Run, result: Any) -> None:
+        nonlocal done
+        run_dir = out / "runs" / run.name
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "summary.json").unlink(missing_ok=True)   # a half-written run is never taken as done
+        (run_dir / RUN_FILE).write_text(json.dumps(_run_record(run, backend), indent=2) + "\n")
+        write_results(result, run_dir)   # summary.json last
+        if plots:
+            try:
+                from orchestrator.plots import write_plots
+
+                write_plots(result, run_dir)
+            except Exception as err:
+                print(f"warning: {run.name}: plots not written: {type(err).__name__}: {err}", file=stream)
+        summary = json.loads((run_dir / "summary.json").read_text())
+        table.add(sweep_row(run, summary, run_dir, out))
+        done += 1
+        statuses[result.status] = statuses.get(result.status, 0) + 1
+        print(f"sweep: {done}/{total} runs done: {run.name}: {result.status} "
+              f"({result.wall_time_s:.2f} s){': ' + result.message if result.message else ''}", file=stream)
+        stream.flush()
+
+    try:
+        fmu_dirs: dict[int, str | None] = {run.index: None for run in todo}
+        if backend == "fmu" and todo:
+            for index, result in _build_fmus(runs, todo, out, stream).items():
+                todo.remove(by_index[index])
+                finish(by_index[index], result)
+            fmu_dirs = {run.index: str((out / "fmus" / run.name).resolve()) for run in todo}
+        if todo and scheduler:
+            _run_dask(todo, backend, fmu_dirs, scheduler, finish)
+        elif todo:
+            _run_local(todo, backend, fmu_dirs, jobs, finish)
+    finally:
+        table.close()
+    return SweepOutcome(total, total - skipped, skipped, statuses, out / SWEEP_CSV)
+
+
+def _run_local(todo: list[Run], backend: str, fmu_dirs: dict, jobs: int | None, finish) -> None:
+    workers = max(1, min(jobs or os.cpu_count() or 1, len(todo)))
+    # spawn: each worker imports numpy afresh under OPENBLAS_NUM_THREADS=1 (no fork of a threaded process)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(run_one, run.scene, backend, fmu_dirs[run.index]): run for run in todo}
+        try:
+            for future in as_completed(futures):
+                run = futures[future]
+                try:
+                    result = future.result()
+                except Exception as err:   # a worker that died or raised: the run failed, the sweep goes on
+                    result = _failed(run.scene, f"worker failed: {type(err).__name__}: {err}")
+                finish(run, result)
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+
+
+def _run_dask(todo: list[Run], backend: str, fmu_dirs: dict, address: str, finish) -> None:
+    from dask.distributed import Client, as_completed as dask_completed
+
+    with Client(address, timeout="30s") as client:
+        futures = {}
+        for run in todo:
+            future = client.submit(run_one, run.scene, backend, fmu_dirs[run.index], pure=False,
+                                   key=f"wingsim-sweep-{run.name}-{time.time_ns()}")
+            futures[future.key] = (future, run)
+        try:
+            for future in dask_completed([f for f, _ in futures.values()]):
+                run = futures[future.key][1]
+                try:
+                    result = future.result()
+                except Exception as err:
+                    result = _failed(run.scene, f"dask task failed: {type(err).__name__}: {err}")
+                finish(run, result)
+        except BaseException:
+            client.cancel([f for f, _ in futures.values()])
+            raise
