@@ -132,15 +132,15 @@ def probe_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
 def strain_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
     """Per strain gauge: min, max, peak (largest |strain|) (-) and the time of the peak (s)."""
     out = {}
-    for i, name in enumerate(series.strain_names):
-        strain = series.strains[:, i]
+    strains, time = series.strains, series.time          # each builds the whole table: once
+    for name, strain in zip(series.strain_names, strains.T):
         finite = np.isfinite(strain)
         if not finite.any():
             out[name] = dict.fromkeys(("min", "max", "peak", "peak_time_s"))
             continue
         k = int(np.argmax(np.where(finite, np.abs(strain), -np.inf)))
         out[name] = {"min": float(strain[finite].min()), "max": float(strain[finite].max()),
-                     "peak": float(abs(strain[k])), "peak_time_s": float(series.time[k])}
+                     "peak": float(abs(strain[k])), "peak_time_s": float(time[k])}
     return out
 
 

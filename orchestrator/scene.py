@@ -356,8 +356,10 @@ def _apply_shorthands(raw: dict, scene: dict) -> None:
                                            f"motion.amplitude = {heave['amplitude']:g} chords")
 
 
-def _body_point(prefix: str, table: dict, by_name: dict[str, dict]) -> tuple[str, dict, float]:
-    """(body name, body table, span in m) of a probe or strain gauge table, checked."""
+def _body_point(prefix: str, table: dict, bodies: list[dict]) -> tuple[str, dict, float]:
+    """(body name, its section table ({} if absent or malformed), span in m) of a probe or strain gauge
+    table, checked."""
+    by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
     body_name = table.get("body", MISSING)
     if not isinstance(body_name, str) or body_name not in by_name:
         listed = ", ".join(repr(n) for n in by_name) or "the scene has no named bodies"
@@ -368,7 +370,8 @@ def _body_point(prefix: str, table: dict, by_name: dict[str, dict]) -> tuple[str
     if _is_number(length) and 0 < length < span / (1 + 1e-12):  # a bad length is Topology's to report
         raise SceneError(f"{prefix}.span", span, f"a number in [0, {length:g}] "
                                                  f"(m from the root of body '{body_name}', {length:g} m long)")
-    return body_name, body, span
+    section = body.get("section") if isinstance(body.get("section"), dict) else {}
+    return body_name, section, span
 
 
 def _named_tables(kind: str, key: str, tables: Any, allowed: tuple[str, ...], taken: set[str]):
@@ -388,11 +391,9 @@ def _named_tables(kind: str, key: str, tables: Any, allowed: tuple[str, ...], ta
 
 
 def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
-    by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
     resolved = []
     for prefix, probe_name, probe in _named_tables("probe", "probes", probes, PROBE_KEYS, set()):
-        body_name, body, span = _body_point(prefix, probe, by_name)
-        section = body.get("section") if isinstance(body.get("section"), dict) else {}
+        body_name, section, span = _body_point(prefix, probe, bodies)
         axis = section.get("axis_position", DEFAULT_AXIS_POSITION)
         chord_default = axis if _is_number(axis) else DEFAULT_AXIS_POSITION
         chord = between(0.0, 1.0, "fraction of chord from the leading edge")(
@@ -403,12 +404,10 @@ def _resolve_probes(probes: Any, bodies: list[dict]) -> list[dict]:
 
 def _resolve_strain_gauges(gauges: Any, bodies: list[dict], taken: set[str]) -> list[dict]:
     """Each gauge with ``surface_distance`` (m) filled with half its body's plate thickness."""
-    by_name = {b["name"]: b for b in bodies if isinstance(b.get("name"), str)}
     resolved = []
     for prefix, gauge_name, gauge in _named_tables("strain gauge", "strain_gauges", gauges, STRAIN_GAUGE_KEYS,
                                                    taken):
-        body_name, body, span = _body_point(prefix, gauge, by_name)
-        section = body.get("section") if isinstance(body.get("section"), dict) else {}
+        body_name, section, span = _body_point(prefix, gauge, bodies)
         thickness = section.get("thickness")
         half = 0.5 * thickness if _is_number(thickness) and thickness > 0 else MISSING
         if "surface_distance" not in gauge and half is MISSING:

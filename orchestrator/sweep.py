@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence, TextIO
 
-from orchestrator.overrides import INDEX_PATTERN, parse_value
+from orchestrator.overrides import INDEX_PATTERN
 from structure_fmu.errors import SceneError
 
 DONE_STATUSES = ("ok", "diverged", "error")

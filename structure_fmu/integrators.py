@@ -193,8 +193,11 @@ class GeneralizedAlpha:
         n = len(q)
         # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
         # would leave velocity errors of gamma' tol per step, growing as h shrinks)
-        scale = min(max(1.0, float(np.max(np.abs(q)))),
-                    VELOCITY_TOLERANCE / self.tol * max(1.0, float(np.max(np.abs(dq)))) / gamma_p) if n else 1.0
+        scale = 1.0
+        if n:
+            q_scale = max(1.0, float(np.max(np.abs(q))))
+            dq_scale = max(1.0, float(np.max(np.abs(dq))))
+            scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
             self._factor(model, t, q, dq, Q, state.latched, lam, h)
         refreshed, previous, first = predictor == "displacement", 0.0, None

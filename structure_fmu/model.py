@@ -121,15 +121,15 @@ class StructureModel:
                 jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
                 for dofs, j in zip(self.dofs, jac):
                     K[np.ix_(dofs, dofs)] += j
+        mass_proportional = self.damping_model == "mass-proportional"
         for alpha, idx, mass in self.damped_bodies:
-            if self.damping_model == "mass-proportional":
+            if mass_proportional:
                 F[idx] -= alpha * (mass @ dE[idx])
-                if with_tangent:
-                    C[np.ix_(idx, idx)] += alpha * mass
-                continue
-            F[idx] += deformation_damping_force(E[idx], dE[idx], mass, alpha)
+            else:
+                F[idx] += deformation_damping_force(E[idx], dE[idx], mass, alpha)
             if with_tangent:
-                C[np.ix_(idx, idx)] += deformation_damping_matrix(E[idx], mass, alpha)
+                C[np.ix_(idx, idx)] += (alpha * mass if mass_proportional
+                                        else deformation_damping_matrix(E[idx], mass, alpha))
         return F, K, C
 
     def force_q(self, q, dq, t, Q, latched):

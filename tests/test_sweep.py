@@ -1,8 +1,6 @@
 """`wingsim sweep` (issue 5): local processes, resume, a Dask cluster on loopback, bad grids (docs/sweep.md)."""
 import csv
 import json
-import math
-import os
 from pathlib import Path
 
 import pytest
