@@ -144,9 +144,8 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
             cx *= k                                                # n . v
             out[lo:hi] = np.asarray(wt @ cx.T).T
         else:
-            for c, v in enumerate((cx, cy, cz)):
-                v *= k
-                out[lo:hi, c] = np.asarray(wt @ v.T).T
+            components = np.concatenate([cx, cy, cz]) * np.concatenate([k, k, k])    # (3 B, S): one product
+            out[lo:hi] = np.asarray(wt @ components.T).T.reshape(3, hi - lo, n_unknowns).transpose(1, 0, 2)
     return out
 
 

@@ -17,12 +17,14 @@ import warnings
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
 
 from .biot_savart import influence
-from .rigid import rigid_fit
-from .vlm import bound_segments, horseshoe_wake, horseshoe_weights
+from .rigid import may_be_rigid, rigid_fit
+from .vlm import Segments, bound_segments, horseshoe_wake, horseshoe_weights
 
 RIGID_TOLERANCE = 1e-9   # x smallest reference panel dimension: a geometry within it reuses the matrices
+DENSE_WEIGHTS = 100_000  # segment x panel entries up to which the stacked weights are kept dense
 
 
 class BoundSystem:
@@ -35,12 +37,15 @@ class BoundSystem:
         self.tolerance = RIGID_TOLERANCE * float(min(lattice.panel_span.min(), lattice.panel_chord.min()))
         self.builds = 0
         self._horseshoe = horseshoe_weights(lattice) if self.flat_wake else None
+        self._inner_incidence = rings.incidence[~rings.trailing] if self.flat_wake else None
         self._reference = None    # (frame points, direction, (A_x, A_y, lu))
+        # the finite segments' weights stacked once in `segments` order, so a build is one kernel pass
+        self._finite_weights = None
 
     def matrices(self, geometry, direction):
         """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
         frame = _frame(geometry)
-        if self._reference is not None:
+        if self._reference is not None and may_be_rigid(self._reference[0], frame, self.tolerance):
             ref_frame, ref_direction, result = self._reference
             R, _, residual = rigid_fit(ref_frame, frame)
             same_wake = not self.flat_wake or np.max(np.abs(R @ ref_direction - direction)) <= 1e-12
@@ -52,11 +57,17 @@ class BoundSystem:
         return result
 
     def segments(self, geometry, direction):
-        """The vortex systems whose circulations are linear in Gamma: bound rings (+ horseshoes)."""
-        systems = [bound_segments(self.rings, geometry.corners)]
-        if self.flat_wake:
-            systems += horseshoe_wake(self.lattice, geometry.corners, direction, self.wake_length, self._horseshoe)
-        return systems
+        """The vortex systems whose circulations are linear in Gamma: the bound rings and, with the flat
+        wake, the horseshoes' legs (and closing segments). The horseshoes' bound segments and the rings'
+        trailing segments are both left out: they coincide and carry opposite circulations
+        (`vlm.horseshoe_wake`), so their influences cancel exactly."""
+        if not self.flat_wake:
+            return [bound_segments(self.rings, geometry.corners)]
+        rings, kept = self.rings, ~self.rings.trailing
+        inner = Segments(geometry.corners[rings.start[kept]], geometry.corners[rings.end[kept]],
+                         self._inner_incidence)
+        wake = horseshoe_wake(self.lattice, geometry.corners, direction, self.wake_length, self._horseshoe)
+        return [inner] + wake[1:]
 
     def _build(self, geometry, direction):
         flat = np.flatnonzero(~(geometry.area > 0))
@@ -64,8 +75,17 @@ class BoundSystem:
             raise np.linalg.LinAlgError(f"singular influence matrix: panel {int(flat[0])} (of {flat.size}) has zero "
                                         "area (degenerate wing geometry)")
         core = self.lattice.core_radius
-        T = sum(influence(geometry.collocation, s.starts, s.ends, s.weights, core, s.semi_infinite)
-                for s in self.segments(geometry, direction))                        # (P, 3, n)
+        systems = self.segments(geometry, direction)
+        finite = [s for s in systems if not s.semi_infinite]
+        if self._finite_weights is None:
+            weights = scipy.sparse.vstack([s.weights for s in finite], format="csr")
+            # small lattices (000's M = 2, N = 7: 118 x 28) reduce faster dense, large ones stay sparse
+            self._finite_weights = weights.toarray() if weights.shape[0] * weights.shape[1] <= DENSE_WEIGHTS else weights
+        T = influence(geometry.collocation, np.concatenate([s.starts for s in finite]),
+                      np.concatenate([s.ends for s in finite]), self._finite_weights, core)     # (P, 3, n)
+        for s in systems:
+            if s.semi_infinite:
+                T += influence(geometry.collocation, s.starts, s.ends, s.weights, core, True)
         A = np.einsum("pc,pck->pk", geometry.normal, T)
         A_x = np.einsum("pc,pck->pk", geometry.r_x, T)
         A_y = np.einsum("pc,pck->pk", geometry.r_y, T)

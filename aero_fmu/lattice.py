@@ -130,7 +130,7 @@ class Lattice:
         corners, colloc, app = P[:nc], P[nc:nc + n_p], P[nc + n_p:nc + 2 * n_p]
         r_x, r_y = P[nc + 2 * n_p:nc + 3 * n_p], P[nc + 3 * n_p:]
         c = cross(r_x, r_y)
-        norm = np.sqrt(np.sum(c * c, axis=1))
+        norm = np.sqrt(np.einsum("ij,ij->i", c, c))
         normal = c / np.where(norm > 0, norm, 1.0)[:, None]
         return Geometry(corners, colloc, app, r_x, r_y, normal, norm * self.panel_span * self.panel_chord)
 

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from structure_fmu.element import cross
+
 from .vlm import lift_axis
 
 
@@ -32,13 +34,13 @@ def resultants(lattice, geometry, forces, direction, speed, density, wake_panels
     m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12)."""
     points = geometry.application
     total = forces.sum(axis=0)
-    moment = np.cross(points, forces).sum(axis=0)
+    moment = cross(points, forces).sum(axis=0)
     lift_dir = lift_axis(geometry, direction)
     lift, drag = float(total @ lift_dir), float(total @ direction)
     q_area = 0.5 * density * speed * speed * lattice.reference_area
     coefficient = (lambda force: force / q_area) if q_area > 0 else (lambda force: 0.0)
     outputs = {"CL": coefficient(lift), "lift": lift, "wake_panels": int(wake_panels), "drag": drag,
-               "side_force": float(total @ np.cross(direction, lift_dir)), "CD": coefficient(drag),
+               "side_force": float(total @ cross(direction, lift_dir)), "CD": coefficient(drag),
                "moment_x": float(moment[0]), "moment_y": float(moment[1]), "moment_z": float(moment[2])}
     return Loads(forces, points, lattice.generalized_force(forces), outputs)
 

@@ -22,3 +22,12 @@ def rigid_fit(reference, current):
     t = c1 - R @ c0
     residual = float(np.max(np.abs(a @ R.T - b))) if len(a) else 0.0
     return R, t, residual
+
+
+def may_be_rigid(reference, current, tolerance):
+    """False when no rigid motion can map `reference` (n, 3) onto `current` (n, 3) within `tolerance` (m)
+    at every point: a distance from the first point changed by more than 2 tolerance. A cheap necessary
+    test (about a tenth of `rigid_fit`) for geometries that deform, where the fit would fail anyway."""
+    before = np.einsum("ij,ij->i", reference - reference[0], reference - reference[0])
+    after = np.einsum("ij,ij->i", current - current[0], current - current[0])
+    return bool(np.max(np.abs(np.sqrt(before) - np.sqrt(after))) <= 2 * tolerance)

@@ -183,9 +183,9 @@ class UVLM:
         relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)   # U - r'
         if wake is not None:
             relative = relative + wakes.velocity(geometry.collocation, wake, self.wake_core, lat.core_radius)
-        rhs = -np.sum(relative * geometry.normal, axis=1)
+        rhs = -np.einsum("ij,ij->i", relative, geometry.normal)
         gamma = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
-        v_x = np.sum(relative * geometry.r_x, axis=1) + A_x @ gamma          # V . r_x, V = U + w - r'
-        v_y = np.sum(relative * geometry.r_y, axis=1) + A_y @ gamma
+        v_x = np.einsum("ij,ij->i", relative, geometry.r_x) + A_x @ gamma          # V . r_x, V = U + w - r'
+        v_y = np.einsum("ij,ij->i", relative, geometry.r_y) + A_y @ gamma
         rate = circulation_rate(gamma, history, steps)
         return gamma, pressure_jump_forces(lat, geometry, gamma, v_x, v_y, density, rate)

@@ -80,9 +80,9 @@ def bound_segments(rings: RingSegments, corners) -> Segments:
 
 
 def horseshoe_weights(lattice: Lattice):
-    """(legs, span) sparse weights of the horseshoe wake (topology only, built once per lattice): legs
-    (B (N+1), n_panels) maps Gamma to the trailing legs from the trailing corners, span (B N, n_panels) to
-    the spanwise segments (the horseshoes' bound segments and, for finite legs, the closing segments)."""
+    """(legs, span, -span) sparse weights of the horseshoe wake (topology only, built once per lattice):
+    legs (B (N+1), n_panels) maps Gamma to the trailing legs from the trailing corners, span (B N, n_panels)
+    to the spanwise closing segments of finite legs, -span to the horseshoes' bound segments."""
     B, N, n_p = len(lattice.body_names), lattice.N, lattice.n_panels
     panels = lattice.trailing_panels                        # (B, N)
     # column j of wake "rings": legs (M, j) -> far_j (+1), far_j -> far_{j+1} (+1), (M, j+1) -> far_{j+1}
@@ -93,7 +93,7 @@ def horseshoe_weights(lattice: Lattice):
     leg_signs = np.repeat([1.0, -1.0], B * N)
     legs = scipy.sparse.csr_matrix((leg_signs, (leg_rows, leg_cols)), shape=(B * (N + 1), n_p))
     span = scipy.sparse.csr_matrix((np.ones(B * N), (np.arange(B * N), panels.ravel())), shape=(B * N, n_p))
-    return legs, span
+    return legs, span, -span
 
 
 def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, weights=None) -> list:
@@ -107,10 +107,10 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, wei
     weights: `horseshoe_weights(lattice)`, built here if None.
     """
     d = np.asarray(direction, dtype=float)
-    legs, span = horseshoe_weights(lattice) if weights is None else weights
+    legs, span, bound = horseshoe_weights(lattice) if weights is None else weights
     te = corners[lattice.trailing_corners]                  # (B, N+1, 3)
     te_start, te_end = te[:, :-1].reshape(-1, 3), te[:, 1:].reshape(-1, 3)
-    out = [Segments(te_start, te_end, -span)]
+    out = [Segments(te_start, te_end, bound)]
     starts = te.reshape(-1, 3)
     if np.isinf(wake_length):
         out.append(Segments(starts, np.broadcast_to(d, starts.shape), legs, semi_infinite=True))
@@ -154,11 +154,12 @@ def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, d
     """
     M, N = lattice.M, lattice.N
     G = np.asarray(gamma, dtype=float).reshape(-1, M, N)
-    dG_span = np.diff(G, axis=2, prepend=0.0).ravel()
-    dG_chord = np.diff(G, axis=1, prepend=0.0).ravel()
+    dG_span, dG_chord = G.copy(), G.copy()                 # G_ij - G_i,j-1 and G_ij - G_i-1,j
+    dG_span[:, :, 1:] -= G[:, :, :-1]
+    dG_chord[:, 1:] -= G[:, :-1]
     rx, ry = geometry.r_x, geometry.r_y
-    dp = density * (v_x * dG_span / (np.sum(rx * rx, axis=1) * lattice.panel_span)
-                    + v_y * dG_chord / (np.sum(ry * ry, axis=1) * lattice.panel_chord))
+    dp = density * (v_x * dG_span.ravel() / (np.einsum("ij,ij->i", rx, rx) * lattice.panel_span)
+                    + v_y * dG_chord.ravel() / (np.einsum("ij,ij->i", ry, ry) * lattice.panel_chord))
     if dgamma_dt is not None:
         dp = dp + density * np.asarray(dgamma_dt, dtype=float)
     return (dp * geometry.area)[:, None] * geometry.normal

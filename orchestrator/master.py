@@ -75,6 +75,7 @@ import numpy as np
 from orchestrator.acceleration import interface_residual, make_acceleration
 from orchestrator.progress import Progress
 from orchestrator.scene import hinge_joints
+from orchestrator.sensors import Sensors
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
 from structure_fmu.errors import SolverDiverged
 
@@ -215,23 +216,18 @@ def new_series(scene: dict) -> TimeSeries:
                       strain_names=[g["name"] for g in scene.get("strain_gauges", [])])
 
 
-def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, topology: Any, scene: dict,
-            t: float, coupling: tuple[int, float] | None = None) -> None:
-    probes = scene["probes"]
-    positions = np.array([topology.point_position(e, p["body"], p["span"], p["chord"]) for p in probes],
-                         dtype=float).reshape(len(probes), 3)
-    # surface strain = distance to the surface x bending curvature (003 Sec. 5: h/2 x kappa_y)
-    strains = {g["name"]: g["surface_distance"] * topology.flap_curvature(e, g["body"], g["span"])
-               for g in scene.get("strain_gauges", [])}
+def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, sensors: Sensors, t: float,
+            coupling: tuple[int, float] | None = None) -> None:
     monitors = structure.monitors()
     loads = None
     if aero is not None:
         aero_monitors = aero.monitors()
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
-    series.append(t, positions, monitors.get("fold_angles_deg", {}),
+    series.append(t, sensors.positions(e), monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
-                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)), strains=strains)
+                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
+                  strains=sensors.strains(e))
 
 
 def check_connection(structure: Any, aero: Any) -> None:
@@ -267,7 +263,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     unit, returns its status.
 
     ``units`` (default ``orchestrator.units``) provides ``make_unit`` and ``UnitError``;
-    ``topology`` (default ``Topology.from_scene(scene)``) maps coordinates to probe positions.
+    ``topology`` (default ``Topology.from_scene(scene)``) gives the probes' and gauges' shape rows (``point_rows``).
     Both are parameters so that the loop can be tested without the physics.
     """
     start = _time.perf_counter()
@@ -277,6 +273,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
         from structure_fmu.topology import Topology  # lazy: the physics package
 
         topology = Topology.from_scene(scene)
+    sensors = Sensors(scene, topology)
     series = new_series(scene)
     stop = scene["time"]["stop"]
     algorithm = scene.get("coupling", {}).get("algorithm", "gauss-seidel")
@@ -311,7 +308,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             acceleration = make_acceleration(coupling)
             tolerance, max_iterations = coupling.get("tolerance", 1e-6), coupling.get("max_iterations", 50)
             total_iterations = most_iterations = 0
-        _record(series, e, structure, aero, topology, scene, times[0],
+        _record(series, e, structure, aero, sensors, times[0],
                 coupling=(0, np.nan) if implicit else None)
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
@@ -340,7 +337,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         aero.do_step(t0, t1 - t0)
                         aero_inputs.append(t0, t1 - t0, e, de)
                         q, = aero.get_outputs()
-            _record(series, e, structure, aero, topology, scene, t1, coupling=step_coupling)
+            _record(series, e, structure, aero, sensors, t1, coupling=step_coupling)
             reached = t1
             if progress is not None:
                 progress.update(t1)

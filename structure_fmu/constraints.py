@@ -11,7 +11,11 @@ import numpy as np
 
 
 class Constraints:
-    """Vectorized evaluation of the nonlinear constraints of a Topology."""
+    """Vectorized evaluation of the nonlinear constraints of a Topology.
+
+    The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
+    X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane
+    rows are X_s . n; rows are ordered unit, orthogonality, plane."""
 
     def __init__(self, topology):
         self.unit = np.array(topology.unit_slots, dtype=int)
@@ -20,38 +24,43 @@ class Constraints:
         self.plane_normal = np.array([n for _, n in topology.fixed_directions]).reshape(-1, 3)
         self.count = len(self.unit) + len(self.ortho) + len(self.plane)
         self.n = topology.n_coordinates
-
-    @staticmethod
-    def _vec(E, slots):
-        return E.reshape(-1, 3)[slots]
+        nu, no = len(self.unit), len(self.ortho)
+        self._a = np.concatenate([self.unit, self.ortho[:, 0]])
+        self._b = np.concatenate([self.unit, self.ortho[:, 1]])
+        self._coefficient = np.repeat([0.5, 1.0], [nu, no])[:, None]
+        self._constant = np.repeat([-0.5, 0.0], [nu, no])
+        self._products = np.arange(nu + no)
+        # the plane rows of G are constant
+        self._jacobian_template = np.zeros((self.count, self.n // 3, 3))
+        self._jacobian_template[np.arange(nu + no, self.count), self.plane] = self.plane_normal
+        # H_i entries: (slot row, slot column, constraint) pairs, each on the three components
+        rows, cols, which = (np.concatenate(v) for v in zip((self._a, self._b, self._products),
+                                                             (self.ortho[:, 1], self.ortho[:, 0], nu + np.arange(no))))
+        c = np.arange(3)
+        self._hessian_entries = ((3 * rows[:, None] + c) * self.n + 3 * cols[:, None] + c).ravel()
+        self._hessian_multiplier = np.repeat(which, 3)
 
     def residual(self, E):
         """Phi(E), shape (count,)."""
-        u, a, b = self._vec(E, self.unit), self._vec(E, self.ortho[:, 0]), self._vec(E, self.ortho[:, 1])
-        p = self._vec(E, self.plane)
-        return np.concatenate([0.5 * (np.sum(u * u, 1) - 1.0), np.sum(a * b, 1), np.sum(p * self.plane_normal, 1)])
+        X = E.reshape(-1, 3)
+        products = self._coefficient[:, 0] * np.einsum("ij,ij->i", X[self._a], X[self._b]) + self._constant
+        return np.concatenate([products, np.einsum("ij,ij->i", X[self.plane], self.plane_normal)])
 
     def jacobian(self, E):
         """G = dPhi/dE, dense (count, n)."""
-        G = np.zeros((self.count, self.n // 3, 3))
-        rows = np.arange(self.count)
-        nu, no = len(self.unit), len(self.ortho)
-        G[rows[:nu], self.unit] = self._vec(E, self.unit)
-        G[rows[nu:nu + no], self.ortho[:, 0]] += self._vec(E, self.ortho[:, 1])
-        G[rows[nu:nu + no], self.ortho[:, 1]] += self._vec(E, self.ortho[:, 0])
-        G[rows[nu + no:], self.plane] = self.plane_normal
+        X = E.reshape(-1, 3)
+        G = self._jacobian_template.copy()
+        G[self._products, self._a] += self._coefficient * X[self._b]
+        G[self._products, self._b] += self._coefficient * X[self._a]
         return G.reshape(self.count, self.n)
 
     def velocity_quadratic(self, dE):
         """dE^T H_i dE for each constraint: the term of d2Phi/dt2 that is not G d2E/dt2."""
-        u, a, b = self._vec(dE, self.unit), self._vec(dE, self.ortho[:, 0]), self._vec(dE, self.ortho[:, 1])
-        return np.concatenate([np.sum(u * u, 1), 2.0 * np.sum(a * b, 1), np.zeros(len(self.plane))])
+        V = dE.reshape(-1, 3)
+        products = 2.0 * self._coefficient[:, 0] * np.einsum("ij,ij->i", V[self._a], V[self._b])
+        return np.concatenate([products, np.zeros(len(self.plane))])
 
     def hessian_sum(self, multipliers):
         """sum_i lambda_i H_i, dense (n, n): the constraint part of the tangent stiffness."""
-        H = np.zeros((self.n // 3, self.n // 3))
-        nu, no = len(self.unit), len(self.ortho)
-        np.add.at(H, (self.unit, self.unit), multipliers[:nu])
-        np.add.at(H, (self.ortho[:, 0], self.ortho[:, 1]), multipliers[nu:nu + no])
-        np.add.at(H, (self.ortho[:, 1], self.ortho[:, 0]), multipliers[nu:nu + no])
-        return np.kron(H, np.eye(3))
+        values = np.asarray(multipliers)[self._hessian_multiplier]
+        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)

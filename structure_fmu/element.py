@@ -78,27 +78,16 @@ def shape_row(x, y, length):
     return np.concatenate([N[..., :2], y * L[..., :1], N[..., 2:], y * L[..., 1:]], axis=-1)
 
 
-def point_positions(e, x, y, length):
-    """r(x, y) = S(x, y) e for each element: e (n, 18), x, y, length (n,) -> (n, 3), metres."""
-    s = shape_row(x, y, length)
-    return np.einsum("na,nai->ni", s, e.reshape(-1, 6, 3))
+def flap_curvature(r1, r2, ry):
+    """Bending curvature out of the wing plane of the reference line, 1/m, shape (...,), from its
+    derivatives r' (...), r'' (1/m) along the span and the chord vector r_y at the same points, (..., 3).
 
-
-def flap_curvature(e, x, length):
-    """Bending curvature out of the wing plane at span x of each element, 1/m, shape (n,).
-
-    The geometric curvature of the reference line projected on the unit section normal,
-    kappa_y = r'' . n / |r'|^2 with n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above,
-    normalized so that it is the curvature itself, also where the line stretches. Positive when the line
-    bends toward +n. e (n, 18), x and length (n,) in metres. On a plate of thickness h, h/2 kappa_y is the
-    extensional strain of the -n face (the +n face has its opposite): 003 Sec. 5's h/2 x kappa_y.
+    The geometric curvature projected on the unit section normal, kappa_y = r'' . n / |r'|^2 with
+    n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
+    curvature itself, also where the line stretches. Positive when the line bends toward +n. On a plate of
+    thickness h, h/2 kappa_y is the extensional strain of the -n face (the +n face has its opposite):
+    003 Sec. 5's h/2 x kappa_y.
     """
-    _, dN, ddN, L = hermite(np.asarray(x) / length, length)
-    v = e.reshape(-1, 6, 3)
-    r_span = [v[:, 0], v[:, 1], v[:, 3], v[:, 4]]                 # r^A, r_x^A, r^B, r_x^B
-    r1 = sum(dN[:, k:k + 1] * r_span[k] for k in range(4))
-    r2 = sum(ddN[:, k:k + 1] * r_span[k] for k in range(4))
-    ry = L[:, :1] * v[:, 2] + L[:, 1:] * v[:, 5]
     normal = cross(r1, ry)
     return _dot(r2, normal) / (np.sqrt(_dot(normal, normal)) * _dot(r1, r1))
 
@@ -139,7 +128,7 @@ def distributed_force(length, mass_per_length, first_moment, acceleration):
 
 def cross(a, b):
     """Cross product on the last axis; complex-safe and much faster than np.cross on small arrays."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
+    out = np.empty(np.broadcast(a, b).shape, dtype=np.result_type(a, b))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     out[..., 0] = a1 * b2 - a2 * b1
@@ -149,29 +138,50 @@ def cross(a, b):
 
 
 def _dot(a, b):
-    return np.sum(a * b, axis=-1)
+    return np.add.reduce(a * b, axis=-1)
+
+
+_SLOT_CACHE = {}
+
+
+def _slot_basis(length):
+    """B (n, 3 g, 5): [r'; r''; r_y] at the g Gauss points (rows k g + i) from the five vectors
+    [d = r^B - r^A, r_x^A, r_y^A, r_x^B, r_y^B] of each element, cached per lengths. r^A enters only through
+    d because N_A' = -N_B' and N_A'' = -N_B''; r' = B[:g] @ slots, and the gradient of a function of
+    (r', r'', r_y) at the Gauss points maps back by B^T: one batched product each way."""
+    length = np.asarray(length, dtype=float)
+    key = length.tobytes()
+    if key not in _SLOT_CACHE:
+        if len(_SLOT_CACHE) > 64:
+            _SLOT_CACHE.clear()
+        _, dN, ddN, L = gauss_basis(length)
+        zero = np.zeros_like(L[..., 0])
+        first = np.stack([dN[..., 2], dN[..., 1], zero, dN[..., 3], zero], axis=-1)
+        second = np.stack([ddN[..., 2], ddN[..., 1], zero, ddN[..., 3], zero], axis=-1)
+        chord = np.stack([zero, zero, L[..., 0], zero, L[..., 1]], axis=-1)
+        _SLOT_CACHE[key] = np.concatenate([first, second, chord], axis=1)
+    return _SLOT_CACHE[key]
 
 
 def _measures(e, length):
     """Strain measures at the Gauss points and the quantities their gradients need."""
     v = e.reshape(-1, 6, 3)
-    rA, xA, yA, rB, xB, yB = (v[:, k, :] for k in range(6))
-    _, dN, ddN, L = gauss_basis(length)  # (n, g, .)
-    d = rB - rA
-    # r' and r'' at Gauss points (n, g, 3); N_A' = -N_B' and N_A'' = -N_B'' so r^A enters through d.
-    r1 = dN[..., 2:3] * d[:, None] + dN[..., 1:2] * xA[:, None] + dN[..., 3:4] * xB[:, None]
-    r2 = ddN[..., 2:3] * d[:, None] + ddN[..., 1:2] * xA[:, None] + ddN[..., 3:4] * xB[:, None]
-    ry = L[..., 0:1] * yA[:, None] + L[..., 1:2] * yB[:, None]
-    speed = np.sqrt(_dot(r1, r1))                               # |r'| at the Gauss points
+    xA, yA, xB, yB = v[:, 1], v[:, 2], v[:, 4], v[:, 5]
+    slots = v[:, [3, 1, 2, 4, 5]]                                           # (n, 5, 3): [d, xA, yA, xB, yB]
+    slots[:, 0] -= v[:, 0]
+    basis = _slot_basis(length)
+    g = len(GAUSS_W)
+    fields = basis @ slots                                                  # (n, 3 g, 3)
+    r1, r2, ry = fields[:, :g], fields[:, g:2 * g], fields[:, 2 * g:]       # r', r'', r_y at the Gauss points
+    speed = np.sqrt(_dot(r1, r1))                                           # |r'|
     axial = np.stack([np.sqrt(_dot(xA, xA)) - 1.0, np.sqrt(_dot(xB, xB)) - 1.0,
-                      speed @ GAUSS_W - 1.0], axis=-1)           # eps_A, eps_B, eps_arc
+                      speed @ GAUSS_W - 1.0], axis=-1)                      # eps_A, eps_B, eps_arc
     normal = cross(r1, ry)
-    flap = _dot(r2, normal)                                      # kappa_y
-    chordwise = _dot(r2, ry)                                     # kappa_z
-    tau = 0.5 * (_dot(cross(xA, yA), yB) - _dot(cross(xB, yB), yA))
-    return dict(rA=rA, xA=xA, yA=yA, rB=rB, xB=xB, yB=yB, d=d, speed=speed,
-                r1=r1, r2=r2, ry=ry, dN=dN, ddN=ddN, L=L, axial=axial, normal=normal,
-                flap=flap, chordwise=chordwise, tau=tau)
+    # torsion: the triple products of tau and, for its gradient, the cross products they are made of
+    triple = cross(v[:, [1, 4, 2, 5, 2]], v[:, [2, 5, 5, 1, 4]])    # xA x yA, xB x yB, yA x yB, yB x xA, yA x xB
+    tau = 0.5 * (_dot(triple[:, 0], yB) - _dot(triple[:, 1], yA))
+    return dict(xA=xA, yA=yA, xB=xB, yB=yB, speed=speed, basis=basis, r1=r1, r2=r2, ry=ry, axial=axial,
+                normal=normal, flap=_dot(r2, normal), chordwise=_dot(r2, ry), tau=tau, triple=triple)
 
 
 def elastic_energy(e, length, stiffness):
@@ -199,25 +209,22 @@ def elastic_force(e, length, stiffness):
     f_axial = (EA * length)[:, None] * (m["axial"] @ AXIAL_GRAM)          # dU/d(eps_A, eps_B, eps_arc)
     cf = (w * EIy[:, None] * m["flap"])[..., None]
     cc = (w * EIz[:, None] * m["chordwise"])[..., None]
-    r1, r2, ry, xA, xB = m["r1"], m["r2"], m["ry"], m["xA"], m["xB"]
+    r1, r2, ry = m["r1"], m["r2"], m["ry"]
     g_r1 = (f_axial[:, 2:3] * GAUSS_W[None, :] / m["speed"])[..., None] * r1 + cf * cross(ry, r2)
     g_r2 = cf * m["normal"] + cc * ry
     g_ry = cf * cross(r2, r1) + cc * r2
-    dN, ddN, L = m["dN"], m["ddN"], m["L"]
-    g_d = np.sum(dN[..., 2:3] * g_r1 + ddN[..., 2:3] * g_r2, axis=1)
-    g_xA = np.sum(dN[..., 1:2] * g_r1 + ddN[..., 1:2] * g_r2, axis=1)
-    g_xB = np.sum(dN[..., 3:4] * g_r1 + ddN[..., 3:4] * g_r2, axis=1)
+    g = np.swapaxes(m["basis"], 1, 2) @ np.concatenate([g_r1, g_r2, g_ry], axis=1)   # (n, 5, 3) on the slots
+    g_d, g_xA, g_yA, g_xB, g_yB = (g[:, k] for k in range(5))
+    xA, xB = m["xA"], m["xB"]
     g_xA = g_xA + f_axial[:, 0:1] * xA / np.sqrt(_dot(xA, xA))[:, None]
     g_xB = g_xB + f_axial[:, 1:2] * xB / np.sqrt(_dot(xB, xB))[:, None]
-    g_yA = np.sum(L[..., 0:1] * g_ry, axis=1)
-    g_yB = np.sum(L[..., 1:2] * g_ry, axis=1)
     # torsion: U_t = GJ tau^2 / (2 l), tau a sum of triple products
     ct = (GJ * m["tau"] / length)[:, None]
-    yA, yB = m["yA"], m["yB"]
-    g_xA = g_xA + ct * 0.5 * cross(yA, yB)
-    g_yA = g_yA + ct * 0.5 * (cross(yB, xA) - cross(xB, yB))
-    g_xB = g_xB - ct * 0.5 * cross(yB, yA)
-    g_yB = g_yB + ct * 0.5 * (cross(xA, yA) - cross(yA, xB))
+    xA_yA, xB_yB, yA_yB, yB_xA, yA_xB = (m["triple"][:, k] for k in range(5))
+    g_xA = g_xA + ct * 0.5 * yA_yB
+    g_yA = g_yA + ct * 0.5 * (yB_xA - xB_yB)
+    g_xB = g_xB + ct * 0.5 * yA_yB
+    g_yB = g_yB + ct * 0.5 * (xA_yA - yA_xB)
     grad = np.stack([-g_d, g_xA, g_yA, g_d, g_xB, g_yB], axis=1)
     return -grad.reshape(-1, 18)
 
@@ -226,13 +233,11 @@ def elastic_jacobian(e, length, stiffness):
     """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18).
 
     Complex-step differentiation of `elastic_force`: exact to round-off (no subtractive cancellation),
-    18 vectorized force evaluations for all elements at once.
+    the 18 perturbed copies of every element in one vectorized force evaluation.
     """
     h = 1e-30
     n = e.shape[0]
-    jac = np.empty((n, 18, 18))
-    for k in range(18):
-        ec = e.astype(complex)
-        ec[:, k] += 1j * h
-        jac[:, :, k] = -elastic_force(ec, length, stiffness).imag / h
-    return jac
+    perturbed = np.repeat(e[None].astype(complex), 18, axis=0)            # (18, n, 18): copy k moves e_k
+    perturbed[np.arange(18), :, np.arange(18)] += 1j * h
+    force = elastic_force(perturbed.reshape(-1, 18), np.tile(length, 18), np.tile(stiffness, (18, 1)))
+    return -np.moveaxis(force.imag.reshape(18, n, 18), 0, 2) / h

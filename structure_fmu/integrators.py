@@ -12,7 +12,7 @@
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import cho_solve, lu_factor, lu_solve
+from scipy.linalg import lu_factor, lu_solve
 
 from .errors import SolverDiverged
 
@@ -41,12 +41,14 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
     cons = model.constraints
     if cons.count == 0:
-        return cho_solve(model.mass_factor, F), np.zeros(0)
+        return model.mass_inverse @ F, np.zeros(0)
     G = cons.jacobian(E)
     Gq = G @ model.T
-    gamma = -G @ (model.P @ ddp) - cons.velocity_quadratic(dE)
-    MinvF = cho_solve(model.mass_factor, F)
-    MinvGt = cho_solve(model.mass_factor, Gq.T)
+    gamma = -cons.velocity_quadratic(dE)
+    if ddp is not None:
+        gamma -= G @ (model.P @ ddp)
+    MinvF = model.mass_inverse @ F
+    MinvGt = model.mass_inverse @ Gq.T
     lam = np.linalg.solve(Gq @ MinvGt, Gq @ MinvF - gamma)
     return MinvF - MinvGt @ lam, lam
 
@@ -56,21 +58,20 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
     cons = model.constraints
     if cons.count == 0:
         return q, dq
-    p, dp, _ = model.prescribed(t)
-    offset, doffset = model.P @ p, model.P @ dp
     for _ in range(iterations):
-        E = model.T @ q + offset
+        E, dE, _ = model.coordinates(q, dq, t)
         phi = cons.residual(E)
-        Gq = cons.jacobian(E) @ model.T
-        MinvGt = cho_solve(model.mass_factor, Gq.T)
-        q = q - MinvGt @ np.linalg.solve(Gq @ MinvGt, phi)
         if np.max(np.abs(phi)) < tol:
             break
-    E = model.T @ q + offset
+        Gq = cons.jacobian(E) @ model.T
+        MinvGt = model.mass_inverse @ Gq.T
+        q = q - MinvGt @ np.linalg.solve(Gq @ MinvGt, phi)
+    else:
+        E, dE, _ = model.coordinates(q, dq, t)
     G = cons.jacobian(E)
     Gq = G @ model.T
-    MinvGt = cho_solve(model.mass_factor, Gq.T)
-    dphi = Gq @ dq + G @ doffset
+    MinvGt = model.mass_inverse @ Gq.T
+    dphi = G @ dE                      # dPhi/dt = G (T q' + P p')
     return q, dq - MinvGt @ np.linalg.solve(Gq @ MinvGt, dphi)
 
 
@@ -142,8 +143,8 @@ class GeneralizedAlpha:
         cons = model.constraints
         if cons.count:
             K = K + cons.hessian_sum(lam)
-        T = model.T
-        S = beta_p * model.mass_q + T.T @ (gamma_p * C + K) @ T
+        T = model.T_sparse
+        S = beta_p * model.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T
         n, m = len(q), cons.count
         A = np.zeros((n + m, n + m))
         A[:n, :n] = S

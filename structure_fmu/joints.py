@@ -4,6 +4,9 @@ The fold angle theta is the angle from the parent's tip gradient a = r_x (parent
 gradient b = r_x (child), positive about the shared chord vector n = r_y:
 theta = atan2((a x b) . n, a . b). It is independent of |a| and |b| (axial strain), in (-pi, pi].
 """
+import functools
+import math
+
 import numpy as np
 
 from .element import cross
@@ -15,11 +18,20 @@ def fold_angle(a, b, n):
 
 
 def fold_angle_gradient(a, b, n):
-    """(theta, d theta/da, d theta/db, d theta/dn) for single 3-vectors."""
-    s, c = cross(a, b) @ n, a @ b
+    """(theta, d theta/da, d theta/db, d theta/dn) for single 3-vectors.
+
+    Plain float arithmetic: on single 3-vectors it is several times faster than numpy calls."""
+    (a0, a1, a2), (b0, b1, b2), (n0, n1, n2) = a.tolist(), b.tolist(), n.tolist()
+    axb = (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+    s = axb[0] * n0 + axb[1] * n1 + axb[2] * n2
+    c = a0 * b0 + a1 * b1 + a2 * b2
     q = s * s + c * c
-    ds_da, ds_db, ds_dn = cross(b, n), cross(n, a), cross(a, b)
-    return (np.arctan2(s, c), (c * ds_da - s * b) / q, (c * ds_db - s * a) / q, c * ds_dn / q)
+    ds_da = (b1 * n2 - b2 * n1, b2 * n0 - b0 * n2, b0 * n1 - b1 * n0)      # b x n
+    ds_db = (n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0)      # n x a
+    grad = np.array([*(c * x - s * y for x, y in zip(ds_da, (b0, b1, b2))),
+                     *(c * x - s * y for x, y in zip(ds_db, (a0, a1, a2))),
+                     *(c * x for x in axb)]) / q
+    return math.atan2(s, c), grad[:3], grad[3:6], grad[6:]
 
 
 def actuator_torque(hinge, theta, dtheta, latched):
@@ -46,7 +58,7 @@ def actuator_forces(hinges, E, dE, latched, n_coordinates, with_tangent=False):
     damp = np.zeros((n_coordinates, n_coordinates)) if with_tangent else None
     angles = {}
     for h in hinges:
-        idx = np.concatenate([np.arange(3 * s, 3 * s + 3) for s in (h.parent_slot, h.child_slot, h.axis_slot)])
+        idx = hinge_coordinates(h)
         theta, ga, gb, gn = fold_angle_gradient(E[idx[:3]], E[idx[3:6]], E[idx[6:]])
         grad = np.concatenate([ga, gb, gn])
         dtheta = grad @ dE[idx]
@@ -58,3 +70,13 @@ def actuator_forces(hinges, E, dE, latched, n_coordinates, with_tangent=False):
             stiff[np.ix_(idx, idx)] += k * outer
             damp[np.ix_(idx, idx)] += h.damping * outer
     return force, angles, stiff, damp
+
+
+@functools.cache
+def _coordinates_of(parent_slot, child_slot, axis_slot):
+    return np.concatenate([np.arange(3 * s, 3 * s + 3) for s in (parent_slot, child_slot, axis_slot)])
+
+
+def hinge_coordinates(hinge):
+    """Indices (9,) into E of the parent's r_x, the child's r_x and the axis r_y of a hinge."""
+    return _coordinates_of(hinge.parent_slot, hinge.child_slot, hinge.axis_slot)

@@ -460,24 +460,31 @@ class Topology:
         k = min(int(span / l_el), n_el - 1)
         return body.elements[k], span - k * l_el, body.section.chord_offset(chord_fraction)
 
-    def _element_at(self, e, body, span, chord_fraction=0.0):
-        """(element coordinates (1, 18), x (m), y (m), element length (m)) of a material point."""
+    def point_rows(self, body, span, chord_fraction=0.0):
+        """Scalar shape rows (4, 3 n_nodes) of the material point at `span` (m) and `chord_fraction` of
+        `body`, acting on X = E.reshape(-1, 3) (000 Eq. 2, S = kron(s, I_3)): rows @ X gives its position
+        r(x, y) (m), and on the reference line at that span r' (-), r'' (1/m) along the span and r_y (-)."""
         k, x, y = self.locate(body, span, chord_fraction)
         a, b = self.element_nodes[k]
-        dofs = np.r_[9 * a:9 * a + 9, 9 * b:9 * b + 9]
         length = self.bodies[body].length / len(self.bodies[body].elements)
-        return np.asarray(e)[dofs][None, :], x, y, length
+        _, dN, ddN, L = element.hermite(x / length, length)
+        rows = np.zeros((4, 6))                     # on the element's [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]
+        rows[0] = element.shape_row(x, y, length)
+        rows[1:3, [0, 1, 3, 4]] = dN, ddN
+        rows[3, [2, 5]] = L
+        out = np.zeros((4, 3 * self.n_nodes))
+        out[:, [3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * b + 2]] = rows
+        return out
 
     def point_position(self, e, body, span, chord_fraction):
         """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
-        e_el, x, y, length = self._element_at(e, body, span, chord_fraction)
-        return element.point_positions(e_el, np.array([x]), np.array([y]), np.array([length]))[0]
+        return self.point_rows(body, span, chord_fraction)[0] @ np.asarray(e, dtype=float).reshape(-1, 3)
 
     def flap_curvature(self, e, body, span):
         """Bending curvature out of the wing plane (1/m) of `body`'s reference line at `span` (m)
         (element.flap_curvature; positive toward the section normal r_x x r_y)."""
-        e_el, x, _, length = self._element_at(e, body, span)
-        return float(element.flap_curvature(e_el, np.array([x]), np.array([length]))[0])
+        _, r1, r2, ry = self.point_rows(body, span) @ np.asarray(e, dtype=float).reshape(-1, 3)
+        return float(element.flap_curvature(r1, r2, ry))
 
     def fold_angles(self, e):
         """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""

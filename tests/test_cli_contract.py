@@ -204,7 +204,8 @@ class FakeUnitError(RuntimeError):
 
 
 class FakeUnit:
-    """Moves the tip along x at 1 m/s; fails at ``fail_at`` (s) with ``reason``."""
+    """Moves every coordinate (e_k = t + k, so the tip along x at 1 m/s); fails at ``fail_at`` (s) with
+    ``reason``."""
 
     n = 18
 
@@ -212,7 +213,7 @@ class FakeUnit:
         self.t, self.fail_at, self.reason, self.steps, self.terminated = 0.0, fail_at, reason, [], False
 
     def get_outputs(self):
-        return np.full(self.n, self.t), np.ones(self.n)
+        return self.t + np.arange(self.n, dtype=float), np.ones(self.n)
 
     def set_inputs(self, q):
         assert q.shape == (self.n,) and not q.any()
@@ -234,14 +235,14 @@ class FakeUnit:
 
 class FakeTopology:
     n_coordinates = 18
+    n_nodes = 2
 
     @staticmethod
-    def point_position(e, body, span, chord_fraction):
-        return np.array([e[0], 0.0, span])
-
-    @staticmethod
-    def flap_curvature(e, body, span):
-        return 0.0
+    def point_rows(body, span, chord_fraction=0.0):
+        """Every point at e[0:3], with r' = e[3:6], r'' = 0 (no curvature) and r_y = e[6:9]."""
+        rows = np.zeros((4, 6))
+        rows[0, 0] = rows[1, 1] = rows[3, 2] = 1.0
+        return rows
 
 
 def fake_run(scene, unit, stop=0.0105, progress=None):
