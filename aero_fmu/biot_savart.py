@@ -99,9 +99,10 @@ def _dot(v, x, y, z):
 
 
 def _safe_divide(x, y):
-    """x /= y in place where y > 0, x = 0 where y = 0 (a point at a segment's end)."""
-    np.divide(x, y, out=x, where=y > 0)
-    x[y == 0] = 0.0
+    """x /= y in place where y > 0, x = 0 where y = 0 (a point at a segment's end). The norms y are 0 or
+    far above the smallest normal float, and x (a dot product with the zero vector) is 0 where y is 0,
+    so dividing by max(y, tiny) is exact."""
+    x /= np.maximum(y, _TINY, out=y)
     return x
 
 

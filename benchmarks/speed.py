@@ -5,12 +5,15 @@
 For each scene (as shipped: uvlm-flat aero unit, Gauss-Seidel coupling at 1 ms) it builds the FMUs (not
 timed), then runs the scene once through the FMUs (`backend="fmu"`, what `wingsim run SCENE` runs) and
 once with the same slaves in-process (`backend="direct"`), one after the other in this process, one BLAS
-thread. The wall time is `RunResult.wall_time_s`: from the start of `run_scene` (loading and instantiating
-the units included) to its end. It prints, from this one run of each:
+thread. From this one run of each it prints:
 
-    real-time factor   wall time / simulated time (1 = real time; issue 5 targets: deploy_rigid <= 1,
-                       deploy_flexible <= 20, through the FMUs)
-    FMU overhead       wall time fmu / wall time direct - 1 (target <= 15%)
+    real-time factor   stepping wall time / simulated time, through the FMUs (1 = real time; issue 5
+                       targets: deploy_rigid <= 1, deploy_flexible <= 20). The stepping wall time
+                       (summary `stepping_wall_time_s`) covers the communication steps: both units'
+                       doStep, the exchange, the recording. Loading and instantiating the units comes
+                       before it and is printed as `set-up`.
+    FMU overhead       stepping wall time fmu / direct - 1 (target <= 15%), and the same for the whole run
+                       (`wall_time_s`, set-up included).
 
 The machine is shared and noisy: compare ratios from one run, not absolute times across runs.
 --profile prints the 25 most expensive functions (cProfile, cumulative) of one direct run per scene.
@@ -37,11 +40,11 @@ FMU_OVERHEAD_TARGET = 0.15
 
 
 def timed_run(scene, backend, fmu_dir=None):
-    """Wall time (s) of one run; raises if the run does not end ok (a failed run times nothing)."""
+    """(stepping wall time, whole wall time) in s of one run; raises unless the run ends ok."""
     result = run_scene(scene, backend=backend, fmu_dir=fmu_dir)
     if result.status != "ok":
         raise RuntimeError(f"{scene['name']} ({backend}): {result.status}: {result.message}")
-    return result.wall_time_s
+    return result.stepping_wall_time_s, result.wall_time_s
 
 
 def profile(scene, count=25):
@@ -69,24 +72,23 @@ def main(argv=None):
                 continue
             fmu_dir = Path(tmp) / name
             build_fmus(scene, fmu_dir)
-            simulated = scene["time"]["stop"]
-            print(f"{name}: {simulated:g} s simulated ...", flush=True)
-            wall_fmu = timed_run(scene, "fmu", fmu_dir)
-            wall_direct = timed_run(scene, "direct")
-            rows.append((name, simulated, wall_fmu, wall_direct))
+            print(f"{name}: {scene['time']['stop']:g} s simulated ...", flush=True)
+            rows.append((name, scene["time"]["stop"], *timed_run(scene, "fmu", fmu_dir), *timed_run(scene, "direct")))
     if not rows:
         return 0
-    print("\n| scene | simulated (s) | wall, FMUs (s) | real-time factor, FMUs | target | wall, direct (s) "
-          "| FMU overhead |")
-    print("|---|---|---|---|---|---|---|")
-    ok = True
-    for name, simulated, wall_fmu, wall_direct in rows:
-        factor, overhead = wall_fmu / simulated, wall_fmu / wall_direct - 1
+    print("\n| scene | simulated (s) | stepping, FMUs (s) | real-time factor, FMUs | target | set-up, FMUs (s) "
+          "| stepping, direct (s) | FMU overhead, stepping | FMU overhead, whole run |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    met = True
+    for name, simulated, step_fmu, wall_fmu, step_direct, wall_direct in rows:
+        factor, overhead = step_fmu / simulated, step_fmu / step_direct - 1
         target = TARGET.get(name)
-        ok &= (target is None or factor <= target) and overhead <= FMU_OVERHEAD_TARGET
-        print(f"| {name} | {simulated:g} | {wall_fmu:.2f} | {factor:.2f} | "
-              f"{'-' if target is None else f'<= {target:g}'} | {wall_direct:.2f} | {100 * overhead:+.1f}% |")
-    print(f"\nall targets met: {'yes' if ok else 'no'} (FMU overhead target <= {100 * FMU_OVERHEAD_TARGET:.0f}%)")
+        met &= (target is None or factor <= target) and overhead <= FMU_OVERHEAD_TARGET
+        print(f"| {name} | {simulated:g} | {step_fmu:.3f} | {factor:.2f} | {'-' if target is None else f'<= {target:g}'} "
+              f"| {wall_fmu - step_fmu:.3f} | {step_direct:.3f} | {100 * overhead:+.1f}% "
+              f"| {100 * (wall_fmu / wall_direct - 1):+.1f}% |")
+    print(f"\nall targets met: {'yes' if met else 'no'} (real-time factors as above; FMU overhead of the stepping "
+          f"<= {100 * FMU_OVERHEAD_TARGET:.0f}%)")
     return 0
 
 

@@ -188,6 +188,8 @@ class RunResult:
     scene: dict               # the resolved scene
     series: TimeSeries
     aero_inputs: AeroInputs | None = None   # the aero unit's steps (aero scenes), for a replay
+    stepping_wall_time_s: float | None = None   # s, of the communication steps alone (units loaded and
+                                                # initialized before): / simulated time = real-time factor
 
 
 def communication_times(stop: float, step: float) -> np.ndarray:
@@ -277,7 +279,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     series = new_series(scene)
     stop = scene["time"]["stop"]
     algorithm = scene.get("coupling", {}).get("algorithm", "gauss-seidel")
-    status, message, reached = "ok", "", 0.0
+    status, message, reached, stepping = "ok", "", 0.0, None
     structure = aero = None
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     phase = "starting the structure unit"
@@ -310,6 +312,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             total_iterations = most_iterations = 0
         _record(series, e, structure, aero, sensors, times[0],
                 coupling=(0, np.nan) if implicit else None)
+        stepping_start = _time.perf_counter()
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
             step_coupling = None
@@ -341,6 +344,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             reached = t1
             if progress is not None:
                 progress.update(t1)
+            stepping = _time.perf_counter() - stepping_start
         message = f"reached t = {stop:g} s in {len(times) - 1} communication steps"
         if aero is not None:
             message += f" ({algorithm} coupling with the {scene['aero']['model']} aero unit"
@@ -360,4 +364,5 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                     message += f" (terminating the {getattr(unit, 'kind', 'structure')} unit failed: {err})"
     if progress is not None:
         progress.finish(reached, status)
-    return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs)
+    return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs,
+                     stepping)

@@ -2,8 +2,10 @@
 
 Summary fields (SI units, angles in degrees):
 
-- ``status`` ("ok" | "diverged" | "error"), ``message``, ``wall_time_s``, ``simulated_time_s``,
-  ``scene`` (the resolved scene, after ``--set``);
+- ``status`` ("ok" | "diverged" | "error"), ``message``, ``wall_time_s`` (s, the whole run: loading the
+  units included), ``stepping_wall_time_s`` (s, the communication steps alone, null if none ran; over
+  ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
+  after ``--set``);
 - ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has reached
   it (for a single hinge: the first time its fold angle reaches the stop), linearly interpolated
   between samples; null if a hinge never reaches its stop or no hinge has one;
@@ -40,8 +42,8 @@ from orchestrator.master import RunResult
 from orchestrator.scene import hinge_joints
 from orchestrator.timeseries import TimeSeries
 
-SUMMARY_FIELDS = ("status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
-                  "max_constraint_residual", "energy_drift", "probes")
+SUMMARY_FIELDS = ("status", "message", "wall_time_s", "stepping_wall_time_s", "simulated_time_s", "scene",
+                  "deployment_time_s", "max_constraint_residual", "energy_drift", "probes")
 """The fields of every summary; a scene with strain gauges adds STRAIN_FIELD, an aero scene AERO_FIELD, an
 implicitly coupled one COUPLING_FIELD."""
 STRAIN_FIELD = "strain_gauges"
@@ -180,6 +182,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "status": result.status,
         "message": result.message,
         "wall_time_s": result.wall_time_s,
+        "stepping_wall_time_s": result.stepping_wall_time_s,
         "simulated_time_s": result.simulated_time_s,
         "scene": result.scene,
         "deployment_time_s": deployment_time(series, result.scene),

@@ -45,7 +45,7 @@ from structure_fmu.errors import SceneError
 DONE_STATUSES = ("ok", "diverged", "error")
 FIXED_COLUMNS = ("index",)
 RESULT_COLUMNS = ("status", "deployment_time_s", "wall_time_s", "message", "run_dir")
-SKIPPED_FIGURES = {"status", "message", "wall_time_s", "deployment_time_s", "scene"}
+SKIPPED_FIGURES = {"status", "message", "wall_time_s", "stepping_wall_time_s", "deployment_time_s", "scene"}
 RUN_FILE = "sweep_run.json"
 SWEEP_CSV = "sweep.csv"
 GRID_HELP = "KEY=V1,V2,... with a dotted scene key and at least one value, e.g. --grid flow.speed=0,10,20"

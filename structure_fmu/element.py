@@ -142,6 +142,8 @@ def _dot(a, b):
 
 
 _SLOT_CACHE = {}
+_G = len(GAUSS_W)
+_CYCLE = (np.r_[2 * _G:3 * _G, _G:2 * _G, 0:_G], np.r_[_G:2 * _G, 0:_G, 2 * _G:3 * _G])   # rows (r_y, r'', r'), (r'', r', r_y)
 
 
 def _slot_basis(length):
@@ -176,12 +178,15 @@ def _measures(e, length):
     speed = np.sqrt(_dot(r1, r1))                                           # |r'|
     axial = np.stack([np.sqrt(_dot(xA, xA)) - 1.0, np.sqrt(_dot(xB, xB)) - 1.0,
                       speed @ GAUSS_W - 1.0], axis=-1)                      # eps_A, eps_B, eps_arc
-    normal = cross(r1, ry)
+    # the cyclic products r_y x r'', r'' x r', r' x r_y (= n) in one call
+    crossed = cross(fields[:, _CYCLE[0]], fields[:, _CYCLE[1]])
+    ry_r2, r2_r1, normal = crossed[:, :g], crossed[:, g:2 * g], crossed[:, 2 * g:]
     # torsion: the triple products of tau and, for its gradient, the cross products they are made of
     triple = cross(v[:, [1, 4, 2, 5, 2]], v[:, [2, 5, 5, 1, 4]])    # xA x yA, xB x yB, yA x yB, yB x xA, yA x xB
     tau = 0.5 * (_dot(triple[:, 0], yB) - _dot(triple[:, 1], yA))
     return dict(xA=xA, yA=yA, xB=xB, yB=yB, speed=speed, basis=basis, r1=r1, r2=r2, ry=ry, axial=axial,
-                normal=normal, flap=_dot(r2, normal), chordwise=_dot(r2, ry), tau=tau, triple=triple)
+                normal=normal, ry_r2=ry_r2, r2_r1=r2_r1, flap=_dot(r2, normal), chordwise=_dot(r2, ry), tau=tau,
+                triple=triple)
 
 
 def elastic_energy(e, length, stiffness):
@@ -210,9 +215,9 @@ def elastic_force(e, length, stiffness):
     cf = (w * EIy[:, None] * m["flap"])[..., None]
     cc = (w * EIz[:, None] * m["chordwise"])[..., None]
     r1, r2, ry = m["r1"], m["r2"], m["ry"]
-    g_r1 = (f_axial[:, 2:3] * GAUSS_W[None, :] / m["speed"])[..., None] * r1 + cf * cross(ry, r2)
+    g_r1 = (f_axial[:, 2:3] * GAUSS_W[None, :] / m["speed"])[..., None] * r1 + cf * m["ry_r2"]
     g_r2 = cf * m["normal"] + cc * ry
-    g_ry = cf * cross(r2, r1) + cc * r2
+    g_ry = cf * m["r2_r1"] + cc * r2
     g = np.swapaxes(m["basis"], 1, 2) @ np.concatenate([g_r1, g_r2, g_ry], axis=1)   # (n, 5, 3) on the slots
     g_d, g_xA, g_yA, g_xB, g_yB = (g[:, k] for k in range(5))
     xA, xB = m["xA"], m["xB"]

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg.lapack import dposv
 
 from .errors import SolverDiverged
 
@@ -36,6 +37,15 @@ class State:
                        latch_times=dict(self.latch_times))
 
 
+def _schur_solve(S, b):
+    """x = S^-1 b for the symmetric positive definite Schur complement S = G_q M_q^-1 G_q^T (LAPACK posv:
+    a tenth of numpy.linalg.solve's overhead on these few-row systems); LinAlgError if S is singular."""
+    _, x, info = dposv(S, b)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"constraint Jacobian rank deficient (Schur complement, LAPACK info {info})")
+    return x
+
+
 def constrained_accelerations(model, t, q, dq, Q, latched):
     """q'' and lambda from the index-1 equations by a Schur complement on the factorized mass."""
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
@@ -49,7 +59,7 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
         gamma -= G @ (model.P @ ddp)
     MinvF = model.mass_inverse @ F
     MinvGt = model.mass_inverse @ Gq.T
-    lam = np.linalg.solve(Gq @ MinvGt, Gq @ MinvF - gamma)
+    lam = _schur_solve(Gq @ MinvGt, Gq @ MinvF - gamma)
     return MinvF - MinvGt @ lam, lam
 
 
@@ -65,14 +75,14 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
             break
         Gq = cons.jacobian(E) @ model.T
         MinvGt = model.mass_inverse @ Gq.T
-        q = q - MinvGt @ np.linalg.solve(Gq @ MinvGt, phi)
+        q = q - MinvGt @ _schur_solve(Gq @ MinvGt, phi)
     else:
         E, dE, _ = model.coordinates(q, dq, t)
     G = cons.jacobian(E)
     Gq = G @ model.T
     MinvGt = model.mass_inverse @ Gq.T
     dphi = G @ dE                      # dPhi/dt = G (T q' + P p')
-    return q, dq - MinvGt @ np.linalg.solve(Gq @ MinvGt, dphi)
+    return q, dq - MinvGt @ _schur_solve(Gq @ MinvGt, dphi)
 
 
 class RK4:
@@ -212,7 +222,7 @@ class GeneralizedAlpha:
                 phi = cons.residual(E)
             if not (np.all(np.isfinite(residual)) and np.all(np.isfinite(phi))):
                 raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
-            delta = lu_solve(self._matrix[1], -np.concatenate([residual, beta_p * phi]))
+            delta = lu_solve(self._matrix[1], -np.concatenate([residual, beta_p * phi]), check_finite=False)
             dq_step = delta[:n]
             q += dq_step
             dq += gamma_p * dq_step

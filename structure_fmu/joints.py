@@ -14,7 +14,7 @@ from .element import cross
 
 def fold_angle(a, b, n):
     """theta (rad) for gradient vectors a, b and hinge axis n, each (..., 3)."""
-    return np.arctan2(np.sum(cross(a, b) * n, axis=-1), np.sum(a * b, axis=-1))
+    return np.arctan2(np.einsum("...i,...i", cross(a, b), n), np.einsum("...i,...i", a, b))
 
 
 def fold_angle_gradient(a, b, n):

@@ -70,6 +70,7 @@ class StructureModel:
                 self.mass_damping[np.ix_(idx, idx)] += alpha * mass
         # flat positions of the element blocks in an (n, n) matrix, to assemble tangents in one bincount
         self._element_entries = (self.dofs[:, :, None] * self.n + self.dofs[:, None, :]).ravel()
+        self._dofs_flat = self.dofs.ravel()
         self.T_sparse = scipy.sparse.csr_array(self.T)     # for the products T^T K T of the tangent
         self.loads = topology.loads
         self._group_prescribed()
@@ -129,7 +130,7 @@ class StructureModel:
         K = C = None
         if self.flexible:
             e_el = E[self.dofs]
-            np.add.at(F, self.dofs, element.elastic_force(e_el, self.lengths, self.stiffness))
+            F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
         for load in self.loads:
             k = load["element"]
             s = element.shape_row(load["x"], load["y"], self.lengths[k])

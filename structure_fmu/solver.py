@@ -154,7 +154,7 @@ class StructureSolver:
 
     def _check(self, state, E):
         hint = _DIVERGENCE_HINT[self.integrator.name]
-        if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.dq))):
+        if not (np.isfinite(state.q).all() and np.isfinite(state.dq).all()):
             raise SolverDiverged(state.t, "the state became NaN/inf", hint)
         residual = self._residual(E)
         if residual > 1e-4:
