@@ -45,7 +45,8 @@ class BoundSystem:
     def matrices(self, geometry, direction):
         """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
         frame = _frame(geometry)
-        if self._reference is not None and may_be_rigid(self._reference[0], frame, self.tolerance):
+        n = len(geometry.corners)       # the corners alone suffice for the quick test
+        if self._reference is not None and may_be_rigid(self._reference[0][:n], frame[:n], self.tolerance):
             ref_frame, ref_direction, result = self._reference
             R, _, residual = rigid_fit(ref_frame, frame)
             same_wake = not self.flat_wake or np.max(np.abs(R @ ref_direction - direction)) <= 1e-12
@@ -86,9 +87,7 @@ class BoundSystem:
         for s in systems:
             if s.semi_infinite:
                 T += influence(geometry.collocation, s.starts, s.ends, s.weights, core, True)
-        A = np.einsum("pc,pck->pk", geometry.normal, T)
-        A_x = np.einsum("pc,pck->pk", geometry.r_x, T)
-        A_y = np.einsum("pc,pck->pk", geometry.r_y, T)
+        A, A_x, A_y = np.einsum("dpc,pck->dpk", np.stack([geometry.normal, geometry.r_x, geometry.r_y]), T)
         with warnings.catch_warnings():                 # a zero pivot is reported below, with the reason
             warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
             lu = scipy.linalg.lu_factor(A, check_finite=False)

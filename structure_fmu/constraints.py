@@ -15,7 +15,8 @@ class Constraints:
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
     X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane
-    rows are X_s . n; rows are ordered unit, orthogonality, plane."""
+    rows are X_s . n; rows are ordered unit, orthogonality, plane. Every evaluation gathers E through
+    flat index arrays built once (these run several times per time step on small arrays)."""
 
     def __init__(self, topology):
         self.unit = np.array(topology.unit_slots, dtype=int)
@@ -25,40 +26,44 @@ class Constraints:
         self.count = len(self.unit) + len(self.ortho) + len(self.plane)
         self.n = topology.n_coordinates
         nu, no = len(self.unit), len(self.ortho)
-        self._a = np.concatenate([self.unit, self.ortho[:, 0]])
-        self._b = np.concatenate([self.unit, self.ortho[:, 1]])
-        self._coefficient = np.repeat([0.5, 1.0], [nu, no])[:, None]
+        a, b = np.concatenate([self.unit, self.ortho[:, 0]]), np.concatenate([self.unit, self.ortho[:, 1]])
+        components = np.arange(3)
+        flat = lambda slots: (3 * slots[:, None] + components).ravel()          # E indices of the slots
+        self._ia, self._ib, self._ip = flat(a), flat(b), flat(self.plane)
+        self._coefficient = np.repeat([0.5, 1.0], [nu, no])
         self._constant = np.repeat([-0.5, 0.0], [nu, no])
-        self._products = np.arange(nu + no)
-        # the plane rows of G are constant
-        self._jacobian_template = np.zeros((self.count, self.n // 3, 3))
-        self._jacobian_template[np.arange(nu + no, self.count), self.plane] = self.plane_normal
+        self._plane_normal = self.plane_normal.ravel()
+        # G as a flat (count * n) array: the product rows' entries at slots a and b, the plane rows constant
+        rows = np.repeat(np.arange(nu + no), 3)
+        self._ga, self._gb = rows * self.n + self._ia, rows * self.n + self._ib
+        self._g_coefficient = np.repeat(self._coefficient, 3)
+        self._jacobian_template = np.zeros(self.count * self.n)
+        self._jacobian_template[np.repeat(np.arange(nu + no, self.count), 3) * self.n + self._ip] = self._plane_normal
+        self._plane_zeros = np.zeros(len(self.plane))
         # H_i entries: (slot row, slot column, constraint) pairs, each on the three components
-        rows, cols, which = (np.concatenate(v) for v in zip((self._a, self._b, self._products),
+        rows, cols, which = (np.concatenate(v) for v in zip((a, b, np.arange(nu + no)),
                                                              (self.ortho[:, 1], self.ortho[:, 0], nu + np.arange(no))))
-        c = np.arange(3)
-        self._hessian_entries = ((3 * rows[:, None] + c) * self.n + 3 * cols[:, None] + c).ravel()
+        self._hessian_entries = ((3 * rows[:, None] + components) * self.n + 3 * cols[:, None] + components).ravel()
         self._hessian_multiplier = np.repeat(which, 3)
 
     def residual(self, E):
         """Phi(E), shape (count,)."""
-        X = E.reshape(-1, 3)
-        products = self._coefficient[:, 0] * np.einsum("ij,ij->i", X[self._a], X[self._b]) + self._constant
-        return np.concatenate([products, np.einsum("ij,ij->i", X[self.plane], self.plane_normal)])
+        products = (E[self._ia] * E[self._ib]).reshape(-1, 3).sum(axis=1) * self._coefficient + self._constant
+        if not len(self.plane):
+            return products
+        return np.concatenate([products, (E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1)])
 
     def jacobian(self, E):
         """G = dPhi/dE, dense (count, n)."""
-        X = E.reshape(-1, 3)
         G = self._jacobian_template.copy()
-        G[self._products, self._a] += self._coefficient * X[self._b]
-        G[self._products, self._b] += self._coefficient * X[self._a]
+        G[self._ga] = self._g_coefficient * E[self._ib]
+        G[self._gb] += self._g_coefficient * E[self._ia]      # unit rows: a = b, the two halves add up
         return G.reshape(self.count, self.n)
 
     def velocity_quadratic(self, dE):
         """dE^T H_i dE for each constraint: the term of d2Phi/dt2 that is not G d2E/dt2."""
-        V = dE.reshape(-1, 3)
-        products = 2.0 * self._coefficient[:, 0] * np.einsum("ij,ij->i", V[self._a], V[self._b])
-        return np.concatenate([products, np.zeros(len(self.plane))])
+        products = 2.0 * self._coefficient * (dE[self._ia] * dE[self._ib]).reshape(-1, 3).sum(axis=1)
+        return np.concatenate([products, self._plane_zeros]) if len(self.plane) else products
 
     def hessian_sum(self, multipliers):
         """sum_i lambda_i H_i, dense (n, n): the constraint part of the tangent stiffness."""

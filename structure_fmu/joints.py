@@ -9,12 +9,13 @@ import math
 
 import numpy as np
 
-from .element import cross
 
 
 def fold_angle(a, b, n):
-    """theta (rad) for gradient vectors a, b and hinge axis n, each (..., 3)."""
-    return np.arctan2(np.einsum("...i,...i", cross(a, b), n), np.einsum("...i,...i", a, b))
+    """theta (rad) for single 3-vectors a, b and hinge axis n (float arithmetic, as fold_angle_gradient)."""
+    (a0, a1, a2), (b0, b1, b2), (n0, n1, n2) = a.tolist(), b.tolist(), n.tolist()
+    s = (a1 * b2 - a2 * b1) * n0 + (a2 * b0 - a0 * b2) * n1 + (a0 * b1 - a1 * b0) * n2
+    return math.atan2(s, a0 * b0 + a1 * b1 + a2 * b2)
 
 
 def fold_angle_gradient(a, b, n):

@@ -10,7 +10,6 @@ and the child's root node; a rigid body (one element) has r^B = r^A + l r_x^A, r
 r_y^B = r_y^A, the linear rows of 000 Eq. (17); a clamp or driven root is prescribed. What remains as
 Lagrange constraints is nonlinear: unit length and orthogonality (000 Eqs. 6, 17), see constraints.py.
 """
-import functools
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -487,19 +486,10 @@ class Topology:
         _, r1, r2, ry = self.point_rows(body, span) @ np.asarray(e, dtype=float).reshape(-1, 3)
         return float(element.flap_curvature(r1, r2, ry))
 
-    @functools.cached_property
-    def _hinge_slots(self):
-        """(n_hinges, 3) slots of each hinge's parent tip r_x, child root r_x and axis r_y."""
-        return np.array([(h.parent_slot, h.child_slot, h.axis_slot) for h in self.hinges], dtype=int)
-
     def fold_angles(self, e):
         """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""
-        if not self.hinges:
-            return {}
         X = np.asarray(e).reshape(-1, 3)
-        slots = self._hinge_slots
-        angles = fold_angle(X[slots[:, 0]], X[slots[:, 1]], X[slots[:, 2]])
-        return dict(zip((h.name for h in self.hinges), angles.tolist()))
+        return {h.name: fold_angle(X[h.parent_slot], X[h.child_slot], X[h.axis_slot]) for h in self.hinges}
 
     @property
     def topology_hash(self):
