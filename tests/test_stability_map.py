@@ -1,0 +1,95 @@
+"""Pinned points of the stability map (docs/stability.md, benchmarks/stability.py), each computed here with its
+own runs of scenes/stability_wing.toml (the clamped PVC wing body under a sudden tip load P, linear static tip
+deflection delta_s = P L^3 / (3 EI)):
+
+- RK4 is stable just below its analytic limit 2 sqrt(2) / omega_max and reported "diverged" just above it, at
+  both ends of the stiffness range (E = 1e6 and 1e12 Pa);
+- generalized-alpha is stable a hundred times beyond that limit, and its Newton failure far beyond is reported
+  "diverged";
+- in air 30 times denser than normal Gauss-Seidel coupling is reported "diverged" (added-mass instability),
+  while implicit coupling stays bounded.
+
+Stable, as in the doc: status "ok", kinetic energy <= P delta_s, tip displacement <= 4 delta_s (twice what an
+undamped linear structure can reach under the sudden load: P delta_s / 2 and 2 delta_s)."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.master import run_scene
+from orchestrator.scene import load_scene
+from structure_fmu.modes import natural_frequencies
+from structure_fmu.solver import StructureSolver
+
+SCENE = Path(__file__).resolve().parents[1] / "scenes" / "stability_wing.toml"
+AIR = 1.2      # kg/m^3
+
+
+def stiffness(E):
+    """Overrides giving the wing Young's modulus E (Pa), GJ scaled with it (fixed Poisson ratio)."""
+    section = load_scene(SCENE)["structure"]["bodies"][0]["section"]
+    return [f"structure.bodies.wing.section.youngs_modulus={float(E)!r}",
+            f"structure.bodies.wing.section.torsional_rigidity="
+            f"{float(section['torsional_rigidity'] * E / section['youngs_modulus'])!r}"]
+
+
+def frequencies(overrides):
+    """(omega_1, omega_max) rad/s of the wing linearized at rest."""
+    omega = natural_frequencies(StructureSolver(load_scene(SCENE, overrides)), count=None)
+    return float(omega[0]), float(omega.max())
+
+
+def run(overrides):
+    """(result, bounded): the run, and whether KE <= P delta_s and |tip displacement| <= 4 delta_s throughout."""
+    scene = load_scene(SCENE, overrides)
+    body = scene["structure"]["bodies"][0]
+    EI = body["section"]["youngs_modulus"] * body["section"]["chord"] * body["section"]["thickness"] ** 3 / 12
+    P = scene["load"]["parameter"] * EI / body["length"] ** 2
+    delta = P * body["length"] ** 3 / (3 * EI)
+    result = run_scene(scene, backend="direct")
+    tip = result.series.positions[:, 0]
+    bounded = (np.nanmax(result.series.kinetic_energy) <= P * delta
+               and np.nanmax(np.linalg.norm(tip - tip[0], axis=1)) <= 4 * delta)
+    return result, bool(bounded)
+
+
+@pytest.mark.parametrize("E", [1e6, 1e12])
+def test_rk4_is_stable_below_its_analytic_limit_and_reported_diverged_above(E):
+    _, omega_max = frequencies(stiffness(E))
+    limit = 2 * math.sqrt(2) / omega_max          # RK4 on the imaginary axis: |R(i y)| <= 1 for y <= 2 sqrt(2)
+    common = [*stiffness(E), "structure.integrator=rk4", f"time.stop={300 * limit!r}", f"coupling.step={30 * limit!r}"]
+    below, bounded = run(common + [f"structure.step={0.95 * limit!r}"])
+    assert below.status == "ok" and bounded, below.message
+    above, _ = run(common + [f"structure.step={1.1 * limit!r}"])
+    assert above.status == "diverged", above.message
+    assert above.simulated_time_s < 300 * limit and "structure.step" in above.message   # the hint
+
+
+def test_generalized_alpha_is_stable_far_beyond_the_explicit_limit_and_reports_its_newton_failure():
+    omega_1, omega_max = frequencies([])
+    period, limit = 2 * math.pi / omega_1, 2 * math.sqrt(2) / omega_max
+    step = 100 * limit
+    result, bounded = run(["structure.rho_inf=0.8", f"structure.step={step!r}", f"coupling.step={step!r}",
+                           f"time.stop={period!r}"])
+    assert result.status == "ok" and bounded, result.message
+    assert result.series.time[-1] == pytest.approx(period)
+    # an eighth of the first period per step: the Newton iteration fails, and says so
+    far, _ = run(["structure.rho_inf=0.8", f"structure.step={period / 8!r}", f"coupling.step={period / 8!r}",
+                  f"time.stop={period!r}"])
+    assert far.status == "diverged" and "Newton" in far.message, far.message
+
+
+def test_gauss_seidel_is_reported_diverged_in_dense_air_where_implicit_coupling_stays_bounded():
+    factor = 30.0
+    section = load_scene(SCENE)["structure"]["bodies"][0]["section"]
+    m_s = section["density"] * section["chord"] * section["thickness"]            # kg/m
+    m_a = (3 + 1 / 2) * AIR * factor * math.pi * section["chord"] ** 2 / 4         # uvlm-flat's, M = 2, kg/m
+    assert m_a / m_s > 1.0     # beyond the added-mass limit of explicit coupling (0.5 to 1.4, docs/stability.md)
+    common = ["aero.model=uvlm-flat", "flow.speed=0", f"flow.density={AIR * factor!r}", "coupling.step=1e-3",
+              "structure.step=2.5e-4", "time.stop=0.05"]
+    explicit, _ = run(common + ["coupling.algorithm=gauss-seidel"])
+    assert explicit.status == "diverged" and explicit.simulated_time_s < 0.05, explicit.message
+    implicit, bounded = run(common + ["coupling.algorithm=implicit"])
+    assert implicit.status == "ok" and bounded, implicit.message
+    assert np.all(implicit.series.column("coupling_residual")[1:] < 1e-6)
