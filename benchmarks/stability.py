@@ -447,7 +447,7 @@ def lattice_added_mass():
     N = null_space(model.constraints.jacobian(E0) @ model.T)
     added = N.T @ model.T.T @ np.array(columns).T @ N
     mass = N.T @ model.mass_q @ N
-    _, K, _ = model.force_E(E0, np.zeros_like(E0), 0.0, np.zeros_like(E0), {}, with_tangent=True)
+    K, _ = model.tangent_E(E0, np.zeros_like(E0), {})
     stiffness = N.T @ model.T.T @ K @ model.T @ N
     _, modes = eigh(0.5 * (stiffness + stiffness.T), mass)
     phi = modes[:, 0]

@@ -149,7 +149,7 @@ class GeneralizedAlpha:
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
         E, dE, _ = model.coordinates(q, dq, t)
-        _, K, C = model.force_E(E, dE, t, Q, latched, with_tangent=True)
+        K, C = model.tangent_E(E, dE, latched)
         cons = model.constraints
         if cons.count:
             K = K + cons.hessian_sum(lam)

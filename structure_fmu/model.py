@@ -120,14 +120,9 @@ class StructureModel:
             return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
         return 1.0
 
-    def force_E(self, E, dE, t, Q, latched, with_tangent=False):
-        """Generalized force on E: elastic, gravity, point loads, actuators, damping and external Q.
-
-        With with_tangent also returns (K_E, C_E): -dF/dE (elastic exact, actuator Gauss-Newton) and
-        -dF/d(dE) (damping, actuator).
-        """
+    def force_E(self, E, dE, t, Q, latched):
+        """Generalized force on E (n,): elastic, gravity, point loads, actuators, damping and external Q."""
         F = self.gravity_E + Q
-        K = C = None
         if self.flexible:
             e_el = E[self.dofs]
             F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
@@ -135,28 +130,32 @@ class StructureModel:
             k = load["element"]
             s = element.shape_row(load["x"], load["y"], self.lengths[k])
             F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
-        act, _, K_act, C_act = actuator_forces(self.hinges, E, dE, latched, self.n, with_tangent)
-        F += act
-        if with_tangent:
-            K, C = K_act, C_act
-            if self.flexible:
-                jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
-                K += np.bincount(self._element_entries, jac.ravel(), self.n * self.n).reshape(self.n, self.n)
+        F += actuator_forces(self.hinges, E, dE, latched, self.n)[0]
         if self.mass_damping is not None:
             F -= self.mass_damping @ dE
-            if with_tangent:
-                C += self.mass_damping
         else:
             for alpha, idx, mass in self.damped_bodies:
                 F[idx] += deformation_damping_force(E[idx], dE[idx], mass, alpha)
-                if with_tangent:
-                    C[np.ix_(idx, idx)] += deformation_damping_matrix(E[idx], mass, alpha)
-        return F, K, C
+        return F
+
+    def tangent_E(self, E, dE, latched):
+        """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton) and -dF/d(dE) (damping,
+        actuator) of `force_E` (point loads, gravity and Q do not depend on E)."""
+        _, _, K, C = actuator_forces(self.hinges, E, dE, latched, self.n, with_tangent=True)
+        if self.flexible:
+            jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
+            K += np.bincount(self._element_entries, jac.ravel(), self.n * self.n).reshape(self.n, self.n)
+        if self.mass_damping is not None:
+            C += self.mass_damping
+        else:
+            for alpha, idx, mass in self.damped_bodies:
+                C[np.ix_(idx, idx)] += deformation_damping_matrix(E[idx], mass, alpha)
+        return K, C
 
     def force_q(self, q, dq, t, Q, latched):
         """Reduced force T^T F - T^T M P p'' and the current E, dE."""
         E, dE, ddp = self.coordinates(q, dq, t)
-        F, _, _ = self.force_E(E, dE, t, Q, latched)
+        F = self.force_E(E, dE, t, Q, latched)
         return self.T.T @ F + self.prescribed_force(ddp), E, dE, ddp
 
     # ---------------------------------------------------------------- monitors

@@ -15,7 +15,7 @@ def natural_frequencies(solver, count=6):
     model = solver.model
     state = solver.state
     E, dE, _ = model.coordinates(state.q, np.zeros_like(state.q), state.t)
-    _, K, _ = model.force_E(E, np.zeros_like(dE), state.t, np.zeros_like(E), state.latched, with_tangent=True)
+    K, _ = model.tangent_E(E, np.zeros_like(dE), state.latched)
     if model.constraints.count:
         K = K + model.constraints.hessian_sum(state.multipliers)
         N = null_space(model.constraints.jacobian(E) @ model.T)
