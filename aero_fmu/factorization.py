@@ -20,8 +20,8 @@ import scipy.linalg
 import scipy.sparse
 
 from .biot_savart import influence
-from .rigid import may_be_rigid, rigid_fit
-from .vlm import Segments, bound_segments, horseshoe_wake, horseshoe_weights
+from .rigid import distances_from_first, may_be_rigid, rigid_fit
+from .vlm import horseshoe_weights
 
 RIGID_TOLERANCE = 1e-9   # x smallest reference panel dimension: a geometry within it reuses the matrices
 DENSE_WEIGHTS = 100_000  # segment x panel entries up to which the stacked weights are kept dense
@@ -36,57 +36,61 @@ class BoundSystem:
         self.flat_wake, self.wake_length = bool(flat_wake), float(wake_length)
         self.tolerance = RIGID_TOLERANCE * float(min(lattice.panel_span.min(), lattice.panel_chord.min()))
         self.builds = 0
-        self._horseshoe = horseshoe_weights(lattice) if self.flat_wake else None
-        self._inner_incidence = rings.incidence[~rings.trailing] if self.flat_wake else None
-        self._reference = None    # (frame points, direction, (A_x, A_y, lu))
-        # the finite segments' weights stacked once in `segments` order, so a build is one kernel pass
-        self._finite_weights = None
+        self._reference = None    # (frame points, corner distances from the first, direction, (A_x, A_y, lu))
+        # The finite segments as start/end indices into the nodes (the corners, then the far ends of finite
+        # horseshoe legs) and their stacked weights, so that a build is two gathers and one kernel pass.
+        # With the flat wake the segments are those of `vlm.horseshoe_wake` except its bound segments, which
+        # are left out with the rings' trailing segments: they coincide and carry opposite circulations, so
+        # their influences cancel exactly.
+        kept = ~rings.trailing if self.flat_wake else np.ones(len(rings.start), dtype=bool)
+        starts, ends, weights = [rings.start[kept]], [rings.end[kept]], [rings.incidence[kept]]
+        self._semi_infinite_legs = None
+        if self.flat_wake:
+            legs, span, _ = horseshoe_weights(lattice)
+            trailing = lattice.trailing_corners                                  # (B, N + 1)
+            if np.isinf(self.wake_length):
+                self._semi_infinite_legs = (trailing.ravel(), legs)
+            else:
+                far = lattice.n_corners + np.arange(trailing.size).reshape(trailing.shape)
+                starts += [trailing.ravel(), far[:, :-1].ravel()]
+                ends += [far.ravel(), far[:, 1:].ravel()]
+                weights += [legs, span]
+                chord = lattice.chord[lattice.trailing_panels[:, 0]]             # (B,) body chords
+                self._leg_length = self.wake_length * chord
+        self._start, self._end = np.concatenate(starts), np.concatenate(ends)
+        stacked = scipy.sparse.vstack(weights, format="csr")
+        # small lattices (000's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
+        self._weights = stacked.toarray() if stacked.shape[0] * stacked.shape[1] <= DENSE_WEIGHTS else stacked
 
     def matrices(self, geometry, direction):
         """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
-        frame = _frame(geometry)
-        n = len(geometry.corners)       # the corners alone suffice for the quick test
-        if self._reference is not None and may_be_rigid(self._reference[0][:n], frame[:n], self.tolerance):
-            ref_frame, ref_direction, result = self._reference
-            R, _, residual = rigid_fit(ref_frame, frame)
+        if self._reference is not None and may_be_rigid(self._reference[1], geometry.corners, self.tolerance):
+            ref_frame, _, ref_direction, result = self._reference
+            R, _, residual = rigid_fit(ref_frame, _frame(geometry))
             same_wake = not self.flat_wake or np.max(np.abs(R @ ref_direction - direction)) <= 1e-12
             if residual <= self.tolerance and same_wake:
                 return result
         result = self._build(geometry, direction)
-        self._reference = (frame, np.array(direction, dtype=float), result)
+        self._reference = (_frame(geometry), distances_from_first(geometry.corners), np.array(direction, dtype=float),
+                           result)
         self.builds += 1
         return result
-
-    def segments(self, geometry, direction):
-        """The vortex systems whose circulations are linear in Gamma: the bound rings and, with the flat
-        wake, the horseshoes' legs (and closing segments). The horseshoes' bound segments and the rings'
-        trailing segments are both left out: they coincide and carry opposite circulations
-        (`vlm.horseshoe_wake`), so their influences cancel exactly."""
-        if not self.flat_wake:
-            return [bound_segments(self.rings, geometry.corners)]
-        rings, kept = self.rings, ~self.rings.trailing
-        inner = Segments(geometry.corners[rings.start[kept]], geometry.corners[rings.end[kept]],
-                         self._inner_incidence)
-        wake = horseshoe_wake(self.lattice, geometry.corners, direction, self.wake_length, self._horseshoe)
-        return [inner] + wake[1:]
 
     def _build(self, geometry, direction):
         flat = np.flatnonzero(~(geometry.area > 0))
         if flat.size:
             raise np.linalg.LinAlgError(f"singular influence matrix: panel {int(flat[0])} (of {flat.size}) has zero "
                                         "area (degenerate wing geometry)")
-        core = self.lattice.core_radius
-        systems = self.segments(geometry, direction)
-        finite = [s for s in systems if not s.semi_infinite]
-        if self._finite_weights is None:
-            weights = scipy.sparse.vstack([s.weights for s in finite], format="csr")
-            # small lattices (000's M = 2, N = 7: 118 x 28) reduce faster dense, large ones stay sparse
-            self._finite_weights = weights.toarray() if weights.shape[0] * weights.shape[1] <= DENSE_WEIGHTS else weights
-        T = influence(geometry.collocation, np.concatenate([s.starts for s in finite]),
-                      np.concatenate([s.ends for s in finite]), self._finite_weights, core)     # (P, 3, n)
-        for s in systems:
-            if s.semi_infinite:
-                T += influence(geometry.collocation, s.starts, s.ends, s.weights, core, True)
+        core, corners = self.lattice.core_radius, geometry.corners
+        nodes = corners
+        if self.flat_wake and self._semi_infinite_legs is None:      # the legs' far ends, along the free stream
+            head = corners[self.lattice.trailing_corners]                                  # (B, N + 1, 3)
+            nodes = np.concatenate([corners, (head + self._leg_length[:, None, None] * direction).reshape(-1, 3)])
+        T = influence(geometry.collocation, nodes[self._start], nodes[self._end], self._weights, core)   # (P, 3, n)
+        if self._semi_infinite_legs is not None:
+            legs_start, legs = self._semi_infinite_legs
+            T += influence(geometry.collocation, corners[legs_start], np.broadcast_to(direction, (len(legs_start), 3)),
+                           legs, core, True)
         A, A_x, A_y = np.einsum("dpc,pck->dpk", np.stack([geometry.normal, geometry.r_x, geometry.r_y]), T)
         with warnings.catch_warnings():                 # a zero pivot is reported below, with the reason
             warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)

@@ -24,10 +24,15 @@ def rigid_fit(reference, current):
     return R, t, residual
 
 
-def may_be_rigid(reference, current, tolerance):
-    """False when no rigid motion can map `reference` (n, 3) onto `current` (n, 3) within `tolerance` (m)
-    at every point: a distance from the first point changed by more than 2 tolerance. A cheap necessary
-    test (about a tenth of `rigid_fit`) for geometries that deform, where the fit would fail anyway."""
-    before = np.einsum("ij,ij->i", reference - reference[0], reference - reference[0])
-    after = np.einsum("ij,ij->i", current - current[0], current - current[0])
-    return bool(np.max(np.abs(np.sqrt(before) - np.sqrt(after))) <= 2 * tolerance)
+def distances_from_first(points):
+    """|p_i - p_0| (n,) m: what any rigid motion of the points keeps (`may_be_rigid`)."""
+    offsets = points - points[0]
+    return np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
+
+
+def may_be_rigid(reference_distances, current, tolerance):
+    """False when no rigid motion can map the reference points onto `current` (n, 3) within `tolerance` (m)
+    at every point: a distance from the first point (`distances_from_first` of the reference) changed by
+    more than 2 tolerance. A cheap necessary test for geometries that deform, where `rigid_fit` would fail
+    anyway."""
+    return bool(np.max(np.abs(distances_from_first(current) - reference_distances)) <= 2 * tolerance)
