@@ -30,6 +30,6 @@ class Sensors:
 
     def strains(self, e: np.ndarray) -> dict:
         """Surface strain of each gauge, {name: strain (-)}."""
-        r1, r2, ry = np.moveaxis(self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3), 1, 0)
-        values = self._surface_distance * flap_curvature(r1, r2, ry)
+        derivatives = self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3)     # (n_gauges, 3, 3)
+        values = self._surface_distance * flap_curvature(derivatives[:, 0], derivatives[:, 1], derivatives[:, 2])
         return dict(zip(self.strain_names, values.tolist()))

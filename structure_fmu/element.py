@@ -128,7 +128,8 @@ def distributed_force(length, mass_per_length, first_moment, acceleration):
 
 def cross(a, b):
     """Cross product on the last axis; complex-safe and much faster than np.cross on small arrays."""
-    out = np.empty(np.broadcast(a, b).shape, dtype=np.result_type(a, b))
+    same = a.shape == b.shape and a.dtype == b.dtype
+    out = np.empty_like(a) if same else np.empty(np.broadcast(a, b).shape, dtype=np.result_type(a, b))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     out[..., 0] = a1 * b2 - a2 * b1
