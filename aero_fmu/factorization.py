@@ -13,11 +13,9 @@ while the current geometry is the reference moved rigidly (`rigid.rigid_fit`, to
 RIGID_TOLERANCE times the smallest panel dimension); with a flat wake the free-stream direction must
 also have moved with the lattice. A singular A (a degenerate panel) raises numpy.linalg.LinAlgError.
 """
-import warnings
-
 import numpy as np
-import scipy.linalg
 import scipy.sparse
+from scipy.linalg.lapack import dgetrf
 
 from .biot_savart import influence
 from .rigid import distances_from_first, may_be_rigid, rigid_fit
@@ -91,14 +89,16 @@ class BoundSystem:
             legs_start, legs = self._semi_infinite_legs
             T += influence(geometry.collocation, corners[legs_start], np.broadcast_to(direction, (len(legs_start), 3)),
                            legs, core, True)
-        A, A_x, A_y = np.einsum("dpc,pck->dpk", np.stack([geometry.normal, geometry.r_x, geometry.r_y]), T)
-        with warnings.catch_warnings():                 # a zero pivot is reported below, with the reason
-            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-            lu = scipy.linalg.lu_factor(A, check_finite=False)
-        pivots = np.abs(np.diag(lu[0]))
-        if not np.all(np.isfinite(pivots)) or pivots.min() <= 1e-13 * max(pivots.max(), 1e-300):
+        # A = n . T, A_x = r_x . T, A_y = r_y . T in one batched product over the collocation points
+        directions = np.stack([geometry.normal, geometry.r_x, geometry.r_y], axis=1)            # (P, 3, 3)
+        products = directions @ T                                                               # (P, 3, n)
+        A, A_x, A_y = products[:, 0], products[:, 1], products[:, 2]
+        lu, pivot_rows, _ = dgetrf(A)         # LAPACK directly: a zero pivot is reported below, with the reason
+        pivots = np.abs(lu.diagonal())
+        if not np.isfinite(pivots).all() or pivots.min() <= 1e-13 * max(pivots.max(), 1e-300):
             raise np.linalg.LinAlgError("singular influence matrix: a panel has zero area or two collocation "
                                         "points coincide (degenerate wing geometry)")
+        lu = (lu, pivot_rows)
         return A_x, A_y, lu
 
 

@@ -54,7 +54,7 @@ direction), at zero incidence in a stream V along the chord:
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
+from scipy.linalg.lapack import dgetrs
 
 from . import wake as wakes
 from .biot_savart import influence
@@ -184,7 +184,7 @@ class UVLM:
         if wake is not None:
             relative = relative + wakes.velocity(geometry.collocation, wake, self.wake_core, lat.core_radius)
         rhs = -np.einsum("ij,ij->i", relative, geometry.normal)
-        gamma = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+        gamma = dgetrs(*lu, rhs)[0]                          # LAPACK directly (lu from factorization.BoundSystem)
         v_x = np.einsum("ij,ij->i", relative, geometry.r_x) + A_x @ gamma          # V . r_x, V = U + w - r'
         v_y = np.einsum("ij,ij->i", relative, geometry.r_y) + A_y @ gamma
         rate = circulation_rate(gamma, history, steps)

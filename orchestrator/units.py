@@ -143,10 +143,14 @@ class Unit:
             known = {v for b in block_vr.values() for v in b}
             monitors += [name for name in port.scalar_outputs() if name not in monitors and vr[name] not in known]
         self._monitor_names = monitors
-        self._get_out = port.reader([v for b in spec.outputs for v in block_vr[b]])
+        output_vrs = [v for b in spec.outputs for v in block_vr[b]]
+        monitor_vrs = [vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges] + [vr[name] for name in monitors]
+        # get_outputs reads the monitors in the same call and keeps them until the unit steps or is set
+        # (its outputs change only then): one fmi2GetReal per unit and step instead of two
+        self._get_out = port.reader(output_vrs + monitor_vrs)
+        self._n_outputs, self._monitor_values = len(output_vrs), None
         self._set_in = port.writer([v for b in spec.inputs for v in block_vr[b]])
-        self._get_mon = port.reader([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
-                                    + [vr[name] for name in monitors])
+        self._get_mon = port.reader(monitor_vrs)
         self.topology_hash = port.get_string(vr["topology_hash"])
 
         port.setup()
@@ -165,6 +169,7 @@ class Unit:
     def get_outputs(self) -> tuple[np.ndarray, ...]:
         """The output blocks in order (structure: e, de; aero: Q), fresh arrays."""
         out = self._get_out()  # a fresh array, not the transfer buffer
+        self._monitor_values = out[self._n_outputs:]
         return tuple(out[k * self.n:(k + 1) * self.n] for k in range(len(self._spec.outputs)))
 
     def set_inputs(self, *blocks) -> None:
@@ -177,13 +182,15 @@ class Unit:
         for name, a in zip(names, arrays):
             if a.shape != (self.n,):
                 raise UnitError(f"{self._port.label}: {name} has shape {a.shape}, expected ({self.n},)")
+        self._monitor_values = None
         self._set_in(arrays[0] if len(arrays) == 1 else np.concatenate(arrays))
 
     def do_step(self, t: float, h: float) -> None:
+        self._monitor_values = None
         self._port.do_step(float(t), float(h))
 
     def monitors(self) -> dict:
-        m = self._get_mon()
+        m = self._get_mon() if self._monitor_values is None else self._monitor_values
         k = len(self.hinges)
         out = {name: float(v) for name, v in zip(self._monitor_names, m[k:])}
         if self._spec.hinge_monitors:
@@ -194,6 +201,7 @@ class Unit:
         return self._port.get_state()
 
     def set_state(self, state) -> None:
+        self._monitor_values = None
         self._port.set_state(state)
 
     def serialize_state(self, state) -> bytes:
