@@ -122,6 +122,7 @@ class SolverSlave(Fmi2Slave):
         self._solver_parameters = dict(self.defaults)
         self._t0 = 0.0                                  # FMI start time; solver time = t - t0
         self._initialized = False
+        self._checked_references = {}   # ("get" | "set", value references) -> index array, checked once
         self._failure: str | None = None                # set when the unit cannot go on
 
     # ---- variables ------------------------------------------------------------------------------
@@ -175,31 +176,40 @@ class SolverSlave(Fmi2Slave):
 
     # ---- FMI calls: none raises ------------------------------------------------------------------
     def get_real(self, vrs):
-        idx = np.asarray(vrs, dtype=np.intp)
-        ok = (idx >= 0) & (idx < self._real.size)
-        if ok.all():
-            return self._real[idx].tolist()
-        self._error(f"{self.label}: value references {idx[~ok].tolist()} are not Real variables")
-        out = np.full(idx.size, np.nan)
-        out[ok] = self._real[idx[ok]]
-        return out.tolist()
+        key = ("get", tuple(vrs))
+        idx = self._checked_references.get(key)
+        if idx is None:
+            idx = np.asarray(vrs, dtype=np.intp)
+            ok = (idx >= 0) & (idx < self._real.size)
+            if not ok.all():
+                self._error(f"{self.label}: value references {idx[~ok].tolist()} are not Real variables")
+                out = np.full(idx.size, np.nan)
+                out[ok] = self._real[idx[ok]]
+                return out.tolist()
+            self._checked_references[key] = idx
+        return self._real[idx].tolist()
 
     def set_real(self, vrs, values):
-        idx = np.asarray(vrs, dtype=np.intp)
-        if idx.size == 0:
-            return
-        ok = (idx >= 0) & (idx < self._real.size)
-        ok[ok] = self._settable[idx[ok]]
-        if not ok.all():
-            names = [self.vars[int(i)].name if int(i) in self.vars else str(int(i)) for i in idx[~ok]]
-            self._error(f"{self.label}: cannot set {', '.join(names)}: only the inputs and the parameters are "
-                        "settable; nothing was set")
-            return
-        if self._initialized and idx.max() >= self.sl_par.start:
-            names = [self.vars[int(i)].name for i in idx[idx >= self.sl_par.start]]
-            self._error(f"{self.label}: cannot set {', '.join(names)} after initialization (parameters have "
-                        "variability 'fixed'); nothing was set")
-            return
+        key = ("set", tuple(vrs))
+        idx = self._checked_references.get(key)
+        if idx is None:
+            idx = np.asarray(vrs, dtype=np.intp)
+            if idx.size == 0:
+                return
+            ok = (idx >= 0) & (idx < self._real.size)
+            ok[ok] = self._settable[idx[ok]]
+            if not ok.all():
+                names = [self.vars[int(i)].name if int(i) in self.vars else str(int(i)) for i in idx[~ok]]
+                self._error(f"{self.label}: cannot set {', '.join(names)}: only the inputs and the parameters are "
+                            "settable; nothing was set")
+                return
+            if self._initialized and idx.max() >= self.sl_par.start:
+                names = [self.vars[int(i)].name for i in idx[idx >= self.sl_par.start]]
+                self._error(f"{self.label}: cannot set {', '.join(names)} after initialization (parameters have "
+                            "variability 'fixed'); nothing was set")
+                return
+            if idx.max() < self.sl_par.start:        # inputs only: settable in every mode, check them once
+                self._checked_references[key] = idx
         self._real[idx] = values
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
