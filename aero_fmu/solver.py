@@ -178,7 +178,7 @@ class AeroSolver:
         except np.linalg.LinAlgError as exc:
             raise SolverDiverged(t_end, str(exc), _HINT) from None
         loads = new.loads
-        if not (np.all(np.isfinite(loads.Q)) and np.all(np.isfinite(loads.forces))):
+        if not (np.isfinite(loads.Q).all() and np.isfinite(loads.forces).all()):
             raise SolverDiverged(t_end, "the aerodynamic forces became NaN/inf", _HINT)
         return new
 

@@ -51,6 +51,7 @@ direction), at zero incidence in a stream V along the chord:
     lag) and an apparent-mass term (3 + 1/M) times Theodorsen's (M -> inf: 3 times). The discrete
     dGamma/dt (second-order backward difference) changes the k^2 term by O((omega dt)^2).
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,7 +136,6 @@ class UVLM:
         lat = self.lattice
         dt = float(t_end) - state.time
         geometry = lat.geometry(E)
-        head = geometry.corners[lat.trailing_corners]                            # (B, N + 1, 3)
         n = lat.n_panels
         if not state.started:
             history, steps = (np.zeros(n), np.zeros(n)), (0.0, 0.0)
@@ -145,6 +145,7 @@ class UVLM:
             history, steps = state.history, state.steps
         wake = None
         if self.wake_model != "flat":
+            head = geometry.corners[lat.trailing_corners]                        # (B, N + 1, 3)
             if not state.started:
                 wake = wakes.ShedWake.empty(head)
             elif dt > 0:
@@ -155,7 +156,7 @@ class UVLM:
             wake = wakes.truncate(wake, self.wake_length * self.body_chords, self.max_wake_rows)
         gamma, forces = self._solve(geometry, dE, U, density, direction, wake, history, steps)
         wake_panels = lat.N * len(lat.body_names) if wake is None else wake.n_panels
-        loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, wake_panels)
+        loads = resultants(lat, geometry, forces, direction, math.sqrt(float(U @ U)), density, wake_panels)
         return UVLMState(float(t_end), True, gamma, tuple(np.array(g) for g in history),
                          tuple(float(h) for h in steps), geometry.corners, wake, loads)
 
