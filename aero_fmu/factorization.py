@@ -19,7 +19,7 @@ from scipy.linalg.lapack import dgetrf
 
 from .biot_savart import influence
 from .rigid import distances_from_first, may_be_rigid, rigid_fit
-from .vlm import horseshoe_weights
+from .vlm import horseshoe_weights, leg_ends
 
 RIGID_TOLERANCE = 1e-9   # x smallest reference panel dimension: a geometry within it reuses the matrices
 DENSE_WEIGHTS = 100_000  # segment x panel entries up to which the stacked weights are kept dense
@@ -53,8 +53,6 @@ class BoundSystem:
                 starts += [trailing.ravel(), far[:, :-1].ravel()]
                 ends += [far.ravel(), far[:, 1:].ravel()]
                 weights += [legs, span]
-                chord = lattice.chord[lattice.trailing_panels[:, 0]]             # (B,) body chords
-                self._leg_length = self.wake_length * chord
         self._start, self._end = np.concatenate(starts), np.concatenate(ends)
         stacked = scipy.sparse.vstack(weights, format="csr")
         # small lattices (000's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
@@ -62,15 +60,17 @@ class BoundSystem:
 
     def matrices(self, geometry, direction):
         """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
+        frame = None
         if self._reference is not None and may_be_rigid(self._reference[1], geometry.corners, self.tolerance):
             ref_frame, _, ref_direction, result = self._reference
-            R, _, residual = rigid_fit(ref_frame, _frame(geometry))
+            frame = _frame(geometry)
+            R, _, residual = rigid_fit(ref_frame, frame)
             same_wake = not self.flat_wake or np.max(np.abs(R @ ref_direction - direction)) <= 1e-12
             if residual <= self.tolerance and same_wake:
                 return result
         result = self._build(geometry, direction)
-        self._reference = (_frame(geometry), distances_from_first(geometry.corners), np.array(direction, dtype=float),
-                           result)
+        frame = _frame(geometry) if frame is None else frame
+        self._reference = (frame, distances_from_first(geometry.corners), np.array(direction, dtype=float), result)
         self.builds += 1
         return result
 
@@ -82,8 +82,8 @@ class BoundSystem:
         core, corners = self.lattice.core_radius, geometry.corners
         nodes = corners
         if self.flat_wake and self._semi_infinite_legs is None:      # the legs' far ends, along the free stream
-            head = corners[self.lattice.trailing_corners]                                  # (B, N + 1, 3)
-            nodes = np.concatenate([corners, (head + self._leg_length[:, None, None] * direction).reshape(-1, 3)])
+            far = leg_ends(self.lattice, corners[self.lattice.trailing_corners], direction, self.wake_length)
+            nodes = np.concatenate([corners, far.reshape(-1, 3)])
         T = influence(geometry.collocation, nodes[self._start], nodes[self._end], self._weights, core)   # (P, 3, n)
         if self._semi_infinite_legs is not None:
             legs_start, legs = self._semi_infinite_legs

@@ -96,6 +96,13 @@ def horseshoe_weights(lattice: Lattice):
     return legs, span, -span
 
 
+def leg_ends(lattice: Lattice, heads, direction, wake_length):
+    """Far ends (B, N + 1, 3) m of finite horseshoe legs from the trailing corners `heads` (B, N + 1, 3):
+    wake_length chords of their body along the unit free-stream `direction`."""
+    chord = lattice.chord[lattice.trailing_panels[:, 0]]   # (B,) body chords
+    return heads + (wake_length * chord)[:, None, None] * np.asarray(direction, dtype=float)
+
+
 def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, weights=None) -> list:
     """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (000 Sec. V).
 
@@ -115,8 +122,7 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, wei
     if np.isinf(wake_length):
         out.append(Segments(starts, np.broadcast_to(d, starts.shape), legs, semi_infinite=True))
     else:
-        chord = lattice.chord[lattice.trailing_panels[:, 0]]   # (B,) body chords
-        far = te + (wake_length * chord)[:, None, None] * d
+        far = leg_ends(lattice, te, d, wake_length)
         out.append(Segments(starts, far.reshape(-1, 3), legs))
         out.append(Segments(far[:, :-1].reshape(-1, 3), far[:, 1:].reshape(-1, 3), span))
     return out

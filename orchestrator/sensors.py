@@ -17,10 +17,10 @@ class Sensors:
         probes = scene["probes"]
         gauges = scene.get("strain_gauges", [])
         n_slots = 3 * topology.n_nodes
-        self._probe_rows = np.array([topology.point_rows(p["body"], p["span"], p["chord"])[0] for p in probes])
-        self._probe_rows = self._probe_rows.reshape(len(probes), n_slots)
-        self._gauge_rows = np.array([topology.point_rows(g["body"], g["span"])[1:] for g in gauges])
-        self._gauge_rows = self._gauge_rows.reshape(len(gauges), 3, n_slots)
+        self._probe_rows = np.array([topology.point_rows(p["body"], p["span"], p["chord"])[0] for p in probes]
+                                    ).reshape(len(probes), n_slots)           # (n_probes, n_slots): position
+        self._gauge_rows = np.array([topology.point_rows(g["body"], g["span"])[1:] for g in gauges]
+                                    ).reshape(len(gauges), 3, n_slots)        # r', r'', r_y at each gauge
         self._surface_distance = np.array([g["surface_distance"] for g in gauges], dtype=float)
         self.strain_names = [g["name"] for g in gauges]
 

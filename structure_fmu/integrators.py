@@ -145,7 +145,7 @@ class GeneralizedAlpha:
         state.accel = state.ddq.copy()
         return state
 
-    def _factor(self, model, t, q, dq, Q, latched, lam, h):
+    def _factor(self, model, t, q, dq, latched, lam, h):
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
         E, dE, _ = model.coordinates(q, dq, t)
@@ -210,7 +210,7 @@ class GeneralizedAlpha:
             dq_scale = max(1.0, float(np.max(np.abs(dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
-            self._factor(model, t, q, dq, Q, state.latched, lam, h)
+            self._factor(model, t, q, dq, state.latched, lam, h)
         refreshed, previous, first = predictor == "displacement", 0.0, None
         for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
@@ -241,7 +241,7 @@ class GeneralizedAlpha:
                                        f"{size:.3g} after {first:.3g})")
             # a slow contraction means a stale iteration matrix: refresh it once per step
             if iteration >= 3 and size > 0.3 * previous and not refreshed:
-                self._factor(model, t, q, dq, Q, state.latched, lam, h)
+                self._factor(model, t, q, dq, state.latched, lam, h)
                 refreshed = True
             previous = size
         else:

@@ -10,22 +10,23 @@ import math
 import numpy as np
 
 
+def _sine_cosine(a0, a1, a2, b0, b1, b2, n0, n1, n2):
+    """(a x b, s = (a x b) . n, c = a . b) of three 3-vectors given as floats (plain float arithmetic: on
+    single 3-vectors it is several times faster than numpy calls)."""
+    axb = (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+    return axb, axb[0] * n0 + axb[1] * n1 + axb[2] * n2, a0 * b0 + a1 * b1 + a2 * b2
 
-def fold_angle(a, b, n):
-    """theta (rad) for single 3-vectors a, b and hinge axis n (float arithmetic, as fold_angle_gradient)."""
-    (a0, a1, a2), (b0, b1, b2), (n0, n1, n2) = a.tolist(), b.tolist(), n.tolist()
-    s = (a1 * b2 - a2 * b1) * n0 + (a2 * b0 - a0 * b2) * n1 + (a0 * b1 - a1 * b0) * n2
-    return math.atan2(s, a0 * b0 + a1 * b1 + a2 * b2)
+
+def fold_angle(x):
+    """theta (rad) for x = [a, b, n] (9,), the stacked 3-vectors."""
+    _, s, c = _sine_cosine(*x.tolist())
+    return math.atan2(s, c)
 
 
 def fold_angle_gradient(x):
-    """(theta, d theta/dx (9,)) for x = [a, b, n] (9,), the stacked 3-vectors.
-
-    Plain float arithmetic: on single 3-vectors it is several times faster than numpy calls."""
-    a0, a1, a2, b0, b1, b2, n0, n1, n2 = x.tolist()
-    axb = (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
-    s = axb[0] * n0 + axb[1] * n1 + axb[2] * n2
-    c = a0 * b0 + a1 * b1 + a2 * b2
+    """(theta, d theta/dx (9,)) for x = [a, b, n] (9,), the stacked 3-vectors."""
+    a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
+    axb, s, c = _sine_cosine(*values)
     q = s * s + c * c
     ds_da = (b1 * n2 - b2 * n1, b2 * n0 - b0 * n2, b0 * n1 - b1 * n0)      # b x n
     ds_db = (n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0)      # n x a

@@ -56,7 +56,6 @@ class StructureModel:
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
         # literal 000 Sec. II.C / 003 Sec. 5 force, which also damps the bodies' rigid motion (a constant
         # matrix, `mass_damping`)
-        self.damping_model = damping_model
         self.mass_damping = None
         if self.flexible:
             for name, body in topology.bodies.items():

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import element
 from .errors import SceneError, reject_unknown_keys
-from .joints import fold_angle
+from .joints import fold_angle, hinge_coordinates
 from .motion import Fixed, HeavePitch, SpinUp, rotation_about
 from .section import section_from_scene
 
@@ -480,16 +480,10 @@ class Topology:
         """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
         return self.point_rows(body, span, chord_fraction)[0] @ np.asarray(e, dtype=float).reshape(-1, 3)
 
-    def flap_curvature(self, e, body, span):
-        """Bending curvature out of the wing plane (1/m) of `body`'s reference line at `span` (m)
-        (element.flap_curvature; positive toward the section normal r_x x r_y)."""
-        _, r1, r2, ry = self.point_rows(body, span) @ np.asarray(e, dtype=float).reshape(-1, 3)
-        return float(element.flap_curvature(r1, r2, ry))
-
     def fold_angles(self, e):
         """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""
-        X = np.asarray(e).reshape(-1, 3)
-        return {h.name: fold_angle(X[h.parent_slot], X[h.child_slot], X[h.axis_slot]) for h in self.hinges}
+        e = np.asarray(e)
+        return {h.name: fold_angle(e[hinge_coordinates(h)]) for h in self.hinges}
 
     @property
     def topology_hash(self):
