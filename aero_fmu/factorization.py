@@ -34,7 +34,7 @@ class BoundSystem:
         self.flat_wake, self.wake_length = bool(flat_wake), float(wake_length)
         self.tolerance = RIGID_TOLERANCE * float(min(lattice.panel_span.min(), lattice.panel_chord.min()))
         self.builds = 0
-        self._reference = None    # (frame points, corner distances from the first, direction, (A_x, A_y, lu))
+        self._reference = None    # (geometry, corner distances from the first, direction, (A_x, A_y, lu))
         # The finite segments as start/end indices into the nodes (the corners, then the far ends of finite
         # horseshoe legs) and their stacked weights, so that a build is two gathers and one kernel pass.
         # With the flat wake the segments are those of `vlm.horseshoe_wake` except its bound segments, which
@@ -60,23 +60,21 @@ class BoundSystem:
 
     def matrices(self, geometry, direction):
         """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
-        frame = None
-        if self._reference is not None and may_be_rigid(self._reference[1], geometry.corners, self.tolerance):
-            ref_frame, _, ref_direction, result = self._reference
-            frame = _frame(geometry)
-            R, _, residual = rigid_fit(ref_frame, frame)
-            same_wake = not self.flat_wake or np.max(np.abs(R @ ref_direction - direction)) <= 1e-12
+        distances = distances_from_first(geometry.corners)
+        if self._reference is not None and may_be_rigid(self._reference[1], distances, self.tolerance):
+            ref_geometry, _, ref_direction, result = self._reference
+            R, _, residual = rigid_fit(_frame(ref_geometry), _frame(geometry))
+            same_wake = not self.flat_wake or np.abs(R @ ref_direction - direction).max() <= 1e-12
             if residual <= self.tolerance and same_wake:
                 return result
         result = self._build(geometry, direction)
-        frame = _frame(geometry) if frame is None else frame
-        self._reference = (frame, distances_from_first(geometry.corners), np.array(direction, dtype=float), result)
+        self._reference = (geometry, distances, np.array(direction, dtype=float), result)
         self.builds += 1
         return result
 
     def _build(self, geometry, direction):
-        flat = np.flatnonzero(~(geometry.area > 0))
-        if flat.size:
+        if not geometry.area.min() > 0:       # also false for a NaN area
+            flat = np.flatnonzero(~(geometry.area > 0))
             raise np.linalg.LinAlgError(f"singular influence matrix: panel {int(flat[0])} (of {flat.size}) has zero "
                                         "area (degenerate wing geometry)")
         core, corners = self.lattice.core_radius, geometry.corners
@@ -90,16 +88,15 @@ class BoundSystem:
             T += influence(geometry.collocation, corners[legs_start], np.broadcast_to(direction, (len(legs_start), 3)),
                            legs, core, True)
         # A = n . T, A_x = r_x . T, A_y = r_y . T in one batched product over the collocation points
-        directions = np.stack([geometry.normal, geometry.r_x, geometry.r_y], axis=1)            # (P, 3, 3)
+        directions = np.concatenate([geometry.normal, geometry.r_x, geometry.r_y], axis=1).reshape(-1, 3, 3)
         products = directions @ T                                                               # (P, 3, n)
         A, A_x, A_y = products[:, 0], products[:, 1], products[:, 2]
         lu, pivot_rows, _ = dgetrf(A)         # LAPACK directly: a zero pivot is reported below, with the reason
         pivots = np.abs(lu.diagonal())
-        if not np.isfinite(pivots).all() or pivots.min() <= 1e-13 * max(pivots.max(), 1e-300):
+        if not pivots.min() > 1e-13 * pivots.max():       # also false for NaN or inf pivots
             raise np.linalg.LinAlgError("singular influence matrix: a panel has zero area or two collocation "
                                         "points coincide (degenerate wing geometry)")
-        lu = (lu, pivot_rows)
-        return A_x, A_y, lu
+        return A_x, A_y, (lu, pivot_rows)
 
 
 def _frame(geometry):

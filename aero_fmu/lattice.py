@@ -71,7 +71,7 @@ class Lattice:
     (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1), so a positive circulation induces velocity along -n
     inside the ring and, in a flow from leading to trailing edge, makes a force along +n (000 Eq. 25);
     `trailing_corners` (n_bodies, N + 1) and `trailing_panels` (n_bodies, N); per panel `panel_span`,
-    `panel_chord` (reference lengths, m), `chord` (body chord, m), `body` (body index);
+    `panel_chord` (reference lengths, m), `chord` (body chord, m), `body` (body index); `body_chords` (B,) m;
     `reference_area` (sum of body length x chord, m^2) and `core_radius` (m).
     """
 
@@ -118,6 +118,8 @@ class Lattice:
         self.panel_span = np.repeat([b.length / N for b in bodies], n_p)
         self.panel_chord = np.repeat([b.section.chord / M for b in bodies], n_p)
         self.chord = np.repeat([b.section.chord for b in bodies], n_p)
+        self.body_chords = np.array([b.section.chord for b in bodies], dtype=float)
+        self._reference_panel_area = self.panel_span * self.panel_chord
         self.reference_area = float(sum(b.length * b.section.chord for b in bodies))
         self.core_radius = core_fraction * float(min(self.panel_span.min(), self.panel_chord.min()))
 
@@ -132,7 +134,7 @@ class Lattice:
         c = cross(r_x, r_y)
         norm = np.sqrt(np.einsum("ij,ij->i", c, c))
         normal = c / np.where(norm > 0, norm, 1.0)[:, None]
-        return Geometry(corners, colloc, app, r_x, r_y, normal, norm * self.panel_span * self.panel_chord)
+        return Geometry(corners, colloc, app, r_x, r_y, normal, norm * self._reference_panel_area)
 
     def grid_points(self, E):
         """Panel edge points (n_corners, 3), chord fractions i/M (leading edge 0, trailing edge 1), m."""

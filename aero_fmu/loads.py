@@ -34,14 +34,16 @@ def resultants(lattice, geometry, forces, direction, speed, density, wake_panels
     m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12)."""
     points = geometry.application
     total = forces.sum(axis=0)
-    moment = cross(points, forces).sum(axis=0)
+    # sum_p x_p x f_p from the 3 x 3 moment sum_p x_p f_p^T: one product instead of a cross per panel
+    first = (points.T @ forces).tolist()
+    moment = (first[1][2] - first[2][1], first[2][0] - first[0][2], first[0][1] - first[1][0])
     lift_dir = lift_axis(geometry, direction)
     lift, drag = float(total @ lift_dir), float(total @ direction)
     q_area = 0.5 * density * speed * speed * lattice.reference_area
     coefficient = (lambda force: force / q_area) if q_area > 0 else (lambda force: 0.0)
     outputs = {"CL": coefficient(lift), "lift": lift, "wake_panels": int(wake_panels), "drag": drag,
                "side_force": float(total @ cross(direction, lift_dir)), "CD": coefficient(drag),
-               "moment_x": float(moment[0]), "moment_y": float(moment[1]), "moment_z": float(moment[2])}
+               "moment_x": moment[0], "moment_y": moment[1], "moment_z": moment[2]}
     return Loads(forces, points, lattice.generalized_force(forces), outputs)
 
 

@@ -30,9 +30,9 @@ def distances_from_first(points):
     return np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
 
 
-def may_be_rigid(reference_distances, current, tolerance):
-    """False when no rigid motion can map the reference points onto `current` (n, 3) within `tolerance` (m)
-    at every point: a distance from the first point (`distances_from_first` of the reference) changed by
-    more than 2 tolerance. A cheap necessary test for geometries that deform, where `rigid_fit` would fail
-    anyway."""
-    return bool(np.max(np.abs(distances_from_first(current) - reference_distances)) <= 2 * tolerance)
+def may_be_rigid(reference_distances, distances, tolerance):
+    """False when no rigid motion can map the reference points onto the current ones within `tolerance` (m)
+    at every point: a distance from the first point (`distances_from_first` of the reference and of the
+    current points) changed by more than 2 tolerance. A cheap necessary test for geometries that deform,
+    where `rigid_fit` would fail anyway."""
+    return bool(np.abs(distances - reference_distances).max() <= 2 * tolerance)

@@ -217,7 +217,7 @@ class AeroSolver:
         if state.wake is not None:
             out["wake"], out["wake_gamma"] = state.wake.corners.copy(), state.wake.gamma.copy()
         if model.wake_model == "flat":
-            out["legs"] = (self.direction.copy(), model.wake_length * model.body_chords)
+            out["legs"] = (self.direction.copy(), model.wake_length * lat.body_chords)
         return out
 
     def get_state(self) -> AeroState:

@@ -118,7 +118,6 @@ class UVLM:
         self.max_wake_rows = int(max_wake_rows)
         self.system = BoundSystem(self.lattice, self.rings, flat_wake=wake == "flat", wake_length=wake_length)
         lat = self.lattice
-        self.body_chords = lat.chord[lat.trailing_panels[:, 0]]                 # (B,)
         smallest = float(min(lat.panel_span.min(), lat.panel_chord.min()))
         self.convection_core = wakes.CONVECTION_CORE_FRACTION * smallest
         self.wake_core = wakes.WAKE_CORE_FRACTION * smallest
@@ -153,7 +152,7 @@ class UVLM:
                                   self._displacement(state, U, dt))
             else:
                 wake = wakes.with_head(state.wake, head)
-            wake = wakes.truncate(wake, self.wake_length * self.body_chords, self.max_wake_rows)
+            wake = wakes.truncate(wake, self.wake_length * lat.body_chords, self.max_wake_rows)
         gamma, forces = self._solve(geometry, dE, U, density, direction, wake, history, steps)
         wake_panels = lat.N * len(lat.body_names) if wake is None else wake.n_panels
         loads = resultants(lat, geometry, forces, direction, math.sqrt(float(U @ U)), density, wake_panels)

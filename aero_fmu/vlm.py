@@ -98,9 +98,8 @@ def horseshoe_weights(lattice: Lattice):
 
 def leg_ends(lattice: Lattice, heads, direction, wake_length):
     """Far ends (B, N + 1, 3) m of finite horseshoe legs from the trailing corners `heads` (B, N + 1, 3):
-    wake_length chords of their body along the unit free-stream `direction`."""
-    chord = lattice.chord[lattice.trailing_panels[:, 0]]   # (B,) body chords
-    return heads + (wake_length * chord)[:, None, None] * np.asarray(direction, dtype=float)
+    wake_length chords of their body along the unit free-stream `direction` (3,) (an array)."""
+    return heads + (wake_length * lattice.body_chords)[:, None, None] * direction
 
 
 def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, weights=None) -> list:

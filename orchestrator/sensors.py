@@ -31,5 +31,5 @@ class Sensors:
     def strains(self, e: np.ndarray) -> dict:
         """Surface strain of each gauge, {name: strain (-)}."""
         derivatives = self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3)     # (n_gauges, 3, 3)
-        values = self._surface_distance * flap_curvature(derivatives[:, 0], derivatives[:, 1], derivatives[:, 2])
+        values = self._surface_distance * flap_curvature(derivatives)
         return dict(zip(self.strain_names, values.tolist()))

@@ -31,6 +31,7 @@ class Constraints:
         flat = lambda slots: (3 * slots[:, None] + components).ravel()          # E indices of the slots
         self._ia, self._ib, self._ip = flat(a), flat(b), flat(self.plane)
         self._coefficient = np.repeat([0.5, 1.0], [nu, no])
+        self._velocity_coefficient = 2.0 * self._coefficient
         self._constant = np.repeat([-0.5, 0.0], [nu, no])
         self._plane_normal = self.plane_normal.ravel()
         # G as a flat (count * n) array: the product rows' entries at slots a and b, the plane rows constant
@@ -62,7 +63,7 @@ class Constraints:
 
     def velocity_quadratic(self, dE):
         """dE^T H_i dE for each constraint: the term of d2Phi/dt2 that is not G d2E/dt2."""
-        products = 2.0 * self._coefficient * (dE[self._ia] * dE[self._ib]).reshape(-1, 3).sum(axis=1)
+        products = self._velocity_coefficient * (dE[self._ia] * dE[self._ib]).reshape(-1, 3).sum(axis=1)
         return np.concatenate([products, self._plane_zeros]) if len(self.plane) else products
 
     def hessian_sum(self, multipliers):

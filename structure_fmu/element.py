@@ -78,18 +78,22 @@ def shape_row(x, y, length):
     return np.concatenate([N[..., :2], y * L[..., :1], N[..., 2:], y * L[..., 1:]], axis=-1)
 
 
-def flap_curvature(r1, r2, ry):
-    """Bending curvature out of the wing plane of the reference line, 1/m, shape (...,), from its
-    derivatives r' (...), r'' (1/m) along the span and the chord vector r_y at the same points, (..., 3).
+def flap_curvature(derivatives):
+    """Bending curvature out of the wing plane of the reference line, 1/m, shape (...,), from the rows
+    r' (-), r'' (1/m) along the span and the chord vector r_y (-) at the same points, stacked as
+    `derivatives` (..., 3, 3).
 
     The geometric curvature projected on the unit section normal, kappa_y = r'' . n / |r'|^2 with
     n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
     curvature itself, also where the line stretches. Positive when the line bends toward +n. On a plate of
     thickness h, h/2 kappa_y is the extensional strain of the -n face (the +n face has its opposite):
-    003 Sec. 5's h/2 x kappa_y.
+    003 Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
+    |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2 (one determinant and one Gram product: on the few
+    points of a sample this is half the cost of the cross and dot products).
     """
-    normal = cross(r1, ry)
-    return _dot(r2, normal) / (np.sqrt(_dot(normal, normal)) * _dot(r1, r1))
+    gram = derivatives @ np.swapaxes(derivatives, -1, -2)
+    r1r1, ryry, r1ry = gram[..., 0, 0], gram[..., 2, 2], gram[..., 0, 2]
+    return -np.linalg.det(derivatives) / (np.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1)
 
 
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia):

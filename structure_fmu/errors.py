@@ -45,8 +45,8 @@ def checked_input(name: str, value, n: int, time: float):
     value = np.asarray(value, dtype=float)
     if value.shape != (n,):
         raise InputError(f"{name} has shape {value.shape}, the topology has {n} coordinates")
-    bad = ~np.isfinite(value)
-    if bad.any():
+    if not np.isfinite(value).all():
+        bad = ~np.isfinite(value)
         k = int(np.flatnonzero(bad)[0])
         raise InputError(f"{name}[{k + 1}] = {value[k]} at t = {time:.6g} s: {int(bad.sum())} NaN/inf value(s) "
                          f"in the input {name}")

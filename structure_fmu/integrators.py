@@ -71,7 +71,7 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
     for _ in range(iterations):
         E, dE, _ = model.coordinates(q, dq, t)
         phi = cons.residual(E)
-        if np.max(np.abs(phi)) < tol:
+        if np.abs(phi).max() < tol:
             break
         Gq = cons.jacobian(E) @ model.T
         MinvGt = model.mass_inverse @ Gq.T
@@ -108,7 +108,7 @@ class RK4:
         q_new = q + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
         v_new = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
         q_new, v_new = project(model, t + h, q_new, v_new)
-        return replace(state, t=t + h, q=q_new, dq=v_new, ddq=a1, accel=a1, multipliers=lam)
+        return State(t + h, q_new, v_new, a1, a1, lam, state.latched, state.latch_times)
 
 
 VELOCITY_TOLERANCE = 1e-8

@@ -27,12 +27,12 @@ def fold_angle_gradient(x):
     """(theta, d theta/dx (9,)) for x = [a, b, n] (9,), the stacked 3-vectors."""
     a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
     axb, s, c = _sine_cosine(*values)
-    q = s * s + c * c
-    ds_da = (b1 * n2 - b2 * n1, b2 * n0 - b0 * n2, b0 * n1 - b1 * n0)      # b x n
-    ds_db = (n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0)      # n x a
-    grad = np.array([*(c * x - s * y for x, y in zip(ds_da, (b0, b1, b2))),
-                     *(c * x - s * y for x, y in zip(ds_db, (a0, a1, a2))),
-                     *(c * x for x in axb)]) / q
+    w = 1.0 / (s * s + c * c)
+    cw, sw = c * w, s * w                   # d atan2(s, c) = (c ds - s dc) / (s^2 + c^2)
+    ds = (b1 * n2 - b2 * n1, b2 * n0 - b0 * n2, b0 * n1 - b1 * n0,          # d s / d a = b x n
+          n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0)          # d s / d b = n x a
+    dc = (b0, b1, b2, a0, a1, a2)
+    grad = np.array([cw * x - sw * y for x, y in zip(ds, dc)] + [cw * x for x in axb])   # d s / d n = a x b
     return math.atan2(s, c), grad
 
 
@@ -49,28 +49,16 @@ def actuator_torque(hinge, theta, dtheta, latched):
     return spring + hinge.damping * dtheta + hinge.torque, stiffness
 
 
-def actuator_forces(hinges, E, dE, latched, n_coordinates, with_tangent=False):
-    """Generalized actuator force on E (000 Sec. II.C, virtual work -torque * delta theta).
+def actuator_terms(hinges, E, dE, latched):
+    """Per hinge, what the generalized actuator force on E is made of (000 Sec. II.C, virtual work
+    -torque * delta theta: the force is -torque * grad on the coordinates idx):
 
-    Returns (force (n,), angles {name: rad}, and if with_tangent the Gauss-Newton tangent stiffness and
-    damping matrices (n, n): K grad theta grad theta^T and C grad theta grad theta^T).
-    """
-    force = np.zeros(n_coordinates)
-    stiff = np.zeros((n_coordinates, n_coordinates)) if with_tangent else None
-    damp = np.zeros((n_coordinates, n_coordinates)) if with_tangent else None
-    angles = {}
+    (idx (9,) into E, torque N m, its stiffness d torque / d theta N m/rad, grad = d theta / dE[idx] (9,))."""
     for h in hinges:
         idx = hinge_coordinates(h)
         theta, grad = fold_angle_gradient(E[idx])
-        dtheta = grad @ dE[idx]
-        torque, k = actuator_torque(h, theta, dtheta, latched.get(h.name, False))
-        force[idx] -= torque * grad
-        angles[h.name] = theta
-        if with_tangent:
-            outer = np.outer(grad, grad)
-            stiff[np.ix_(idx, idx)] += k * outer
-            damp[np.ix_(idx, idx)] += h.damping * outer
-    return force, angles, stiff, damp
+        torque, stiffness = actuator_torque(h, theta, float(grad @ dE[idx]), latched.get(h.name, False))
+        yield idx, torque, stiffness, grad
 
 
 @functools.cache

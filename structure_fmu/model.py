@@ -15,7 +15,7 @@ from .element import cross
 from .constraints import Constraints
 from .motion import Fixed
 from .damping import deformation_damping_force, deformation_damping_matrix
-from .joints import actuator_forces
+from .joints import actuator_terms
 
 
 class StructureModel:
@@ -108,10 +108,6 @@ class StructureModel:
         p, dp, ddp = self.prescribed(t)
         return self.T @ q + self.P @ p, self.T @ dq + self.P @ dp, ddp
 
-    def prescribed_force(self, ddp):
-        """-T^T M_E P p'' (reduced), the inertia of the prescribed motion; zero when nothing moves."""
-        return 0.0 if ddp is None else -(self.mass_prescribed @ ddp)
-
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
         if load["law"] == "cosine_ramp":   # 000 Eq. (26)
@@ -129,7 +125,8 @@ class StructureModel:
             k = load["element"]
             s = element.shape_row(load["x"], load["y"], self.lengths[k])
             F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
-        F += actuator_forces(self.hinges, E, dE, latched, self.n)[0]
+        for idx, torque, _, grad in actuator_terms(self.hinges, E, dE, latched):
+            F[idx] -= torque * grad
         if self.mass_damping is not None:
             F -= self.mass_damping @ dE
         else:
@@ -138,9 +135,13 @@ class StructureModel:
         return F
 
     def tangent_E(self, E, dE, latched):
-        """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton) and -dF/d(dE) (damping,
-        actuator) of `force_E` (point loads, gravity and Q do not depend on E)."""
-        _, _, K, C = actuator_forces(self.hinges, E, dE, latched, self.n, with_tangent=True)
+        """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton: K grad grad^T) and
+        -dF/d(dE) (damping, actuator C grad grad^T) of `force_E` (point loads, gravity and Q do not depend on E)."""
+        K, C = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
+        for (idx, _, stiffness, grad), hinge in zip(actuator_terms(self.hinges, E, dE, latched), self.hinges):
+            outer = np.outer(grad, grad)
+            K[np.ix_(idx, idx)] += stiffness * outer
+            C[np.ix_(idx, idx)] += hinge.damping * outer
         if self.flexible:
             jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
             K += np.bincount(self._element_entries, jac.ravel(), self.n * self.n).reshape(self.n, self.n)
@@ -152,19 +153,20 @@ class StructureModel:
         return K, C
 
     def force_q(self, q, dq, t, Q, latched):
-        """Reduced force T^T F - T^T M P p'' and the current E, dE."""
+        """Reduced force T^T F - T^T M_E P p'' (the inertia of the prescribed motion) and the current E, dE, p''."""
         E, dE, ddp = self.coordinates(q, dq, t)
-        F = self.force_E(E, dE, t, Q, latched)
-        return self.T.T @ F + self.prescribed_force(ddp), E, dE, ddp
+        F = self.T.T @ self.force_E(E, dE, t, Q, latched)
+        if ddp is not None:
+            F -= self.mass_prescribed @ ddp
+        return F, E, dE, ddp
 
     # ---------------------------------------------------------------- monitors
-    def energy(self, E, dE, latched):
-        """Kinetic + elastic + gravity potential + actuator spring potential, J."""
-        kinetic = 0.5 * dE @ self.mass_E @ dE
+    def potential_energy(self, E, latched, angles):
+        """Elastic + gravity potential + actuator spring potential, J, at E with the fold angles
+        {hinge: rad} of E (`Topology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
         elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
             if self.flexible else 0.0
-        potential = -self.gravity_E @ E
-        angles = self.top.fold_angles(E)
+        potential = -float(self.gravity_E @ E)
         spring = 0.0
         for h in self.hinges:
             theta = angles[h.name]
@@ -172,4 +174,4 @@ class StructureModel:
                 spring += 0.5 * h.latch_factor * h.stiffness * (theta - h.stop_angle) ** 2 + h.torque * theta
             else:
                 spring += 0.5 * h.stiffness * theta**2 + h.torque * theta
-        return kinetic + elastic + potential + spring
+        return elastic + potential + spring

@@ -3,6 +3,7 @@
 Owns the model, the integrator and the state; advances with its own internal steps inside a
 communication step; detects the latch; checks inputs and divergence; saves and restores its state.
 """
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -67,7 +68,7 @@ class StructureSolver:
         self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
         self._initialized = False
-        self._cache = (None, None)
+        self._cache = ((None, None), (None, None))   # (state, _evaluated values), newest first
         self._check_initial_constraints()
 
     def _initial_rates(self):
@@ -141,33 +142,31 @@ class StructureSolver:
             if t_end - (self.state.t + h) < 1e-9 * self.step_size:
                 h = t_end - self.state.t
             previous = self.state
-            E_previous = self._coordinates()[0]            # cached: computed at the end of the last step
             try:
                 new = self.integrator.step(self.model, previous, h, Q)
             except np.linalg.LinAlgError as exc:
                 raise SolverDiverged(previous.t, f"singular system ({exc})",
                                      _DIVERGENCE_HINT[self.integrator.name]) from None
-            coordinates = self.model.coordinates(new.q, new.dq, new.t)   # once per step, for all checks
-            self._check(new, coordinates[0])
-            self._update_latches(previous, E_previous, new, coordinates[0])
-            self.state, self._cache = new, (new, coordinates)
+            self._check(new)
+            self._update_latches(previous, new)
+            self.state = new
 
-    def _check(self, state, E):
+    def _check(self, state):
         hint = _DIVERGENCE_HINT[self.integrator.name]
         if not (np.isfinite(state.q).all() and np.isfinite(state.dq).all()):
             raise SolverDiverged(state.t, "the state became NaN/inf", hint)
-        residual = self._residual(E)
+        E, _, _, residual = self._evaluated(state)
         if residual > 1e-4:
             raise SolverDiverged(state.t, f"constraint residual {residual:.3g} (limit 1e-4)", hint)
-        size = np.max(np.abs(E.reshape(-1, 3, 3)[:, 1:]))   # gradients stay O(1) in any physical motion
+        size = np.abs(E.reshape(-1, 3, 3)[:, 1:]).max()   # gradients stay O(1) in any physical motion
         if size > 1e3:
             raise SolverDiverged(state.t, f"gradient vectors grew to {size:.3g}", hint)
 
-    def _update_latches(self, previous, E_previous, new, E_new):
+    def _update_latches(self, previous, new):
         hinges = [h for h in self.model.hinges if h.stop_angle is not None and not previous.latched.get(h.name)]
         if not hinges:
             return
-        old, now = self.topology.fold_angles(E_previous), self.topology.fold_angles(E_new)
+        old, now = self._evaluated(previous)[2], self._evaluated(new)[2]
         for h in hinges:
             a, b = old[h.name] - h.stop_angle, now[h.name] - h.stop_angle
             if a > 0 >= b:       # the fold angle reached the stop moving toward it
@@ -178,37 +177,40 @@ class StructureSolver:
                     self.integrator.reset()
 
     # ---------------------------------------------------------------- outputs
-    def _coordinates(self):
-        """(E, dE, p'') of the current state, computed once per state (the slave reads them often)."""
-        if self._cache[0] is not self.state:
-            self._cache = (self.state, self.model.coordinates(self.state.q, self.state.dq, self.state.t))
-        return self._cache[1]
+    def _evaluated(self, state):
+        """(E, dE, fold angles {hinge: rad}, constraint residual max |Phi|) of `state`, computed once per
+        state: the step's checks and latch detection and the slave's outputs all read them. The last two
+        states are kept (latch detection compares a step's end with its start)."""
+        for cached, values in self._cache:
+            if cached is state:
+                return values
+        E, dE, _ = self.model.coordinates(state.q, state.dq, state.t)
+        residual = float(np.abs(self.model.constraints.residual(E)).max()) if self.model.constraints.count else 0.0
+        values = (E, dE, self.topology.fold_angles(E), residual)
+        self._cache = ((state, values), self._cache[0])
+        return values
 
     @property
     def e(self) -> np.ndarray:
-        return self._coordinates()[0].copy()
+        return self._evaluated(self.state)[0].copy()
 
     @property
     def de(self) -> np.ndarray:
-        return self._coordinates()[1].copy()
-
-    def _residual(self, E) -> float:
-        if self.model.constraints.count == 0:
-            return 0.0
-        return float(np.max(np.abs(self.model.constraints.residual(E))))
+        return self._evaluated(self.state)[1].copy()
 
     def constraint_residual(self) -> float:
         """Largest |Phi| of the internal constraints at the current state."""
-        return self._residual(self._coordinates()[0])
+        return self._evaluated(self.state)[3]
 
     def fold_angles_deg(self) -> dict:
-        return {k: float(np.degrees(v)) for k, v in self.topology.fold_angles(self._coordinates()[0]).items()}
+        return {k: math.degrees(v) for k, v in self._evaluated(self.state)[2].items()}
 
     def monitors(self) -> dict:
-        E, dE, _ = self._coordinates()
-        return {"energy": float(self.model.energy(E, dE, self.state.latched)),
-                "kinetic_energy": float(0.5 * dE @ self.model.mass_E @ dE),
-                "constraint_residual": self.constraint_residual(),
+        E, dE, angles, residual = self._evaluated(self.state)
+        kinetic = 0.5 * float(dE @ (self.model.mass_E @ dE))
+        return {"energy": kinetic + self.model.potential_energy(E, self.state.latched, angles),
+                "kinetic_energy": kinetic,
+                "constraint_residual": residual,
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
                 "latch_times": dict(self.state.latch_times)}
 

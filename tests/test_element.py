@@ -115,6 +115,24 @@ def test_pure_bending_gives_beam_theory_energy(plane, column):
     assert U == pytest.approx(0.5 * stiffness[0, column] * kappa**2 * l, rel=1e-4)
 
 
+@pytest.mark.parametrize("stretch", [1.0, 1.3])
+def test_flap_curvature_of_a_circular_arc_is_its_curvature(stretch):
+    """r(s) = stretch x (sin(kappa s), 0, 1 - cos(kappa s)) / kappa with the chord along y: a circle of
+    radius stretch / kappa bending toward +n = r' x r_y / |r' x r_y|, so kappa_y = kappa / stretch at
+    every s (a stretch of the line lowers its geometric curvature)."""
+    kappa, s = 3.0, np.linspace(0.0, 0.4, 5)
+    r1 = stretch * np.stack([np.cos(kappa * s), 0 * s, np.sin(kappa * s)], axis=-1)
+    r2 = stretch * kappa * np.stack([-np.sin(kappa * s), 0 * s, np.cos(kappa * s)], axis=-1)
+    ry = np.broadcast_to([0.0, 1.0, 0.0], r1.shape)
+    values = element.flap_curvature(np.stack([r1, r2, ry], axis=-2))
+    assert values == pytest.approx(np.full(5, kappa / stretch), rel=1e-12)
+    # the formula of the docstring with cross and dot products, on random rows
+    d = RNG.standard_normal((6, 3, 3))
+    normal = np.cross(d[:, 0], d[:, 2])
+    expected = np.sum(d[:, 1] * normal, axis=1) / (np.linalg.norm(normal, axis=1) * np.sum(d[:, 0] ** 2, axis=1))
+    assert element.flap_curvature(d) == pytest.approx(expected, rel=1e-10)
+
+
 def test_pure_torsion_gives_beam_theory_energy():
     """A uniform twist rate kappa_x stores GJ kappa_x^2 l / 2."""
     l, twist = 0.2, 1e-3
