@@ -35,6 +35,7 @@ class BoundSystem:
         self.tolerance = RIGID_TOLERANCE * float(min(lattice.panel_span.min(), lattice.panel_chord.min()))
         self.builds = 0
         self._reference = None    # (geometry, corner distances from the first, direction, (A_x, A_y, lu))
+        self._reference_frame = None   # `_frame` of the reference geometry, built at the first rigid check
         # The finite segments as start/end indices into the nodes (the corners, then the far ends of finite
         # horseshoe legs) and their stacked weights, so that a build is two gathers and one kernel pass.
         # With the flat wake the segments are those of `vlm.horseshoe_wake` except its bound segments, which
@@ -63,12 +64,15 @@ class BoundSystem:
         distances = distances_from_first(geometry.corners)
         if self._reference is not None and may_be_rigid(self._reference[1], distances, self.tolerance):
             ref_geometry, _, ref_direction, result = self._reference
-            R, _, residual = rigid_fit(_frame(ref_geometry), _frame(geometry))
+            if self._reference_frame is None:
+                self._reference_frame = _frame(ref_geometry)
+            R, _, residual = rigid_fit(self._reference_frame, _frame(geometry))
             same_wake = not self.flat_wake or np.abs(R @ ref_direction - direction).max() <= 1e-12
             if residual <= self.tolerance and same_wake:
                 return result
         result = self._build(geometry, direction)
         self._reference = (geometry, distances, np.array(direction, dtype=float), result)
+        self._reference_frame = None
         self.builds += 1
         return result
 

@@ -53,12 +53,13 @@ def actuator_terms(hinges, E, dE, latched):
     """Per hinge, what the generalized actuator force on E is made of (000 Sec. II.C, virtual work
     -torque * delta theta: the force is -torque * grad on the coordinates idx):
 
-    (idx (9,) into E, torque N m, its stiffness d torque / d theta N m/rad, grad = d theta / dE[idx] (9,))."""
+    (idx (9,) into E, torque N m, its stiffness d torque / d theta N m/rad, its damping
+    d torque / d theta' N m s/rad, grad = d theta / dE[idx] (9,))."""
     for h in hinges:
         idx = hinge_coordinates(h)
         theta, grad = fold_angle_gradient(E[idx])
         torque, stiffness = actuator_torque(h, theta, float(grad @ dE[idx]), latched.get(h.name, False))
-        yield idx, torque, stiffness, grad
+        yield idx, torque, stiffness, h.damping, grad
 
 
 @functools.cache

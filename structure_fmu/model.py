@@ -125,7 +125,7 @@ class StructureModel:
             k = load["element"]
             s = element.shape_row(load["x"], load["y"], self.lengths[k])
             F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
-        for idx, torque, _, grad in actuator_terms(self.hinges, E, dE, latched):
+        for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
         if self.mass_damping is not None:
             F -= self.mass_damping @ dE
@@ -138,10 +138,10 @@ class StructureModel:
         """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton: K grad grad^T) and
         -dF/d(dE) (damping, actuator C grad grad^T) of `force_E` (point loads, gravity and Q do not depend on E)."""
         K, C = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
-        for (idx, _, stiffness, grad), hinge in zip(actuator_terms(self.hinges, E, dE, latched), self.hinges):
+        for idx, _, stiffness, damping, grad in actuator_terms(self.hinges, E, dE, latched):
             outer = np.outer(grad, grad)
             K[np.ix_(idx, idx)] += stiffness * outer
-            C[np.ix_(idx, idx)] += hinge.damping * outer
+            C[np.ix_(idx, idx)] += damping * outer
         if self.flexible:
             jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
             K += np.bincount(self._element_entries, jac.ravel(), self.n * self.n).reshape(self.n, self.n)
