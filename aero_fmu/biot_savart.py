@@ -59,19 +59,21 @@ def _kernel(points, starts, ends, core, semi_infinite):
     cz = r0[0] * r1y
     cz -= r0[1] * r1x
     n1 = _norm(r1x, r1y, r1z)
-    k = _dot(r0, r1x, r1y, r1z)
-    _safe_divide(k, n1)                                        # r0 . r1 / |r1| (0 when r1 = 0)
+    k = _dot(r0, r1x, r1y, r1z)                                # r0 . r1
     if semi_infinite:
+        _safe_divide(k, n1)
         k += 1.0                                               # 1 + d . r1 / |r1|
         l2 = 1.0
     else:
+        l2 = r0[0] * r0[0] + r0[1] * r0[1] + r0[2] * r0[2]     # |r0|^2, (1, S)
+        # r0 . r2 = r0 . r1 - |r0|^2 (r2 = r1 - r0); exactly 0 when r2 = 0 (p at b: then r1 = r0, and
+        # both sums are the same products added in the same order)
+        d2 = k - l2
+        _safe_divide(k, n1)                                    # r0 . r1 / |r1| (0 when r1 = 0)
         r1x -= r0[0]                                           # r2 = r1 - r0, reusing r1's arrays
         r1y -= r0[1]
         r1z -= r0[2]
-        n2 = _norm(r1x, r1y, r1z)
-        d2 = _dot(r0, r1x, r1y, r1z)
-        k -= _safe_divide(d2, n2)                              # r0 . (r1 / |r1| - r2 / |r2|)
-        l2 = r0[0] * r0[0] + r0[1] * r0[1] + r0[2] * r0[2]     # |r0|^2, (1, S)
+        k -= _safe_divide(d2, _norm(r1x, r1y, r1z))            # r0 . (r1 / |r1| - r2 / |r2|)
     den = cx * cx
     den += cy * cy
     den += cz * cz

@@ -444,7 +444,7 @@ def lattice_added_mass():
         for k in range(3):
             aero.advance(k * h, E0, k * h * scale * model.T[:, j])
         columns.append(-aero.Q / scale)
-    N = null_space(model.constraints.jacobian(E0) @ model.T)
+    N = null_space(model.constraints.jacobian(E0))
     added = N.T @ model.T.T @ np.array(columns).T @ N
     mass = N.T @ model.mass_q @ N
     K, _ = model.tangent_E(E0, np.zeros_like(E0), {})

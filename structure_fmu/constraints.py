@@ -5,20 +5,22 @@ All remaining constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + 
   orthogonality a . b = 0                  (000 Eq. 6 row 2; Eq. 17 row 3)
   fixed plane   v . n = 0                  (a pin about the section normal)
 so the constraint Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap.
-The linear rows of Eq. (17) are eliminated by the coordinate map in topology.py.
+The linear rows of Eq. (17) are eliminated by the coordinate map E = T q + P p (topology.py); the
+integrators need the Jacobian on the free coordinates q, G_q = G T (000 Eq. 4's Phi_q).
 """
 import numpy as np
 
 
 class Constraints:
-    """Vectorized evaluation of the nonlinear constraints of a Topology.
+    """Vectorized evaluation of the nonlinear constraints of a Topology whose free coordinates q map to
+    E = T q + P p (`T`, (n, n_q), `Topology.maps`).
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
     X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane
     rows are X_s . n; rows are ordered unit, orthogonality, plane. Every evaluation gathers E through
     flat index arrays built once (these run several times per time step on small arrays)."""
 
-    def __init__(self, topology):
+    def __init__(self, topology, T):
         self.unit = np.array(topology.unit_slots, dtype=int)
         self.ortho = np.array(topology.orthogonal_slots, dtype=int).reshape(-1, 2)
         self.plane = np.array([s for s, _ in topology.fixed_directions], dtype=int)
@@ -34,13 +36,17 @@ class Constraints:
         self._velocity_coefficient = 2.0 * self._coefficient
         self._constant = np.repeat([-0.5, 0.0], [nu, no])
         self._plane_normal = self.plane_normal.ravel()
-        # G as a flat (count * n) array: the product rows' entries at slots a and b, the plane rows constant
-        rows = np.repeat(np.arange(nu + no), 3)
-        self._ga, self._gb = rows * self.n + self._ia, rows * self.n + self._ib
-        self._g_coefficient = np.repeat(self._coefficient, 3)
-        self._jacobian_template = np.zeros(self.count * self.n)
-        self._jacobian_template[np.repeat(np.arange(nu + no, self.count), 3) * self.n + self._ip] = self._plane_normal
         self._plane_zeros = np.zeros(len(self.plane))
+        # G_q row of a product: c (X_b^T T_a + X_a^T T_b), T_s the three rows of T of slot s. With the pair
+        # [X_a, X_b] gathered as one 6-vector it is one small product with the stacked c [T_b; T_a] (6, n_q).
+        T = np.asarray(T, dtype=float)
+        self._n_free = T.shape[1]
+        self._pair = np.concatenate([self._ia.reshape(-1, 3), self._ib.reshape(-1, 3)], axis=1).ravel()
+        slot_rows = lambda flat_index: T[flat_index].reshape(len(flat_index) // 3, 3, self._n_free)
+        self._pair_rows = self._coefficient[:, None, None] * np.concatenate([slot_rows(self._ib), slot_rows(self._ia)],
+                                                                            axis=1)
+        self._swapped = np.concatenate([self._ib.reshape(-1, 3), self._ia.reshape(-1, 3)], axis=1).ravel()
+        self._plane_jacobian = np.einsum("sk,skj->sj", self.plane_normal, slot_rows(self._ip))
         # H_i entries: (slot row, slot column, constraint) pairs, each on the three components
         rows, cols, which = (np.concatenate(v) for v in zip((a, b, np.arange(nu + no)),
                                                              (self.ortho[:, 1], self.ortho[:, 0], nu + np.arange(no))))
@@ -55,11 +61,17 @@ class Constraints:
         return np.concatenate([products, (E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1)])
 
     def jacobian(self, E):
-        """G = dPhi/dE, dense (count, n)."""
-        G = self._jacobian_template.copy()
-        G[self._ga] = self._g_coefficient * E[self._ib]
-        G[self._gb] += self._g_coefficient * E[self._ia]      # unit rows: a = b, the two halves add up
-        return G.reshape(self.count, self.n)
+        """G_q = dPhi/dq = (dPhi/dE) T at E, dense (count, n_q)."""
+        pairs = E[self._pair].reshape(-1, 1, 6) @ self._pair_rows
+        products = pairs.reshape(len(self._pair_rows), self._n_free)
+        return np.concatenate([products, self._plane_jacobian]) if len(self.plane) else products
+
+    def rate(self, E, dE):
+        """dPhi/dt = (dPhi/dE) dE at E for a rate dE (n,) on the exchanged coordinates, shape (count,)."""
+        pairs = (E[self._pair] * dE[self._swapped]).reshape(-1, 6).sum(axis=1) * self._coefficient
+        if not len(self.plane):
+            return pairs
+        return np.concatenate([pairs, (dE[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1)])
 
     def velocity_quadratic(self, dE):
         """dE^T H_i dE for each constraint: the term of d2Phi/dt2 that is not G d2E/dt2."""
@@ -67,6 +79,6 @@ class Constraints:
         return np.concatenate([products, self._plane_zeros]) if len(self.plane) else products
 
     def hessian_sum(self, multipliers):
-        """sum_i lambda_i H_i, dense (n, n): the constraint part of the tangent stiffness."""
+        """sum_i lambda_i H_i, dense (n, n): the constraint part of the tangent stiffness (on E)."""
         values = np.asarray(multipliers)[self._hessian_multiplier]
         return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)

@@ -52,11 +52,10 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
     cons = model.constraints
     if cons.count == 0:
         return model.mass_inverse @ F, np.zeros(0)
-    G = cons.jacobian(E)
-    Gq = G @ model.T
+    Gq = cons.jacobian(E)
     gamma = -cons.velocity_quadratic(dE)
     if ddp is not None:
-        gamma -= G @ (model.P @ ddp)
+        gamma -= cons.rate(E, model.P @ ddp)
     MinvF = model.mass_inverse @ F
     MinvGt = model.mass_inverse @ Gq.T
     lam = _schur_solve(Gq @ MinvGt, Gq @ MinvF - gamma)
@@ -73,15 +72,14 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
         phi = cons.residual(E)
         if np.abs(phi).max() < tol:
             break
-        Gq = cons.jacobian(E) @ model.T
+        Gq = cons.jacobian(E)
         MinvGt = model.mass_inverse @ Gq.T
         q = q - MinvGt @ _schur_solve(Gq @ MinvGt, phi)
     else:
         E, dE, _ = model.coordinates(q, dq, t)
-    G = cons.jacobian(E)
-    Gq = G @ model.T
+    Gq = cons.jacobian(E)
     MinvGt = model.mass_inverse @ Gq.T
-    dphi = G @ dE                      # dPhi/dt = G (T q' + P p')
+    dphi = cons.rate(E, dE)            # dPhi/dt = G (T q' + P p')
     return q, dq - MinvGt @ _schur_solve(Gq @ MinvGt, dphi)
 
 
@@ -159,7 +157,7 @@ class GeneralizedAlpha:
         A = np.zeros((n + m, n + m))
         A[:n, :n] = S
         if m:
-            Gq = cons.jacobian(E) @ T
+            Gq = cons.jacobian(E)
             A[:n, n:] = beta_p * Gq.T
             A[n:, :n] = beta_p * Gq
         self._matrix = (h, lu_factor(A))
@@ -217,7 +215,7 @@ class GeneralizedAlpha:
             residual = model.mass_q @ ddq - F
             phi = np.zeros(0)
             if cons.count:
-                Gq = cons.jacobian(E) @ model.T
+                Gq = cons.jacobian(E)
                 residual += Gq.T @ lam
                 phi = cons.residual(E)
             if not (np.all(np.isfinite(residual)) and np.all(np.isfinite(phi))):

@@ -50,7 +50,7 @@ class StructureModel:
         n_q = self.T.shape[1]
         self.mass_inverse = cho_solve(cho_factor(self.mass_q), np.eye(n_q)) if n_q else np.zeros((0, 0))
         self.mass_prescribed = self.T.T @ self.mass_E @ self.P
-        self.constraints = Constraints(topology)
+        self.constraints = Constraints(topology, self.T)
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the

@@ -18,7 +18,7 @@ def natural_frequencies(solver, count=6):
     K, _ = model.tangent_E(E, np.zeros_like(dE), state.latched)
     if model.constraints.count:
         K = K + model.constraints.hessian_sum(state.multipliers)
-        N = null_space(model.constraints.jacobian(E) @ model.T)
+        N = null_space(model.constraints.jacobian(E))
     else:
         N = np.eye(len(state.q))
     T = model.T @ N

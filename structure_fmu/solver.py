@@ -114,7 +114,7 @@ class StructureSolver:
         if self.model.constraints.count == 0:
             return
         E, _, _ = self.model.coordinates(self.state.q, self.state.dq, 0.0)
-        G = self.model.constraints.jacobian(E) @ self.model.T
+        G = self.model.constraints.jacobian(E)
         rank = np.linalg.matrix_rank(G)
         if rank < G.shape[0]:
             raise SceneError("structure.joints", None,
