@@ -68,7 +68,7 @@ class Study:
     def overrides(self, value):
         out = list(self.base)
         if self.parameter == "L_w":
-            out.append(f"aero.wake_length={1.0 if value == 'all' else value}")
+            out.append(f"aero.wake_length={'inf' if value == 'all' else value}")   # inf: no truncation
         elif self.parameter == "M":
             out.append(f"aero.chordwise_panels={value}")
             if self.step_per_panel:
@@ -114,10 +114,7 @@ def studies(quick=False):
 
 def job_scene(job):
     study, value = job
-    scene = load_scene(ROOT / "scenes" / f"{study.scene}.toml", study.overrides(value))
-    if value == "all":
-        scene["aero"]["wake_length"] = float("inf")        # no truncation (the aero solver accepts inf)
-    return scene
+    return load_scene(ROOT / "scenes" / f"{study.scene}.toml", study.overrides(value))
 
 
 def estimated_cost(job):

@@ -79,6 +79,15 @@ def positive(unit: str) -> Checker:
     return _number(f"a finite number > 0 ({unit})", lambda x: x > 0)
 
 
+def positive_or_inf(unit: str) -> Checker:
+    """A number > 0, or inf (TOML `inf`)."""
+    def check(key: str, value: Any) -> float:
+        if isinstance(value, float) and value == math.inf:
+            return value
+        return _number(f"a finite number > 0, or inf ({unit})", lambda x: x > 0)(key, value)
+    return check
+
+
 def non_negative(unit: str) -> Checker:
     return _number(f"a finite number >= 0 ({unit})", lambda x: x >= 0)
 
@@ -189,7 +198,8 @@ SECTIONS: dict[str, dict[str, tuple[Any, Checker]]] = {
         "model": ("none", choice(*AERO_MODELS)),
         "chordwise_panels": (2, integer_at_least(1)),
         "spanwise_panels": (7, integer_at_least(1)),
-        "wake_length": (5.0, positive("wake length, chords")),
+        "wake_length": (5.0, positive_or_inf("wake length, chords; inf: semi-infinite flat wake, no truncation "
+                                             "of a shed wake")),
         "step": (None, optional(positive("internal aero step, s; absent: one per communication step"))),
         "span_correction": ("helmbold", choice("helmbold", "none")),   # strip theory only (aero_fmu/strip.py)
     },

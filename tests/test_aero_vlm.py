@@ -155,3 +155,23 @@ def test_wake_length_and_matrix_reuse():
     np.testing.assert_allclose(second.gamma, 2 * first.gamma, rtol=1e-12)
     vlm.solve(E, U + [0, 0, 1.0], RHO)
     assert vlm._bound[1] is bound and vlm._full[1] is not full
+
+
+def test_scene_wake_length_inf_is_the_semi_infinite_flat_wake():
+    """aero.wake_length = inf (TOML `inf`) passes the scene check, and the uvlm-flat aero unit then has
+    semi-infinite horseshoe legs: once steady (second step, fixed wing) its C_L is the steady VLM's with
+    semi-infinite legs (`SteadyVLM`, a separate implementation), and differs from the 50-chord wake's."""
+    from aero_fmu.solver import AeroSolver
+    from orchestrator.scene import load_scene
+
+    scene = load_scene("scenes/steady_wing.toml", overrides=["aero.wake_length=inf"])
+    assert scene["aero"]["wake_length"] == np.inf
+    structure = StructureSolver(scene)
+    e, de = structure.e, structure.de
+    aero = AeroSolver(scene)
+    for t in (0.0, 0.01, 0.02):
+        aero.advance(t, e, de)
+    CL_inf, _, _ = steady_lift(aero.topology, e, 4, 16, aero.U, aero.density)
+    CL_50, _, _ = steady_lift(aero.topology, e, 4, 16, aero.U, aero.density, wake_length=50.0)
+    assert aero.outputs()["CL"] == pytest.approx(CL_inf, rel=1e-9)
+    assert abs(aero.outputs()["CL"] - CL_50) > 1e-6 * CL_inf

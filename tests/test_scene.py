@@ -153,6 +153,8 @@ MALFORMED = [
     (["flow.direction=[0,0,0]"], "flow.direction", [0, 0, 0], "a non-zero array of 3 finite numbers"),
     (["flow.direction=[1,0]"], "flow.direction", [1, 0], "an array of 3 finite numbers"),
     (["aero.chordwise_panels=0"], "aero.chordwise_panels", 0, "an integer >= 1"),
+    (["aero.wake_length=0"], "aero.wake_length", 0, "a finite number > 0, or inf"),
+    (["aero.wake_length=-inf"], "aero.wake_length", float("-inf"), "a finite number > 0, or inf"),
     (["structure.bodies=3"], "structure.bodies", 3, "an array of tables"),
     (["flow=3"], "flow", 3, "a table [flow] with keys speed, density"),
     (["name=a/b"], "name", "a/b", "letters, digits"),
