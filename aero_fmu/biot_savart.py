@@ -102,8 +102,8 @@ def _dot(v, x, y, z):
 
 def _safe_divide(x, y):
     """x /= y in place where y > 0, x = 0 where y = 0 (a point at a segment's end). The norms y are 0 or
-    far above the smallest normal float, and x (a dot product with the zero vector) is 0 where y is 0,
-    so dividing by max(y, tiny) is exact."""
+    far above the smallest normal float, and x is exactly 0 where y is 0 (r0 . r1 with r1 = 0, and
+    r0 . r1 - |r0|^2 with r1 = r0: see `_kernel`), so dividing by max(y, tiny) is exact."""
     x /= np.maximum(y, _TINY, out=y)
     return x
 

@@ -81,10 +81,10 @@ def positive(unit: str) -> Checker:
 
 def positive_or_inf(unit: str) -> Checker:
     """A number > 0, or inf (TOML `inf`)."""
+    finite = _number(f"a finite number > 0, or inf ({unit})", lambda x: x > 0)
+
     def check(key: str, value: Any) -> float:
-        if isinstance(value, float) and value == math.inf:
-            return value
-        return _number(f"a finite number > 0, or inf ({unit})", lambda x: x > 0)(key, value)
+        return value if isinstance(value, float) and value == math.inf else finite(key, value)
     return check
 
 
