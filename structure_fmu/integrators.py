@@ -209,7 +209,7 @@ class GeneralizedAlpha:
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
             self._factor(model, t, q, dq, state.latched, lam, h)
-        refreshed, previous, first = predictor == "displacement", 0.0, None
+        previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
         for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
             residual = model.mass_q @ ddq - F
@@ -237,10 +237,13 @@ class GeneralizedAlpha:
             if not np.isfinite(size) or size > 100 * max(first, self.tol * scale):
                 raise _NewtonDiverging(f"Newton iteration diverged ({predictor} predictor, correction "
                                        f"{size:.3g} after {first:.3g})")
-            # a slow contraction means a stale iteration matrix: refresh it once per step
-            if iteration >= 3 and size > 0.3 * previous and not refreshed:
+            # a slow contraction means the matrix is no longer the tangent at the iterate (reused from an
+            # earlier step, or factorized at a predictor far from the solution): refactorize it here,
+            # after at least two iterations with the current one
+            fresh += 1
+            if fresh >= 2 and size > 0.3 * previous:
                 self._factor(model, t, q, dq, state.latched, lam, h)
-                refreshed = True
+                fresh = 0
             previous = size
         else:
             raise _NewtonDiverging(f"Newton did not converge in {self.max_iterations} iterations "
