@@ -782,7 +782,7 @@ def own_limit(jobs, res):
     E_scene = load_scene(SCENE)["structure"]["bodies"][0]["section"]["youngs_modulus"]
     steps = [step_of(res[j], "stable") * math.sqrt(j.E / E_scene) for j in jobs
              if j.rho == RHO_INF and "error" not in res[j] and step_of(res[j], "stable")]
-    return f"{1e3 * min(steps):.2g} to {1e3 * max(steps):.2g} ms" if steps else "-"
+    return f"{span([1e3 * h for h in steps], '.2g')} ms" if steps else "-"
 
 
 # ---- the doc --------------------------------------------------------------------------------------------
@@ -816,9 +816,13 @@ def ga_facts(jobs, res):
         if ratios:
             lines.append(f"  - rho_inf = {rho:g}: {span(ratios, '.0f')} times RK4's largest step, "
                          f"{span(per, '.0f')} steps per first-bending period.")
+    ga = [j for j in jobs if j.rho is not None and "error" not in res[j] and res[j].get("unstable") is not None]
+    newton = sum("Newton" in res[j]["rows"][res[j]["unstable"]]["message"] for j in ga)
+    cause = ("its largest step is set by the Newton iteration of a step, which the solver reports as \"diverged\""
+             if ga and newton == len(ga) else
+             f"the smallest unstable step failed in the Newton iteration of a step in {newton} of {len(ga)} searches")
     return ["- Generalized-alpha is unconditionally stable for linear problems; on this nonlinear, constrained",
-            "  beam its largest step is set by the Newton iteration of a step, which the solver reports as",
-            "  \"diverged\" (table below):"] + lines
+            f"  beam {cause} (table below):"] + lines
 
 
 def coupling_section(jobs, res, est):
