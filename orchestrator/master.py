@@ -19,6 +19,7 @@ structure unit). ``coupling.algorithm``:
   and its Q at t + h is held for the next structure step.
 - ``jacobi`` (explicit): both units step from the outputs at t (the aero unit with e, de of t held),
   then exchange.
+  A run of either that diverges gets ``explicit_coupling_hint`` appended to its message.
 - ``implicit``: each step is repeated until the interface force agrees with the motion it produces,
   i.e. a fixed point Q = H(Q) of one Gauss-Seidel pass H: Q_used -> structure step with Q_used held
   over [t, t + h] -> e, de at t + h -> aero step -> Q_new at t + h. Per step:
@@ -83,6 +84,8 @@ log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error")
 ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
+EXPLICIT = ("gauss-seidel", "jacobi")
+HINT_WINDOW = 20        # communication steps compared by explicit_coupling_hint
 
 
 class CouplingError(RuntimeError):
@@ -246,6 +249,25 @@ def check_connection(structure: Any, aero: Any) -> None:
                             "rebuild both FMUs from one scene (wingsim build SCENE). Nothing was run.")
 
 
+def explicit_coupling_hint(series: TimeSeries, algorithm: str, window: int = HINT_WINDOW) -> str:
+    """Text appended to the message of an explicitly coupled run that diverged. The unit that stopped it
+    names its own symptom (often the structure's Newton iteration), but the exchange itself can be what
+    grew: the added-mass instability, or aeroelastic feedback through the lagged force. The swing
+    (max - min) of the lift (N; not CL, which is 0 in still air) over the last `window` communication
+    points, against the `window` before, tells the two apart (fewer samples: halves of them, at least 5 each); implicit coupling removes the exchange's
+    own instability (docs/stability.md)."""
+    text = (f" Explicit {algorithm} coupling can itself be unstable (added mass, or feedback through the lagged "
+            "aero force)")
+    lift = series.column("lift")
+    lift = lift[np.isfinite(lift)]
+    window = min(window, lift.size // 2)
+    if window >= 5:
+        last, before = np.ptp(lift[-window:]), np.ptp(lift[-2 * window:-window])
+        text += (f": the lift swung over {last:.3g} N in the last {window} communication steps against "
+                 f"{before:.3g} N in the {window} before")
+    return text + '; if it grew, try coupling.algorithm = "implicit".'
+
+
 def _classify(err: BaseException, unit_error: type, phase: str) -> tuple[str, str]:
     """(status, message) for a failure during ``phase``."""
     diverged = getattr(err, "diverged", False) or "diverged" in str(err)
@@ -355,6 +377,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     except (Exception, KeyboardInterrupt) as err:
         log.debug("run failed during %s", phase, exc_info=True)
         status, message = _classify(err, units.UnitError, phase)
+        if status == "diverged" and aero is not None and algorithm in EXPLICIT:
+            message = message.rstrip(" .") + "." + explicit_coupling_hint(series, algorithm)
     finally:
         for unit in (aero, structure):
             if unit is not None:

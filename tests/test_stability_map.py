@@ -12,6 +12,7 @@ deflection delta_s = P L^3 / (3 EI)):
 Stable, as in the doc: status "ok", kinetic energy <= P delta_s, tip displacement <= 4 delta_s (twice what an
 undamped linear structure can reach under the sudden load: P delta_s / 2 and 2 delta_s)."""
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,11 @@ def test_gauss_seidel_is_reported_diverged_in_dense_air_where_implicit_coupling_
               "structure.step=2.5e-4", "time.stop=0.05"]
     explicit, _ = run(common + ["coupling.algorithm=gauss-seidel"])
     assert explicit.status == "diverged" and explicit.simulated_time_s < 0.05, explicit.message
+    # the message points at the exchange: the lift's swing grew between the two windows before the failure
+    swings = re.search(r"lift swung over (\S+) N in the last (\d+) communication steps against (\S+) N in the \2 before",
+                       explicit.message)
+    assert swings and float(swings.group(1)) > float(swings.group(3)), explicit.message
+    assert 'try coupling.algorithm = "implicit"' in explicit.message
     implicit, bounded = run(common + ["coupling.algorithm=implicit"])
     assert implicit.status == "ok" and bounded, implicit.message
     assert np.all(implicit.series.column("coupling_residual")[1:] < 1e-6)
