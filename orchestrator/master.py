@@ -254,8 +254,8 @@ def explicit_coupling_hint(series: TimeSeries, algorithm: str, window: int = HIN
     names its own symptom (often the structure's Newton iteration), but the exchange itself can be what
     grew: the added-mass instability, or aeroelastic feedback through the lagged force. The swing
     (max - min) of the lift (N; not CL, which is 0 in still air) over the last `window` communication
-    points, against the `window` before, tells the two apart (fewer samples: halves of them, at least 5 each); implicit coupling removes the exchange's
-    own instability (docs/stability.md)."""
+    points, against the `window` before, tells the two apart (fewer samples: halves of them, at least 5
+    each); implicit coupling removes the exchange's own instability (docs/stability.md)."""
     text = (f" Explicit {algorithm} coupling can itself be unstable (added mass, or feedback through the lagged "
             "aero force)")
     lift = series.column("lift")
