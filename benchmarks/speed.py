@@ -8,8 +8,9 @@ timed), takes ten untimed warm-up steps through each backend, then runs the scen
 (`backend="direct"`), one BLAS thread. The two runs take turns, one communication step each (`Lockstep`),
 on one CPU: the shared machine's slow phases, which last seconds to minutes, then fall on both runs alike,
 so their ratio is the FMU backend's own cost and not the machine's mood. Each run's time is the sum of its
-own turns; the waiting for the other run is not counted. (On one CPU the two runs share its caches; taking
-turns across two CPUs, each turn started on caches the other run had left, and measured 10-40% slower.)
+own turns; the waiting for the other run is not counted. (Taking turns across the two CPUs, where a turn
+presumably starts on caches the other run left, the deploy_rigid overhead spread from -10% to +17% in five
+runs; on one CPU from +6.7% to +8.1% in five runs alternating with those.)
 From this one run of each it prints:
 
     real-time factor   stepping wall time / simulated time, through the FMUs (1 = real time; issue 5
