@@ -919,7 +919,7 @@ def coupling_section(jobs, res, est):
                      if (m := re.search(r"interface residual ([0-9.e+-]+) after", r["message"]))]
         newton = sum("Newton" in r["message"] for _, r in failed)
         L += [f"Implicit runs that stopped as \"diverged\": {newton} of {len(failed)} because the structure's Newton "
-              "iteration (generalized-alpha, inside a coupling iteration) did not converge, "
+              "iteration (generalized-alpha, inside a coupling iteration) failed, "
               f"{len(residuals)} because the interface residual did not fall below 1e-6 in 50 iterations; of these, "
               f"{sum(r < 10e-6 for r in residuals)} ended within ten times the tolerance (the Aitken iteration stalls) "
               f"and {sum(r > 1e-2 for r in residuals)} above 1e-2 (the iteration diverges, in the first step: past "
