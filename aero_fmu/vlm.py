@@ -102,7 +102,7 @@ def leg_ends(lattice: Lattice, heads, direction, wake_length):
     return heads + (wake_length * lattice.body_chords)[:, None, None] * direction
 
 
-def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, weights=None) -> list:
+def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> list:
     """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (000 Sec. V).
 
     The legs start at the last rings' trailing corners (a quarter panel behind the trailing edge) and run
@@ -110,10 +110,9 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf, wei
     starting-vortex segment; wake_length = inf gives semi-infinite legs and no closing segment. The
     horseshoe's bound segment runs opposite to the last ring's trailing segment, so the two cancel: the
     circulation leaves the trailing edge only through the legs (steady Kutta condition).
-    weights: `horseshoe_weights(lattice)`, built here if None.
     """
     d = np.asarray(direction, dtype=float)
-    legs, span, bound = horseshoe_weights(lattice) if weights is None else weights
+    legs, span, bound = horseshoe_weights(lattice)
     te = corners[lattice.trailing_corners]                  # (B, N+1, 3)
     te_start, te_end = te[:, :-1].reshape(-1, 3), te[:, 1:].reshape(-1, 3)
     out = [Segments(te_start, te_end, bound)]
