@@ -15,7 +15,8 @@ what `wingsim run SCENE --backend direct --set ...` runs; runs go to `--jobs` pr
 --quick: rigid at 0, 15, 30 m/s, flexible at 0, 10, 20 m/s, part 3 uvlm-flat and strip only; tables only.
 
 Definitions (the doc states them too):
-  deployment time   summary deployment_time_s (s): the fold angle reaches its stop, 0 deg;
+  deployment time   summary deployment_time_s (s): the fold angle reaches its stop, 0 deg (the structure
+                    unit's latch time, found within its internal step);
   peak bending      max over the run of |y displacement| of probe bending_100mm, mm (global y is the
                     out-of-plane direction of the deployed wing);
   peak strain       summary strain_gauges.strain_20mm.peak, microstrain;
@@ -432,7 +433,8 @@ overrides (`flow.speed=...`, `aero.model=...`); `aero.model=none` is still air w
 uvlm-flat at 0 m/s still has the air forces of the wing's own motion. Each run is
 `orchestrator.master.run_scene(scene, backend="direct")`, what `wingsim run SCENE --backend direct --set ...` runs.
 
-- **deployment time**: `deployment_time_s` of the summary, the time the fold angle reaches 0 deg (s);
+- **deployment time**: `deployment_time_s` of the summary, the time the fold angle reaches 0 deg (s), as the
+  structure unit finds it within its own internal step;
 - **peak bending**: max over the run of |y displacement| of probe `bending_100mm` (mid-chord, 0.1 m from the
   root; global y is the out-of-plane direction of the deployed wing), mm (000 Fig. 15); "min bending y" is
   the signed minimum;

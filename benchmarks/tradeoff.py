@@ -27,7 +27,8 @@ plus the most accurate run: every factor at its most accurate level (15 elements
 M = 4, N = 10, L_w = 10, implicit coupling every 0.5 ms). Per speed, every run's errors are against the most
 accurate run (%):
 
-  deployment time   |t_d - t_d,ref| / t_d,ref, t_d = summary deployment_time_s (fold angle at its stop);
+  deployment time   |t_d - t_d,ref| / t_d,ref, t_d = summary deployment_time_s (the structure unit's latch
+                    time, found within its internal step);
   bending           |D - D_ref| / D_ref, D = max over the run of |y displacement| of probe bending_100mm
                     (benchmarks/deployment.py's peak bending, 000 Fig. 15);
   CL                RMS(CL - CL_ref) / max|CL_ref| over 0 < t <= 0.2 s (000 Eqs. 28-30, 0-0.2 s as 000;
@@ -488,22 +489,6 @@ def rigid_findings(jobs, res, ana, base, factors, speeds):
     return out
 
 
-def resolution_note(jobs, res, best, factors, speeds):
-    """One coupling step as % of the most accurate run's deployment time, per speed: the resolution of the
-    deployment time error."""
-    parts = []
-    for speed in speeds:
-        ref = run_at(jobs, res, best, speed)
-        if ref is not None and ref.get("deploy_s"):
-            steps = ", ".join(f"{100 * h / ref['deploy_s']:.2g}% ({1e3 * h:g} ms)" for h in sorted(factors["step"]))
-            parts.append(f"{steps} of t_d,ref = {ref['deploy_s']:.4f} s at {speed:g} m/s")
-    if not parts:
-        return []
-    return [f"Resolution: the deployment time is read from the fold angle at the communication points, and the "
-            f"latch stops the fold within a step, so t_d is late by up to one coupling step: "
-            f"{'; '.join(parts)}. Deployment time errors below these are at the measure's resolution."]
-
-
 def base_findings(jobs, ana, fronts, base, speeds, names):
     """The base run's errors against the most accurate one and the Pareto fronts, per speed."""
     out = []
@@ -634,9 +619,9 @@ time.stop = {stop:g} s set, what `wingsim run scenes/deploy_flexible.toml --back
 
 Errors (%) of a run against the most accurate run of the same speed:
 
-- **deployment time**: |t_d - t_d,ref| / t_d,ref, t_d = `deployment_time_s` of the summary (fold angle 0 deg),
-  interpolated linearly between the communication points; the latch arrests the fold angle within the step,
-  so t_d can be late by up to one coupling step (see the resolution note below);
+- **deployment time**: |t_d - t_d,ref| / t_d,ref, t_d = `deployment_time_s` of the summary: the time the fold
+  angle reached 0 deg, as the structure unit finds it within its own internal step (output
+  `latch_time_fold`), so a long coupling step does not coarsen the measure itself;
 - **bending**: |D - D_ref| / D_ref, D = max over the run of |y displacement| of probe `bending_100mm`
   (mid-chord, 0.1 m from the root; the peak bending of docs/deployment.md, 000 Fig. 15); a rigid run has
   D = 0, error 100%;
@@ -698,7 +683,6 @@ def document(jobs, res, ana, fronts, conv, names, factors, base, best, header, w
               *wake_findings(jobs, res, ana, base, speeds), *rigid_findings(jobs, res, ana, base, factors, speeds), "",
               "The base scene's choice:", "",
               *base_findings(jobs, ana, fronts, base, speeds, names), "",
-              *resolution_note(jobs, res, best, factors, speeds), "",
               "## Convergence of each factor (the others at base)", "",
               *(["![tradeoff_convergence](img/tradeoff_convergence.png)", ""] if plots else [])]
     for name in factors:

@@ -49,7 +49,8 @@ The unit interface (``orchestrator.units``): ``make_unit(kind, scene, backend, f
 unit with ``n``, ``topology_hash``, ``get_outputs()`` (structure: ``(e, de)``; aero: ``(Q,)``),
 ``set_inputs(...)`` (structure: ``Q``; aero: ``e, de``), ``do_step(t, h)`` (raises ``UnitError`` on an
 FMI error or discard, with the unit's logged reason), ``monitors()`` (structure: ``energy``,
-``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``; aero: ``CL``, ``lift``, ...),
+``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``; aero: ``CL``,
+``lift``, ...),
 ``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
@@ -66,7 +67,7 @@ import importlib
 import logging
 import math
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -193,6 +194,8 @@ class RunResult:
     aero_inputs: AeroInputs | None = None   # the aero unit's steps (aero scenes), for a replay
     stepping_wall_time_s: float | None = None   # s, of the communication steps alone (units loaded and
                                                 # initialized before): / simulated time = real-time factor
+    latch_times: dict = field(default_factory=dict)   # s, {hinge: time it latched}, as the structure unit
+                                                      # reported at the last recorded communication point
 
 
 def communication_times(stop: float, step: float) -> np.ndarray:
@@ -222,7 +225,8 @@ def new_series(scene: dict) -> TimeSeries:
 
 
 def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, sensors: Sensors, t: float,
-            coupling: tuple[int, float] | None = None) -> None:
+            coupling: tuple[int, float] | None = None) -> dict:
+    """Append one sample; returns the hinges' latch times (s) the structure unit reports."""
     monitors = structure.monitors()
     loads = None
     if aero is not None:
@@ -233,6 +237,7 @@ def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, sensor
                   kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
                   coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
                   strains=sensors.strains(e))
+    return monitors.get("latch_times", {})
 
 
 def check_connection(structure: Any, aero: Any) -> None:
@@ -301,7 +306,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     series = new_series(scene)
     stop = scene["time"]["stop"]
     algorithm = scene.get("coupling", {}).get("algorithm", "gauss-seidel")
-    status, message, reached, stepping = "ok", "", 0.0, None
+    status, message, reached, stepping, latch_times = "ok", "", 0.0, None, {}
     structure = aero = None
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     phase = "starting the structure unit"
@@ -332,8 +337,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             acceleration = make_acceleration(coupling)
             tolerance, max_iterations = coupling.get("tolerance", 1e-6), coupling.get("max_iterations", 50)
             total_iterations = most_iterations = 0
-        _record(series, e, structure, aero, sensors, times[0],
-                coupling=(0, np.nan) if implicit else None)
+        latch_times = _record(series, e, structure, aero, sensors, times[0],
+                              coupling=(0, np.nan) if implicit else None)
         stepping_start = _time.perf_counter()
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
@@ -362,7 +367,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         aero.do_step(t0, t1 - t0)
                         aero_inputs.append(t0, t1 - t0, e, de)
                         q, = aero.get_outputs()
-            _record(series, e, structure, aero, sensors, t1, coupling=step_coupling)
+            latch_times = _record(series, e, structure, aero, sensors, t1, coupling=step_coupling)
             reached = t1
             if progress is not None:
                 progress.update(t1)
@@ -389,4 +394,4 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     if progress is not None:
         progress.finish(reached, status)
     return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs,
-                     stepping)
+                     stepping, latch_times)

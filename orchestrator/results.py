@@ -6,9 +6,11 @@ Summary fields (SI units, angles in degrees):
   units included), ``stepping_wall_time_s`` (s, the communication steps alone, null if none ran; over
   ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
   after ``--set``);
-- ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has reached
-  it (for a single hinge: the first time its fold angle reaches the stop), linearly interpolated
-  between samples; null if a hinge never reaches its stop or no hinge has one;
+- ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has latched
+  (for a single hinge: the first time its fold angle reaches the stop moving toward it), as the
+  structure unit reports it (output ``latch_time_<hinge>``: interpolated within its internal step, not
+  between communication points, where the latch has already arrested the fold); null if a hinge never
+  latches or no hinge has a stop;
 - ``max_constraint_residual``: the largest constraint residual over the run;
 - ``energy_drift``: (E_final - E_0) / max(|E_0|, max over the run of the kinetic energy, 1e-12 J), with
   E_0 and E_final the first and last finite energy samples and the kinetic energy taken over the samples
@@ -54,37 +56,13 @@ ENERGY_FLOOR_J = 1e-12
 does not divide by zero."""
 
 
-def crossing_time(time: np.ndarray, angle_deg: np.ndarray, stop_deg: float) -> float | None:
-    """First time (s) ``angle_deg`` reaches ``stop_deg`` from the side it starts on, or None.
-
-    Linearly interpolated between the last sample before and the first sample at or past the stop.
-    """
-    t = np.asarray(time, dtype=float)
-    offset = np.asarray(angle_deg, dtype=float) - stop_deg
-    if offset.size == 0 or not np.isfinite(offset[0]):
+def deployment_time(latch_times: dict[str, float], scene: dict) -> float | None:
+    """Time (s) at which every hinge with a stop angle has latched, from the structure unit's latch times
+    {hinge: s} (``RunResult.latch_times``); None if one has not or no hinge has a stop."""
+    stops = [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    if not stops or any(h not in latch_times for h in stops):
         return None
-    if offset[0] == 0.0:
-        return float(t[0])
-    with np.errstate(invalid="ignore"):
-        reached = np.flatnonzero(np.sign(offset[0]) * offset <= 0.0)
-    if reached.size == 0:
-        return None
-    k = reached[0]
-    before, after = offset[k - 1], offset[k]
-    if not np.isfinite(before):
-        return float(t[k])
-    return float(t[k - 1] + (t[k] - t[k - 1]) * before / (before - after))
-
-
-def deployment_time(series: TimeSeries, scene: dict) -> float | None:
-    """Time (s) at which every hinge with a stop angle has reached it; None if one never does."""
-    stops = {j["name"]: j["stop_angle_deg"] for j in hinge_joints(scene) if "stop_angle_deg" in j}
-    if not stops or len(series) == 0:
-        return None
-    angles = series.fold_angles_deg
-    times = [crossing_time(series.time, angles[:, series.hinge_names.index(h)], stop)
-             for h, stop in stops.items()]
-    return None if any(t is None for t in times) else max(times)
+    return float(max(latch_times[h] for h in stops))
 
 
 def energy_drift(energy: np.ndarray, kinetic_energy: np.ndarray | None = None) -> float | None:
@@ -185,7 +163,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "stepping_wall_time_s": result.stepping_wall_time_s,
         "simulated_time_s": result.simulated_time_s,
         "scene": result.scene,
-        "deployment_time_s": deployment_time(series, result.scene),
+        "deployment_time_s": deployment_time(result.latch_times, result.scene),
         "max_constraint_residual": max_constraint_residual(series.constraint_residual),
         "energy_drift": energy_drift(series.energy, series.kinetic_energy),
         "probes": probe_summary(series),

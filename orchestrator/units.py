@@ -13,7 +13,8 @@
                                   aero:      set_inputs(e, de)  the structure's coordinates and rates
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
     unit.monitors()             structure: {"energy": J, "kinetic_energy": J, "constraint_residual": -,
-                                            "fold_angles_deg": {hinge: deg}}
+                                            "fold_angles_deg": {hinge: deg},
+                                            "latch_times": {hinge: s, for the hinges latched so far}}
                                 aero: {"CL": -, "lift": N, "wake_panels": count, ...every scalar output}
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
@@ -41,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from structure_fmu.fmi_slave import SCENE_RESOURCE
+from structure_fmu.structure_slave import LATCH_PENDING
 
 
 class UnitError(RuntimeError):
@@ -64,7 +66,7 @@ class UnitKind:
     outputs: tuple[str, ...]          # indexed output blocks, each [1..n]
     monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
     scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale)
-    hinge_monitors: bool = False      # fold_angle_<hinge> outputs, one per hinge of the scene
+    hinge_monitors: bool = False      # fold_angle_<hinge> and latch_time_<hinge> outputs, per hinge of the scene
     extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
 
 
@@ -132,9 +134,11 @@ class Unit:
             raise UnitError(f"{port.label}: variable {exc.args[0][0]}[{exc.args[0][1]}] missing "
                             f"(n = {n} from {spec.outputs[0]}[...])") from None
         self.hinges = list(Topology.from_scene(scene).hinge_names) if spec.hinge_monitors else []
-        missing = [h for h in self.hinges if fmi_name(f"fold_angle_{h}") not in vr]
+        missing = [f"{kind}_{h}" for h in self.hinges for kind in ("fold_angle", "latch_time")
+                   if fmi_name(f"{kind}_{h}") not in vr]
         if missing:
-            raise UnitError(f"{port.label}: no output fold_angle_{missing[0]}; the unit does not match the scene")
+            raise UnitError(f"{port.label}: no output {missing[0]}; the unit does not match the scene (rebuild "
+                            "the FMU)")
         absent = [m for m in spec.monitors if m not in vr]
         if absent:
             raise UnitError(f"{port.label}: no output {absent[0]}; rebuild the FMU")
@@ -144,7 +148,8 @@ class Unit:
             monitors += [name for name in port.scalar_outputs() if name not in monitors and vr[name] not in known]
         self._monitor_names = monitors
         output_vrs = [v for b in spec.outputs for v in block_vr[b]]
-        monitor_vrs = [vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges] + [vr[name] for name in monitors]
+        monitor_vrs = ([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
+                       + [vr[fmi_name(f"latch_time_{h}")] for h in self.hinges] + [vr[name] for name in monitors])
         # get_outputs reads the monitors in the same call and keeps them until the unit steps or is set
         # (its outputs change only then): one fmi2GetReal per unit and step instead of two
         self._get_out = port.reader(output_vrs + monitor_vrs)
@@ -191,10 +196,12 @@ class Unit:
 
     def monitors(self) -> dict:
         m = self._get_mon() if self._monitor_values is None else self._monitor_values
-        k = len(self.hinges)
+        k = 2 * len(self.hinges)
         out = {name: float(v) for name, v in zip(self._monitor_names, m[k:])}
         if self._spec.hinge_monitors:
-            out["fold_angles_deg"] = {h: float(a) for h, a in zip(self.hinges, m[:k])}
+            angles, latch_times = m[:k // 2], m[k // 2:k]
+            out["fold_angles_deg"] = {h: float(a) for h, a in zip(self.hinges, angles)}
+            out["latch_times"] = {h: float(t) for h, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
         return out
 
     def get_state(self):

@@ -16,11 +16,18 @@ Variables, with value references laid out contiguously so that get/set are numpy
 | 3n+H              | energy                    | output, continuous       | J                                 |
 | 3n+H+1            | kinetic_energy            | output, continuous       | J                                 |
 | 3n+H+2            | constraint_residual       | output, continuous       | 1                                 |
-| 3n+H+3 ..         | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
+| 3n+H+3 .. 3n+2H+2 | latch_time_<hinge>        | output, discrete         | s                                 |
+| 3n+2H+3 ..        | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
 | last              | topology_hash (String)    | output, constant         | -                                 |
 
 Per node the 9 coordinates are r (3), r_x (3), r_y (3) in the global frame; Q is work-conjugate to e,
 hence N for r and N.m (= J) for the dimensionless gradients.
+
+latch_time_<hinge> is the time (FMI time, s) at which the hinge latched: its fold angle reached the stop
+within an internal step of the solver, interpolated linearly in that step (StructureSolver). It is
+LATCH_PENDING (-1 s) until then, and stays so for a hinge without a stop. The master reads the
+deployment time from it instead of from the fold angles at the communication points, which the latch
+arrests within a step.
 
 Errors: after construction no FMI call raises (structure_fmu/fmi_slave.py says why). A non-finite Q,
 `InputError`, `SolverDiverged` or any other failure in `do_step` is logged at error status with its reason
@@ -51,6 +58,10 @@ from structure_fmu.fmi_slave import (COORDINATE_UNITS, SolverSlave, coordinate_d
 from structure_fmu.solver import StructureSolver
 from structure_fmu.topology import Topology
 
+LATCH_PENDING = -1.0
+"""Value (s) of latch_time_<hinge> until the hinge latches. Latch times are at or after the start time,
+which wingsim's master sets to 0."""
+
 
 class StructureSlave(SolverSlave):
     author = "wingsim"
@@ -72,7 +83,8 @@ class StructureSlave(SolverSlave):
         self.sl_e, self.sl_de, self.sl_q = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
         self.sl_fold = slice(3 * n, 3 * n + nh)
         self.i_energy, self.i_kinetic, self.i_residual = 3 * n + nh, 3 * n + nh + 1, 3 * n + nh + 2
-        self.sl_par = slice(3 * n + nh + 3, 3 * n + nh + 3 + npar)
+        self.sl_latch = slice(3 * n + nh + 3, 3 * n + 2 * nh + 3)
+        self.sl_par = slice(self.sl_latch.stop, self.sl_latch.stop + npar)
         self._real = np.zeros(self.sl_par.stop)
         self._real[self.sl_par] = list(self.defaults.values())
         self._settable = np.zeros(self._real.size, dtype=bool)
@@ -105,6 +117,10 @@ class StructureSlave(SolverSlave):
         self._reg("kinetic_energy", self.i_kinetic, "J", "kinetic energy of the structure (1/2 de^T M de)",
                   **out)
         self._reg("constraint_residual", self.i_residual, "1", "constraint residual monitor (max norm)", **out)
+        for j, hinge in enumerate(self.hinges):
+            self._reg(fmi_name(f"latch_time_{hinge}"), self.sl_latch.start + j, "s",
+                      f"time hinge {hinge} latched at its stop angle ({LATCH_PENDING:g} until then)",
+                      **{**out, "variability": Fmi2Variability.discrete})
         self._register_parameters_and_hash("aero unit")
 
     def do_step(self, current_time, step_size):
@@ -127,3 +143,5 @@ class StructureSlave(SolverSlave):
         self._real[self.i_energy] = m["energy"]
         self._real[self.i_kinetic] = m["kinetic_energy"]
         self._real[self.i_residual] = m["constraint_residual"]
+        self._real[self.sl_latch] = [self._t0 + m["latch_times"][h] if h in m["latch_times"] else LATCH_PENDING
+                                     for h in self.hinges]

@@ -3,14 +3,14 @@
     python tests/libcosim_run.py FMU_DIR STEP STOP
 
 Connects e[i], de[i] (structure -> aero) and Q[i] (aero -> structure) for every coordinate, steps libcosim's
-fixed-step algorithm (all units step, then values are exchanged: Jacobi), and prints the first time the
-`fold` hinge's angle reaches 0 (linear interpolation between steps) as `deployment_time_s=<value>`.
+fixed-step algorithm (all units step, then values are exchanged: Jacobi), and prints the structure unit's
+output `latch_time_fold` (the time the `fold` hinge latched; -1 until then) at the end as
+`deployment_time_s=<value>`.
 Run as a separate process: libcosim may crash at interpreter exit after a slave failure (DESIGN §10).
 """
 import sys
 from pathlib import Path
 
-import numpy as np
 from fmpy import read_model_description
 from libcosimpy.CosimExecution import CosimExecution
 from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
@@ -32,19 +32,15 @@ def main(fmu_dir: Path, step: float, stop: float) -> None:
         execution.connect_real_variables(aero, refs["aero"][f"Q[{i}]"], structure, refs["structure"][f"Q[{i}]"])
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
-    fold = refs["structure"]["fold_angle_fold"]
-    angles = []
-    for _ in range(int(round(stop / step))):
+    latch = refs["structure"]["latch_time_fold"]
+    for k in range(int(round(stop / step))):
         if not execution.step(1):
-            raise SystemExit(f"libcosim step failed at t = {step * len(angles):g} s")
-        angles.append(observer.last_real_values(structure, [fold])[0])
+            raise SystemExit(f"libcosim step failed at t = {step * k:g} s")
+    latch_time = observer.last_real_values(structure, [latch])[0]
     del execution
-    angles = np.array(angles)
-    i = np.flatnonzero((angles[:-1] > 0) & (angles[1:] <= 0))
-    if not len(i):
-        raise SystemExit("the fold angle never reached 0")
-    k = i[0]
-    print(f"deployment_time_s={float(step * (k + 1) + angles[k] / (angles[k] - angles[k + 1]) * step)!r}")
+    if latch_time < 0:
+        raise SystemExit("the fold hinge never latched")
+    print(f"deployment_time_s={float(latch_time)!r}")
 
 
 if __name__ == "__main__":

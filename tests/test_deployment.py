@@ -43,15 +43,18 @@ def one_dof_deployment_time(scene):
     return sol.t_events[0][0]
 
 
-@pytest.mark.parametrize("backend", ["direct", "fmu"])
-def test_rigid_deployment_time_matches_one_dof_ode(tmp_path, backend):
+@pytest.mark.parametrize("backend, step", [("direct", 1e-3), ("fmu", 1e-3), ("fmu", 1e-2)])
+def test_rigid_deployment_time_matches_one_dof_ode(tmp_path, backend, step):
+    """The deployment time is the structure unit's latch time, found within its own 1 ms RK4 step: a 10 ms
+    communication step reads it as exactly (the fold angle sampled at the communication points and
+    interpolated could be late by up to 10 ms, 6%)."""
     scene = load_scene("scenes/deploy_rigid.toml", STILL_AIR)
     expected = one_dof_deployment_time(scene)
     assert main(["run", "scenes/deploy_rigid.toml", "--backend", backend, "--out", str(tmp_path),
-                 "--set", "time.stop=0.2", "--set", STILL_AIR[0]]) == 0
+                 "--set", "time.stop=0.2", "--set", STILL_AIR[0], "--set", f"coupling.step={step}"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "ok"
-    assert summary["deployment_time_s"] == pytest.approx(expected, rel=5e-3)
+    assert summary["deployment_time_s"] == pytest.approx(expected, rel=1e-4)
     assert summary["max_constraint_residual"] < 1e-10
 
 

@@ -95,13 +95,18 @@ def test_variables_match_topology(scene, fmu_dir):
     kinetic = v["kinetic_energy"]
     assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
         "Real", "J", "output", "continuous", "exact")
-    # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, parameters
+    # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, latch
+    # times, parameters
     h = len(topology.hinge_names)
     assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
     assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [
         3 * n + h, 3 * n + h + 1, 3 * n + h + 2]
+    latch = [v[f"latch_time_{x}"] for x in topology.hinge_names]
+    assert [x.valueReference for x in latch] == list(range(3 * n + h + 3, 3 * n + 2 * h + 3))
+    assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
     tunables = StructureSolver.tunable_parameters(scene)
-    assert [v[name].valueReference for name in tunables] == list(range(3 * n + h + 3, 3 * n + h + 3 + len(tunables)))
+    first = 3 * n + 2 * h + 3
+    assert [v[name].valueReference for name in tunables] == list(range(first, first + len(tunables)))
     for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
         p = v[name]
         assert (p.causality, p.variability, p.unit) == ("parameter", "fixed", unit)
@@ -119,7 +124,7 @@ def test_fmu_and_direct_backends_agree(units):
     assert np.max(np.abs(e_f - e_d)) <= 1e-10 and np.max(np.abs(de_f - de_d)) <= 1e-10
     assert np.max(np.abs(de_f)) > 0  # it moved
     m_f, m_d = fmu.monitors(), direct.monitors()
-    assert set(m_f) >= {"energy", "kinetic_energy", "constraint_residual", "fold_angles_deg"}
+    assert set(m_f) >= {"energy", "kinetic_energy", "constraint_residual", "fold_angles_deg", "latch_times"}
     assert set(m_d) == set(m_f)
     assert m_f["fold_angles_deg"] == pytest.approx(m_d["fold_angles_deg"], abs=1e-9)
     assert np.isfinite(m_f["energy"]) and m_f["constraint_residual"] < 1e-4
