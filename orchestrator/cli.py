@@ -137,8 +137,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from orchestrator.master import run_scene
     from orchestrator.plots import write_plots
     from orchestrator.progress import Progress
-    from orchestrator.results import write_results
-    from orchestrator.scene import load_scene
+    from orchestrator.results import deployment_time, write_results
+    from orchestrator.scene import hinge_joints, load_scene
 
     scene = load_scene(args.scene, args.overrides)
     out = args.out or RESULTS_ROOT / scene["name"]
@@ -155,6 +155,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
     print(f"{scene['name']}: {result.status}: {result.message}")
+    if any("stop_angle_deg" in j for j in hinge_joints(scene)):   # the answer a deployment run is for
+        deployed = deployment_time(result.latch_times, scene)
+        print(f"deployment time: {deployed:.6g} s" if deployed is not None else
+              f"not deployed: a hinge had not latched at t = {result.simulated_time_s:g} s")
     print(f"results in {out}")
     return 0 if result.status == "ok" else 1
 

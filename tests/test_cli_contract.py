@@ -335,6 +335,7 @@ def test_run_example_scene(tmp_path, backend):
         "fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
         "lift_coefficient.png", "wake_3d.png"}
     assert "results in" in proc.stdout
+    assert f"deployment time: {summary['deployment_time_s']:.6g} s" in proc.stdout
 
 
 def test_diverging_run_exits_1_and_keeps_its_results(tmp_path):
@@ -346,3 +347,4 @@ def test_diverging_run_exits_1_and_keeps_its_results(tmp_path):
     assert summary["status"] == "diverged" and "diverged" in summary["message"]
     assert summary["simulated_time_s"] < 0.05
     assert (tmp_path / "out" / "timeseries.csv").read_text().startswith("time,")
+    assert f"not deployed: a hinge had not latched at t = {summary['simulated_time_s']:g} s" in proc.stdout
