@@ -1,6 +1,7 @@
 """PNG plots of a run (matplotlib, Agg backend; no display needed).
 
-- ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle;
+- ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle and the time it
+  latched there (the structure unit's latch time, the deployment time of a single hinge);
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
 - ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
@@ -47,6 +48,10 @@ def fold_angles_figure(result: RunResult) -> Figure | None:
         line, = ax.plot(series.time, series.fold_angles_deg[:, i], label=hinge)
         if stops.get(hinge) is not None:
             ax.axhline(stops[hinge], color=line.get_color(), linestyle=":", label=f"{hinge} stop")
+            if hinge in result.latch_times:
+                latched = result.latch_times[hinge]
+                ax.plot([latched], [stops[hinge]], "o", color=line.get_color(),
+                        label=f"{hinge} latched, {latched:.4g} s")
     ax.set(title=_title(result, "fold angles"), xlabel="time (s)", ylabel="fold angle (deg)")
     ax.grid(True, alpha=0.3)
     ax.legend()

@@ -13,7 +13,7 @@ import pytest
 
 from orchestrator.master import RunResult, communication_times, run_scene
 from orchestrator.overrides import apply_overrides
-from orchestrator.plots import write_plots
+from orchestrator.plots import fold_angles_figure, write_plots
 from orchestrator.progress import Progress
 from orchestrator.results import deployment_time, energy_drift, summarize, write_results
 from orchestrator.scene import read_scene_file, resolve_scene
@@ -284,6 +284,12 @@ def test_plots_are_written(scene, tmp_path):
     written = write_plots(synthetic(scene), tmp_path)
     assert {p.name for p in written} == {"fold_angles.png", "probe_displacements.png", "energy_residual.png"}
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+def test_fold_angle_plot_marks_the_latch(scene):
+    markers = [line for line in fold_angles_figure(synthetic(scene)).axes[0].lines if line.get_marker() == "o"]
+    assert [(list(m.get_xdata()), list(m.get_ydata()), m.get_label()) for m in markers] == [
+        ([LATCH], [0.0], "fold latched, 0.0331 s")]
 
 
 # --- the command line -----------------------------------------------------------------------------
