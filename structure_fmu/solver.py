@@ -169,9 +169,11 @@ class StructureSolver:
         old, now = self._evaluated(previous)[2], self._evaluated(new)[2]
         for h in hinges:
             a, b = old[h.name] - h.stop_angle, now[h.name] - h.stop_angle
-            if a > 0 >= b:       # the fold angle reached the stop moving toward it
+            # the fold angle reached the stop, from either side (a wing folded either way); not a jump of the
+            # angle across +-180 deg, where it wraps (a step turns the hinge far less than half a turn)
+            if a * b <= 0 and abs(a - b) < math.pi:
                 new.latched = {**new.latched, h.name: True}
-                fraction = a / (a - b) if a != b else 1.0
+                fraction = a / (a - b) if a != b else 0.0
                 new.latch_times = {**new.latch_times, h.name: previous.t + fraction * (new.t - previous.t)}
                 if hasattr(self.integrator, "reset"):
                     self.integrator.reset()

@@ -87,3 +87,32 @@ def test_fifteen_elements_per_body_start_like_seven():
         angles[n] = result.series.fold_angles_deg[-1, 0]
     assert angles[7] < 165.0                       # it has started to deploy from 170 deg
     assert angles[15] == pytest.approx(angles[7], abs=0.05)
+
+
+MIRRORED = ["structure.joints.fold.initial_angle_deg=-170", "structure.joints.fold.torque=-0.043"]
+
+
+@pytest.mark.parametrize("aero", ["aero.model=none", "aero.model=uvlm-flat"])
+def test_a_wing_folded_the_other_way_latches_at_the_same_time(aero):
+    """Mirrored about the wing plane (fold angle -170 deg, T_const -0.043 N m) the wing is the mirror image of
+    the shipped one (gravity along the span, flow along the chord at zero incidence): the fold angle must be
+    -theta(t) and the latch, now reached from below, at the same time."""
+    runs = [run_scene(load_scene("scenes/deploy_rigid.toml", [aero, "time.stop=0.25", *mirror]), backend="direct")
+            for mirror in ([], MIRRORED)]
+    assert [r.status for r in runs] == ["ok", "ok"]
+    shipped, mirrored = runs
+    np.testing.assert_allclose(mirrored.series.fold_angles_deg, -shipped.series.fold_angles_deg, rtol=0, atol=1e-7)
+    assert mirrored.latch_times["fold"] == pytest.approx(shipped.latch_times["fold"], rel=1e-9)
+    assert 0.15 < shipped.latch_times["fold"] < 0.2
+
+
+def test_a_fold_angle_wrapping_across_180_deg_is_not_a_latch():
+    """Driven the other way (T_const < 0, no spring) the outer body turns through 180 deg, where the fold
+    angle jumps from +180 to -180 deg; that jump is not a crossing of the 0 deg stop."""
+    scene = load_scene("scenes/deploy_rigid.toml", [*STILL_AIR, "time.stop=0.08", "structure.joints.fold.torque=-0.043",
+                                                    "structure.joints.fold.stiffness=0", "structure.joints.fold.damping=0"])
+    result = run_scene(scene, backend="direct")
+    assert result.status == "ok", result.message
+    angles = result.series.fold_angles_deg[:, 0]
+    assert angles.max() > 179.0 and angles[-1] < -150.0          # it turned through 180 deg
+    assert result.latch_times == {}
