@@ -155,10 +155,12 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
     print(f"{scene['name']}: {result.status}: {result.message}")
-    if any("stop_angle_deg" in j for j in hinge_joints(scene)):   # the answer a deployment run is for
+    latching = [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    if latching:   # the answer a deployment run is for
         deployed = deployment_time(result.latch_times, scene)
+        waiting = ", ".join(h for h in latching if h not in result.latch_times)
         print(f"deployment time: {deployed:.6g} s" if deployed is not None else
-              f"not deployed: a hinge had not latched at t = {result.simulated_time_s:g} s")
+              f"not deployed: {waiting} had not latched at t = {result.simulated_time_s:g} s")
     print(f"results in {out}")
     return 0 if result.status == "ok" else 1
 

@@ -353,4 +353,4 @@ def test_diverging_run_exits_1_and_keeps_its_results(tmp_path):
     assert summary["status"] == "diverged" and "diverged" in summary["message"]
     assert summary["simulated_time_s"] < 0.05
     assert (tmp_path / "out" / "timeseries.csv").read_text().startswith("time,")
-    assert f"not deployed: a hinge had not latched at t = {summary['simulated_time_s']:g} s" in proc.stdout
+    assert f"not deployed: fold had not latched at t = {summary['simulated_time_s']:g} s" in proc.stdout
