@@ -7,7 +7,7 @@ Summary fields (SI units, angles in degrees):
   ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
   after ``--set``);
 - ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has latched
-  (for a single hinge: the first time its fold angle reaches the stop moving toward it), as the
+  (for a single hinge: the first time its fold angle reaches the stop, from either side), as the
   structure unit reports it (output ``latch_time_<hinge>``: interpolated within its internal step, not
   between communication points, where the latch has already arrested the fold); null if a hinge never
   latches or no hinge has a stop;
