@@ -324,7 +324,9 @@ class Topology:
         damping = _number(f"{key}.damping", spec.get("damping", 0.0), "C >= 0 (N m s/rad)", lambda v: v >= 0)
         torque = _number(f"{key}.torque", spec.get("torque", 0.0), "T_const (N m)")
         stop = spec.get("stop_angle_deg")
-        stop = None if stop is None else np.radians(_number(f"{key}.stop_angle_deg", stop, "an angle (deg)"))
+        # in (-180, 180) deg like the fold angle itself, which wraps at +-180 (a stop outside is never reached)
+        stop = None if stop is None else np.radians(_number(f"{key}.stop_angle_deg", stop, "an angle in (-180, 180) deg",
+                                                            lambda v: -180 < v < 180))
         latch = _number(f"{key}.latch_factor", spec.get("latch_factor", 1e4), "a factor >= 1", lambda v: v >= 1)
         initial = np.radians(_number(f"{key}.initial_angle_deg", spec.get("initial_angle_deg", 0.0),
                                      "an angle in (-180, 180) deg", lambda v: -180 < v < 180))

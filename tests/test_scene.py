@@ -246,6 +246,15 @@ def test_bad_physics_fails_at_load(tmp_path):
     assert "length" in err.value.key and "-0.15" in str(err.value)
 
 
+@pytest.mark.parametrize("stop", [200, 180, -180])
+def test_a_stop_angle_the_fold_angle_never_reaches_fails_at_load(stop):
+    """The fold angle lies in (-180, 180] deg and a latch across its wrap is not a crossing, so a stop
+    outside (-180, 180) deg would never latch: refused, not a silent 'not deployed'."""
+    with pytest.raises(SceneError) as err:
+        load_scene(EXAMPLE, [f"structure.joints.fold.stop_angle_deg={stop}"])
+    assert err.value.key == "structure.joints[1].stop_angle_deg" and "(-180, 180) deg" in str(err.value)
+
+
 # --- aero scenes: flow.direction and the [motion] / [wing] shorthands ------------------------------
 
 def aero_raw(name):
