@@ -19,7 +19,7 @@ structure unit). ``coupling.algorithm``:
   and its Q at t + h is held for the next structure step.
 - ``jacobi`` (explicit): both units step from the outputs at t (the aero unit with e, de of t held),
   then exchange.
-  A run of either that diverges gets ``explicit_coupling_hint`` appended to its message.
+  A run of either that diverges after its first step gets ``explicit_coupling_hint`` appended to its message.
 - ``implicit``: each step is repeated until the interface force agrees with the motion it produces,
   i.e. a fixed point Q = H(Q) of one Gauss-Seidel pass H: Q_used -> structure step with Q_used held
   over [t, t + h] -> e, de at t + h -> aero step -> Q_new at t + h. Per step:
@@ -260,11 +260,15 @@ def explicit_coupling_hint(series: TimeSeries, algorithm: str, window: int = HIN
     grew: the added-mass instability, or aeroelastic feedback through the lagged force. The swing
     (max - min) of the lift (N; not CL, which is 0 in still air) over the last `window` communication
     points, against the `window` before, tells the two apart (fewer samples: halves of them, at least 5
-    each); implicit coupling removes the exchange's own instability (docs/stability.md)."""
-    text = (f" Explicit {algorithm} coupling can itself be unstable (added mass, or feedback through the lagged "
-            "aero force)")
+    each); implicit coupling removes the exchange's own instability (docs/stability.md). Empty when the
+    run failed in its first communication step: the structure then moved under the force of its initial
+    state alone, and no exchange had happened that could have grown."""
     lift = series.column("lift")
     lift = lift[np.isfinite(lift)]
+    if lift.size < 2:
+        return ""
+    text = (f" Explicit {algorithm} coupling can itself be unstable (added mass, or feedback through the lagged "
+            "aero force)")
     window = min(window, lift.size // 2)
     if window >= 5:
         last, before = np.ptp(lift[-window:]), np.ptp(lift[-2 * window:-window])
