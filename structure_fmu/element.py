@@ -245,11 +245,17 @@ def elastic_jacobian(e, length, stiffness):
     """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18).
 
     Complex-step differentiation of `elastic_force`: exact to round-off (no subtractive cancellation),
-    the 18 perturbed copies of every element in one vectorized force evaluation.
+    the perturbed copies of every element in one vectorized force evaluation. The energy depends on r^A and
+    r^B only through r^B - r^A (a translation does not strain), so only the 15 coordinates after r^A are
+    perturbed and the r^A columns are minus the r^B ones.
     """
     h = 1e-30
     n = e.shape[0]
-    perturbed = np.repeat(e[None].astype(complex), 18, axis=0)            # (18, n, 18): copy k moves e_k
-    perturbed[np.arange(18), :, np.arange(18)] += 1j * h
-    force = elastic_force(perturbed.reshape(-1, 18), np.tile(length, 18), np.tile(stiffness, (18, 1)))
-    return -np.moveaxis(force.imag.reshape(18, n, 18), 0, 2) / h
+    moved = np.arange(3, 18)                                              # r_x^A, r_y^A, r^B, r_x^B, r_y^B
+    perturbed = np.repeat(e[None].astype(complex), moved.size, axis=0)    # (15, n, 18): copy k moves e_moved[k]
+    perturbed[np.arange(moved.size), :, moved] += 1j * h
+    force = elastic_force(perturbed.reshape(-1, 18), np.tile(length, moved.size), np.tile(stiffness, (moved.size, 1)))
+    jacobian = np.empty((n, 18, 18))
+    jacobian[:, :, moved] = -np.moveaxis(force.imag.reshape(moved.size, n, 18), 0, 2) / h
+    jacobian[:, :, :3] = -jacobian[:, :, 9:12]
+    return jacobian
