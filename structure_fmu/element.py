@@ -211,7 +211,8 @@ def elastic_energy(e, length, stiffness):
 def elastic_force(e, length, stiffness):
     """Generalized elastic force -dU/de per element, shape (n, 18) (000 Eq. 4).
 
-    Exact gradient of `elastic_energy`; complex-safe so that `elastic_jacobian` can use complex steps.
+    Exact gradient of `elastic_energy`; complex-safe, so that a complex step differentiates it exactly (the
+    tests' reference for `elastic_jacobian`).
     """
     m = _measures(e, length)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
@@ -241,21 +242,90 @@ def elastic_force(e, length, stiffness):
     return -grad.reshape(-1, 18)
 
 
-def elastic_jacobian(e, length, stiffness):
-    """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18).
+_EPSILON = np.zeros((3, 3, 3))   # Levi-Civita symbol
+_EPSILON[0, 1, 2] = _EPSILON[1, 2, 0] = _EPSILON[2, 0, 1] = 1.0
+_EPSILON[0, 2, 1] = _EPSILON[2, 1, 0] = _EPSILON[1, 0, 2] = -1.0
+# e's six nodal vectors [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B] from the slots [d, x^A, y^A, x^B, y^B]
+_NODE_COMPONENTS = (3 * np.array([0, 1, 2, 0, 3, 4])[:, None] + np.arange(3)).ravel()    # (18,) into 15
+_NODE_SIGNS = np.repeat([-1.0, 1.0, 1.0, 1.0, 1.0, 1.0], 3)                             # r^A = -d
+_FIELD_CACHE = {}
 
-    Complex-step differentiation of `elastic_force`: exact to round-off (no subtractive cancellation),
-    the perturbed copies of every element in one vectorized force evaluation. The energy depends on r^A and
-    r^B only through r^B - r^A (a translation does not strain), so only the 15 coordinates after r^A are
-    perturbed and the r^A columns are minus the r^B ones.
+
+def _triple_hessian(c):
+    """d^2 [(a x b) . c] / da db = eps_ijk c_k, (..., 3, 3); the other blocks follow by cyclic order:
+    d^2/da dc = -eps(b), d^2/db dc = eps(a)."""
+    return np.einsum("ijk,...k->...ij", _EPSILON, c)
+
+
+def _field_basis(length):
+    """(n, g, 9, 15): [r'; r''; r_y] at each Gauss point from the 15 slot components, kron of `_slot_basis`
+    with I_3, cached per lengths."""
+    length = np.asarray(length, dtype=float)
+    key = length.tobytes()
+    if key not in _FIELD_CACHE:
+        if len(_FIELD_CACHE) > 64:
+            _FIELD_CACHE.clear()
+        g = len(GAUSS_W)
+        basis = _slot_basis(length).reshape(-1, 3, g, 5).transpose(0, 2, 1, 3)          # (n, g, field, slot)
+        _FIELD_CACHE[key] = np.einsum("ngas,ij->ngaisj", basis, np.eye(3)).reshape(-1, g, 9, 15)
+    return _FIELD_CACHE[key]
+
+
+def elastic_jacobian(e, length, stiffness):
+    """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18): the exact second derivative of
+    `elastic_energy`.
+
+    Per Gauss point, the bending and arc-stretch terms are functions of the fields (r', r'', r_y): their
+    Hessian there is c (grad m grad m^T + m Hess m) for each squared measure m (flap = (r' x r_y) . r'' has
+    Levi-Civita blocks, chordwise = r'' . r_y identity blocks, |r'| the projector (I - u u^T) / |r'|), mapped
+    to the slots [d, x^A, y^A, x^B, y^B] by `_field_basis`; the axial quadratic form couples the stretches'
+    gradients across points and nodes; torsion is two triple products of nodal vectors. r^A enters only as
+    -d (a translation does not strain). Checked against complex-step and finite differences of
+    `elastic_force` (tests/test_element.py).
     """
-    h = 1e-30
-    n = e.shape[0]
-    moved = np.arange(3, 18)                                              # r_x^A, r_y^A, r^B, r_x^B, r_y^B
-    perturbed = np.repeat(e[None].astype(complex), moved.size, axis=0)    # (15, n, 18): copy k moves e_moved[k]
-    perturbed[np.arange(moved.size), :, moved] += 1j * h
-    force = elastic_force(perturbed.reshape(-1, 18), np.tile(length, moved.size), np.tile(stiffness, (moved.size, 1)))
-    jacobian = np.empty((n, 18, 18))
-    jacobian[:, :, moved] = -np.moveaxis(force.imag.reshape(moved.size, n, 18), 0, 2) / h
-    jacobian[:, :, :3] = -jacobian[:, :, 9:12]
-    return jacobian
+    m = _measures(e, length)
+    n, eye = e.shape[0], np.eye(3)
+    EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
+    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
+    cf, cc = w * EIy[:, None], w * EIz[:, None]
+    r1, r2, ry, speed = m["r1"], m["r2"], m["ry"], m["speed"]
+    # per Gauss point over the fields (r', r'', r_y): (n, g, 9, 9)
+    grad_flap = np.concatenate([m["ry_r2"], m["normal"], m["r2_r1"]], axis=-1)
+    grad_chord = np.concatenate([np.zeros_like(r2), ry, r2], axis=-1)
+    H = (cf[..., None, None] * (grad_flap[..., :, None] * grad_flap[..., None, :])
+         + cc[..., None, None] * (grad_chord[..., :, None] * grad_chord[..., None, :]))
+    flap = (cf * m["flap"])[..., None, None]
+    chord = (cc * m["chordwise"])[..., None, None]
+    f_axial = (EA * length)[:, None] * (m["axial"] @ AXIAL_GRAM)         # dU/d(eps_A, eps_B, eps_arc)
+    unit = r1 / speed[..., None]
+    arc = (f_axial[:, 2:3] * GAUSS_W[None, :] / speed)[..., None, None]
+    upper = {(0, 2): flap * _triple_hessian(r2), (0, 1): -flap * _triple_hessian(ry),   # flap: a = r', b = r_y,
+             (2, 1): flap * _triple_hessian(r1) + chord * eye}                           # c = r''
+    for (a, b), block in upper.items():
+        H[..., 3 * a:3 * a + 3, 3 * b:3 * b + 3] += block
+        H[..., 3 * b:3 * b + 3, 3 * a:3 * a + 3] += np.swapaxes(block, -1, -2)
+    H[..., 0:3, 0:3] += arc * (eye - unit[..., :, None] * unit[..., None, :])
+    fields = _field_basis(length)
+    hessian = (np.swapaxes(fields, -1, -2) @ H @ fields).sum(axis=1)    # (n, 15, 15) on the slots
+    # axial: EA l grad(eps)^T AXIAL_GRAM grad(eps), and the nodal stretches' own curvature
+    nodal = m["nodal"]
+    uA, uB = m["xA"] / nodal[:, :1], m["xB"] / nodal[:, 1:]
+    grad_axial = np.zeros((n, 3, 15))
+    grad_axial[:, 0, 3:6], grad_axial[:, 1, 9:12] = uA, uB
+    grad_axial[:, 2] = np.einsum("g,ngi,ngis->ns", GAUSS_W, unit, fields[:, :, 0:3])
+    hessian += (EA * length)[:, None, None] * (np.swapaxes(grad_axial, 1, 2) @ AXIAL_GRAM @ grad_axial)
+    hessian[:, 3:6, 3:6] += (f_axial[:, 0] / nodal[:, 0])[:, None, None] * (eye - uA[:, :, None] * uA[:, None, :])
+    hessian[:, 9:12, 9:12] += (f_axial[:, 1] / nodal[:, 1])[:, None, None] * (eye - uB[:, :, None] * uB[:, None, :])
+    # torsion: GJ / l (grad tau grad tau^T + tau Hess tau), tau = 1/2 [(xA x yA) . yB - (xB x yB) . yA]
+    xA, yA, xB, yB = m["xA"], m["yA"], m["xB"], m["yB"]
+    xA_yA, xB_yB, yA_yB, yB_xA, yA_xB = (m["triple"][:, k] for k in range(5))
+    grad_tau = np.concatenate([np.zeros_like(xA), 0.5 * yA_yB, 0.5 * (yB_xA - xB_yB), 0.5 * yA_yB,
+                               0.5 * (xA_yA - yA_xB)], axis=-1)
+    ct = GJ / length
+    hessian += ct[:, None, None] * (grad_tau[:, :, None] * grad_tau[:, None, :])
+    blocks = np.zeros((n, 15, 15))
+    for (p, q, r), sign, (a, b, c) in (((1, 2, 4), 0.5, (xA, yA, yB)), ((3, 4, 2), -0.5, (xB, yB, yA))):
+        for (i, j), block in (((p, q), _triple_hessian(c)), ((p, r), -_triple_hessian(b)), ((q, r), _triple_hessian(a))):
+            blocks[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += sign * block
+    hessian += (ct * m["tau"])[:, None, None] * (blocks + np.swapaxes(blocks, 1, 2))
+    return hessian[:, _NODE_COMPONENTS][:, :, _NODE_COMPONENTS] * (_NODE_SIGNS[:, None] * _NODE_SIGNS[None, :])
