@@ -196,12 +196,12 @@ class Unit:
 
     def monitors(self) -> dict:
         m = self._get_mon() if self._monitor_values is None else self._monitor_values
-        k = 2 * len(self.hinges)
-        out = {name: float(v) for name, v in zip(self._monitor_names, m[k:])}
+        h = len(self.hinges)
+        angles, latch_times = m[:h], m[h:2 * h]          # the order of monitor_vrs in __init__
+        out = {name: float(v) for name, v in zip(self._monitor_names, m[2 * h:])}
         if self._spec.hinge_monitors:
-            angles, latch_times = m[:k // 2], m[k // 2:k]
-            out["fold_angles_deg"] = {h: float(a) for h, a in zip(self.hinges, angles)}
-            out["latch_times"] = {h: float(t) for h, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
+            out["fold_angles_deg"] = {name: float(a) for name, a in zip(self.hinges, angles)}
+            out["latch_times"] = {name: float(t) for name, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
         return out
 
     def get_state(self):

@@ -273,7 +273,7 @@ def _field_basis(length):
 
 def elastic_jacobian(e, length, stiffness):
     """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18): the exact second derivative of
-    `elastic_energy`.
+    `elastic_energy` (000 Eqs. 7-11 with the definitions of the module docstring).
 
     Per Gauss point, the bending and arc-stretch terms are functions of the fields (r', r'', r_y): their
     Hessian there is c (grad m grad m^T + m Hess m) for each squared measure m (flap = (r' x r_y) . r'' has
