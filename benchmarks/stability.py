@@ -66,7 +66,7 @@ sys.path.insert(0, str(ROOT))
 from orchestrator import units as real_units  # noqa: E402
 from orchestrator.master import run_scene  # noqa: E402
 from orchestrator.scene import load_scene  # noqa: E402
-from structure_fmu.modes import natural_frequencies  # noqa: E402
+from structure_fmu.modes import natural_frequencies, natural_modes  # noqa: E402
 from structure_fmu.solver import StructureSolver  # noqa: E402
 from structure_fmu.topology import Topology  # noqa: E402
 
@@ -444,15 +444,15 @@ def lattice_added_mass():
     largest generalized eigenvalue of (M_a, M) on the wing's free coordinates (tangent to the constraints), and
     the ratio of modal masses phi^T M_a phi / phi^T M phi of the first bending mode phi. M_a = -dQ/d(de') column
     by column from aero steps with de growing linearly in time (dGamma/dt is then exact), M the structure's mass.
-    modal, per structural mode (K phi = omega^2 M phi at rest): "omega" (rad/s), "mu" (its added-mass ratio
-    per kg/m^3) and "kinetic" (J per N^2: the peak kinetic energy 1/2 (phi . f)^2 / omega^2 of the mode under
-    the suddenly applied tip load f of 1 N; summed over the modes it is P delta_s / 2 for P = 1 N)."""
+    modal, per structural mode (`structure_fmu.modes.natural_modes`, mass-normalized): "omega" (rad/s), "mu"
+    (its added-mass ratio per kg/m^3) and "kinetic" (the peak kinetic energy 1/2 (phi . f)^2 / omega^2 of the
+    mode under the suddenly applied tip load f, in units of P delta_s; summed over the modes it is 1/2)."""
     from aero_fmu.solver import AeroSolver
-    from scipy.linalg import eig, eigh, null_space
+    from scipy.linalg import eigvals
 
     scene = load_scene(SCENE, ["aero.model=uvlm-flat"])
-    model = StructureSolver(scene).model
-    q = StructureSolver(scene).state.q
+    solver = StructureSolver(scene)
+    model, q = solver.model, solver.state.q
     E0, _, _ = model.coordinates(q, np.zeros_like(q), 0.0)
     h, scale = 1e-3, 1e-3
     columns = []
@@ -461,19 +461,16 @@ def lattice_added_mass():
         for k in range(3):
             aero.advance(k * h, E0, k * h * scale * model.T[:, j])
         columns.append(-aero.Q / scale)
-    N = null_space(model.constraints.jacobian(E0))
-    added = N.T @ model.T.T @ np.array(columns).T @ N
-    mass = N.T @ model.mass_q @ N
-    K, _ = model.tangent_E(E0, np.zeros_like(E0), {})
-    stiffness = N.T @ model.T.T @ K @ model.T @ N
-    omega2, modes = eigh(0.5 * (stiffness + stiffness.T), mass)        # modes mass-normalized
-    ratios = np.einsum("ki,kl,li->i", modes, added, modes)              # phi^T M_a phi / phi^T M phi per mode
-    P, _ = load_scale(scene)
+    omega, shapes = natural_modes(solver)
+    # the mass-normalized shapes span the constraints' tangent space: (M_a, M) there is shapes^T M_a shapes
+    added = shapes.T @ model.T.T @ np.array(columns).T @ shapes
+    ratios = np.diag(added)                                             # phi^T M_a phi / phi^T M phi per mode
+    P, delta = load_scale(scene)
     load = model.force_E(E0, np.zeros_like(E0), 1.0, np.zeros_like(E0), {}) - model.gravity_E   # the tip load
-    modal_force = modes.T @ (N.T @ model.T.T @ load) / P                # per newton of P
-    modal = {"omega": np.sqrt(np.maximum(omega2, 0.0)), "mu": ratios,
-             "kinetic": 0.5 * modal_force ** 2 / np.maximum(omega2, np.finfo(float).tiny)}
-    return float(np.max(eig(added, mass, right=False).real)), float(ratios[0]), modal
+    modal_force = shapes.T @ (model.T.T @ load)
+    modal = {"omega": omega, "mu": ratios,
+             "kinetic": 0.5 * modal_force ** 2 / np.maximum(omega ** 2, np.finfo(float).tiny) / (P * delta)}
+    return float(np.max(eigvals(added).real)), float(ratios[0]), modal
 
 
 def lift_slope():
@@ -498,14 +495,12 @@ def estimates():
     section, span = body["section"], body["length"]
     c, M = section["chord"], scene["aero"]["chordwise_panels"]
     mu_max, mu_1, modal = lattice_added_mass()
-    P, delta = load_scale(scene)
     slope = lift_slope()
     e = (section.get("axis_position", 0.5) - 0.25) * c                   # m, aerodynamic centre ahead of the axis
     _, _, substeps = SUBSTEP_CASE
     return {"m_s": section["density"] * c * section["thickness"],        # kg/m, structure per unit span
             "plate": math.pi * c ** 2 / 4,                               # m^2: m_a = rho pi c^2 / 4 per kg/m^3
             "model_factor": 3 + 1 / M, "M": M, "mu_max": mu_max, "mu_1": mu_1, "modal": modal,
-            "P": P, "delta": delta,
             "mu_crit": {a: critical_mass_ratio(lag) for a, lag in (("gauss-seidel", 0), ("jacobi", 1))},
             "mu_crit_plain": {a: critical_mass_ratio(lag, substeps=256) for a, lag in (("gauss-seidel", 0),
                                                                                      ("jacobi", 1))},
@@ -526,10 +521,9 @@ def modal_growth(est, algorithm, factor):
     1.2 kg/m^3; a decaying mode keeps its start), the largest of them. Above 1 the run breaks the energy bound."""
     modal, lag = est["modal"], {"gauss-seidel": 0, "jacobi": 1}[algorithm]
     steps = round(COUPLED_STOP / COUPLING_STEP)
-    start = modal["kinetic"] * est["P"] ** 2 / (est["P"] * est["delta"])
     growth = np.array([max(1.0, coupled_mode_radius(mu * AIR * factor, lag, omega * COUPLING_STEP)) ** (2 * steps)
                        for mu, omega in zip(modal["mu"], modal["omega"])])
-    energy = start * growth
+    energy = modal["kinetic"] * growth
     mode = int(np.argmax(energy))
     return float(energy[mode]), mode
 
@@ -903,7 +897,7 @@ def modal_section(jobs, res, est, V):
             "differently from a free mass: `coupled_mode_radius` takes one structural mode (its omega h, its own",
             "added-mass ratio phi^T M_a phi / phi^T M phi) through the same coupled step, and `modal_growth` starts",
             "each mode with its peak kinetic energy under the sudden tip load (summed over the modes:",
-            f"{modal['kinetic'].sum() * est['P'] ** 2 * 1e3:.4g} mJ = P delta_s / 2, the physical bound) and grows it by",
+            f"{modal['kinetic'].sum():.4f} P delta_s, the physical bound 1/2) and grows it by",
             f"the step's spectral radius squared over the run's {steps} steps. The largest mode's predicted peak "
             "kinetic energy / (P delta_s), against the map's bound 1 and the measured run:",
             "",

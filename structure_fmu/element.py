@@ -25,6 +25,8 @@ Elastic energy (000 Eq. 7) and its definitions, written down here because the pa
   so the energy is integrated exactly by 5-point Gauss quadrature and its gradient is exact.
   Every measure vanishes for any rigid motion, so a rigid motion gives zero elastic force.
 """
+import functools
+
 import numpy as np
 
 # Gauss-Legendre points and weights on [0, 1]; 5 points integrate degree 9 exactly.
@@ -54,18 +56,27 @@ _PHI = np.stack([1 - GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI), GAUSS_XI - 3 * GA
                  6 * GAUSS_XI * (1 - GAUSS_XI)])
 AXIAL_GRAM = (_PHI * GAUSS_W) @ _PHI.T
 
-_BASIS_CACHE = {}
+def _cached_per_lengths(build):
+    """`build(length)` cached per array of element lengths (constant in a run): the bases below are built
+    once per model; at most 64 kept."""
+    cache = {}
+
+    @functools.wraps(build)
+    def cached(length):
+        length = np.asarray(length, dtype=float)
+        key = length.tobytes()
+        if key not in cache:
+            if len(cache) > 64:
+                cache.clear()
+            cache[key] = build(length)
+        return cache[key]
+    return cached
 
 
+@_cached_per_lengths
 def gauss_basis(length):
     """hermite() at the Gauss points for each element length, (n, 5, .), cached (lengths are constant)."""
-    length = np.asarray(length, dtype=float)
-    key = length.tobytes()
-    if key not in _BASIS_CACHE:
-        if len(_BASIS_CACHE) > 64:
-            _BASIS_CACHE.clear()
-        _BASIS_CACHE[key] = hermite(GAUSS_XI[None, :], length[:, None])
-    return _BASIS_CACHE[key]
+    return hermite(GAUSS_XI[None, :], length[:, None])
 
 
 def shape_row(x, y, length):
@@ -147,28 +158,22 @@ def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
 
 
-_SLOT_CACHE = {}
 _G = len(GAUSS_W)
 _CYCLE = (np.r_[2 * _G:3 * _G, _G:2 * _G, 0:_G], np.r_[_G:2 * _G, 0:_G, 2 * _G:3 * _G])   # rows (r_y, r'', r'), (r'', r', r_y)
 
 
+@_cached_per_lengths
 def _slot_basis(length):
     """B (n, 3 g, 5): [r'; r''; r_y] at the g Gauss points (rows k g + i) from the five vectors
     [d = r^B - r^A, r_x^A, r_y^A, r_x^B, r_y^B] of each element, cached per lengths. r^A enters only through
     d because N_A' = -N_B' and N_A'' = -N_B''; r' = B[:g] @ slots, and the gradient of a function of
     (r', r'', r_y) at the Gauss points maps back by B^T: one batched product each way."""
-    length = np.asarray(length, dtype=float)
-    key = length.tobytes()
-    if key not in _SLOT_CACHE:
-        if len(_SLOT_CACHE) > 64:
-            _SLOT_CACHE.clear()
-        _, dN, ddN, L = gauss_basis(length)
-        zero = np.zeros_like(L[..., 0])
-        first = np.stack([dN[..., 2], dN[..., 1], zero, dN[..., 3], zero], axis=-1)
-        second = np.stack([ddN[..., 2], ddN[..., 1], zero, ddN[..., 3], zero], axis=-1)
-        chord = np.stack([zero, zero, L[..., 0], zero, L[..., 1]], axis=-1)
-        _SLOT_CACHE[key] = np.concatenate([first, second, chord], axis=1)
-    return _SLOT_CACHE[key]
+    _, dN, ddN, L = gauss_basis(length)
+    zero = np.zeros_like(L[..., 0])
+    first = np.stack([dN[..., 2], dN[..., 1], zero, dN[..., 3], zero], axis=-1)
+    second = np.stack([ddN[..., 2], ddN[..., 1], zero, ddN[..., 3], zero], axis=-1)
+    chord = np.stack([zero, zero, L[..., 0], zero, L[..., 1]], axis=-1)
+    return np.concatenate([first, second, chord], axis=1)
 
 
 def _measures(e, length):
@@ -248,7 +253,6 @@ _EPSILON[0, 2, 1] = _EPSILON[2, 1, 0] = _EPSILON[1, 0, 2] = -1.0
 # e's six nodal vectors [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B] from the slots [d, x^A, y^A, x^B, y^B]
 _NODE_COMPONENTS = (3 * np.array([0, 1, 2, 0, 3, 4])[:, None] + np.arange(3)).ravel()    # (18,) into 15
 _NODE_SIGNS = np.repeat([-1.0, 1.0, 1.0, 1.0, 1.0, 1.0], 3)                             # r^A = -d
-_FIELD_CACHE = {}
 
 
 def _triple_hessian(c):
@@ -257,18 +261,13 @@ def _triple_hessian(c):
     return np.einsum("ijk,...k->...ij", _EPSILON, c)
 
 
+@_cached_per_lengths
 def _field_basis(length):
     """(n, g, 9, 15): [r'; r''; r_y] at each Gauss point from the 15 slot components, kron of `_slot_basis`
     with I_3, cached per lengths."""
-    length = np.asarray(length, dtype=float)
-    key = length.tobytes()
-    if key not in _FIELD_CACHE:
-        if len(_FIELD_CACHE) > 64:
-            _FIELD_CACHE.clear()
-        g = len(GAUSS_W)
-        basis = _slot_basis(length).reshape(-1, 3, g, 5).transpose(0, 2, 1, 3)          # (n, g, field, slot)
-        _FIELD_CACHE[key] = np.einsum("ngas,ij->ngaisj", basis, np.eye(3)).reshape(-1, g, 9, 15)
-    return _FIELD_CACHE[key]
+    g = len(GAUSS_W)
+    basis = _slot_basis(length).reshape(-1, 3, g, 5).transpose(0, 2, 1, 3)          # (n, g, field, slot)
+    return np.einsum("ngas,ij->ngaisj", basis, np.eye(3)).reshape(-1, g, 9, 15)
 
 
 def elastic_jacobian(e, length, stiffness):

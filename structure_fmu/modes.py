@@ -9,9 +9,10 @@ import numpy as np
 from scipy.linalg import eigh, null_space
 
 
-def natural_frequencies(solver, count=6):
-    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state
-    (all of them if count is None)."""
+def natural_modes(solver):
+    """(omega (k,) rad/s ascending, shapes (n_q, k)) of `solver`'s structure at its current state: every
+    mode of the tangent space, the shapes on the free coordinates q and mass-normalized
+    (shapes^T M_q shapes = I)."""
     model = solver.model
     state = solver.state
     E, dE, _ = model.coordinates(state.q, np.zeros_like(state.q), state.t)
@@ -23,5 +24,12 @@ def natural_frequencies(solver, count=6):
         N = np.eye(len(state.q))
     T = model.T @ N
     stiffness, mass = T.T @ K @ T, N.T @ model.mass_q @ N
-    eigenvalues = eigh(0.5 * (stiffness + stiffness.T), mass, eigvals_only=True)
-    return np.sqrt(np.clip(eigenvalues if count is None else eigenvalues[:count], 0.0, None))
+    eigenvalues, z = eigh(0.5 * (stiffness + stiffness.T), mass)
+    return np.sqrt(np.clip(eigenvalues, 0.0, None)), N @ z
+
+
+def natural_frequencies(solver, count=6):
+    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state
+    (all of them if count is None)."""
+    omega, _ = natural_modes(solver)
+    return omega if count is None else omega[:count]
