@@ -685,7 +685,7 @@ def run_on_jobs(jobs, res):
 
 def run_on_pairs(jobs, res):
     """(part 2 job, the row of its RunOnPoint) for each run the units did not report that was run on."""
-    pairs = [(j, RunOnPoint(j.algorithm, j.V, j.factor)) for j, _ in unflagged(jobs, res)]
+    pairs = zip((j for j, _ in unflagged(jobs, res)), run_on_jobs(jobs, res))
     return [(j, res[k]) for j, k in pairs if k in res]
 
 
