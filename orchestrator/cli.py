@@ -137,8 +137,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from orchestrator.master import run_scene
     from orchestrator.plots import write_plots
     from orchestrator.progress import Progress
-    from orchestrator.results import deployment_time, write_results
-    from orchestrator.scene import hinge_joints, load_scene
+    from orchestrator.results import deployment_time, latching_hinges, write_results
+    from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     out = args.out or RESULTS_ROOT / scene["name"]
@@ -155,7 +155,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
     print(f"{scene['name']}: {result.status}: {result.message}")
-    latching = [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    latching = latching_hinges(scene)
     if latching:   # the answer a deployment run is for
         deployed = deployment_time(result.latch_times, scene)
         waiting = ", ".join(h for h in latching if h not in result.latch_times)

@@ -56,10 +56,15 @@ ENERGY_FLOOR_J = 1e-12
 does not divide by zero."""
 
 
+def latching_hinges(scene: dict) -> list[str]:
+    """Names of the scene's hinges that have a stop angle (they latch there), in scene order."""
+    return [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+
+
 def deployment_time(latch_times: dict[str, float], scene: dict) -> float | None:
     """Time (s) at which every hinge with a stop angle has latched, from the structure unit's latch times
     {hinge: s} (``RunResult.latch_times``); None if one has not or no hinge has a stop."""
-    stops = [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    stops = latching_hinges(scene)
     if not stops or any(h not in latch_times for h in stops):
         return None
     return float(max(latch_times[h] for h in stops))
