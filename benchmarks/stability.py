@@ -1279,8 +1279,9 @@ def main(argv=None):
     for a in ALGORITHMS if 2 in parts else ():
         if any(j.algorithm == a for j in parts[2]):
             print(f"\n{a}\n" + "\n".join(table_map(a, parts[2], res)))
-    if 2 in parts and run_on_pairs(parts[2], res):
-        print("\n" + "\n".join(run_on_section(run_on_pairs(parts[2], res))))
+    run_on = run_on_pairs(parts[2], res) if 2 in parts else []
+    if run_on:
+        print("\n" + "\n".join(run_on_section(run_on)))
     if 3 in parts:
         print("\n" + "\n".join(table_line(parts[3], res)))
     if 4 in parts:
