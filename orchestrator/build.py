@@ -7,7 +7,9 @@ Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
 `aero_fmu/` and `structure_fmu/` for the aero unit, copied as *.py files only), `scene.json`, and
 `build_info.json` (digests used by `fmus_up_to_date`).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
-The FMUs do not bundle Python, numpy or scipy: the host needs them (see README).
+The FMUs do not bundle Python, numpy or scipy: they run in the Python environment they were built in.
+Their Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without
+one and forwards every FMI call to pythonfmu's binary.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from orchestrator import native_binary
 from structure_fmu.fmi_slave import SCENE_RESOURCE
 
 BUILD_INFO_RESOURCE = "build_info.json"
@@ -127,7 +130,13 @@ def _build_info(kind: str, scene: dict) -> dict:
         h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
     scene_text = json.dumps(scene, sort_keys=True)
     return {"unit": kind, "sources_sha256": h.hexdigest(),
-            "scene_sha256": hashlib.sha256(scene_text.encode()).hexdigest()}
+            "scene_sha256": hashlib.sha256(scene_text.encode()).hexdigest(),
+            "native_binary_sha256": native_binary.source_digest()}
+
+
+def source_digest(kind: str) -> str:
+    """The `sources_sha256` an FMU of `kind` built now from the installed sources would carry."""
+    return _build_info(kind, {})["sources_sha256"]
 
 
 def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
@@ -154,6 +163,7 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
         try:
             FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
                                  canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+            _native_binary(partial, dest)
         except SceneError:
             partial.unlink(missing_ok=True)
             raise
@@ -169,6 +179,17 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
                 sys.modules[script.stem] = saved_module
     os.replace(partial, dest)  # atomic: a failed build never leaves a half-written FMU behind
     return dest
+
+
+def _native_binary(fmu: Path, dest: Path) -> None:
+    """Give `fmu` the shim as its Linux binary; without a C compiler it keeps pythonfmu's, and says so."""
+    try:
+        native_binary.install_shim(fmu)
+    except native_binary.ShimUnavailable as missing:
+        print(f"warning: {dest}: {missing}. The FMU keeps pythonfmu's own binary: it runs only in Python "
+              "hosts (wingsim run, fmpy, libcosimpy), not in C tools such as the FMI Compliance Checker, "
+              "and a call the unit refuses returns fmi2OK with the reason logged at error status.",
+              file=sys.stderr)
 
 
 def _check_scene(kind: str, scene: dict) -> None:

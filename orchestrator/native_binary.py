@@ -1,0 +1,170 @@
+"""The FMU's native binary: a C shim (`fmi_shim.c`) in place of pythonfmu's Linux binary.
+
+pythonfmu's `binaries/linux64/<id>.so` takes the Python C API from the host process, so only a Python
+host can load it. `install_shim(fmu)` compiles `fmi_shim.c` with the system C compiler (`$CC`, else
+`cc`) for the interpreter running the build, makes it `binaries/linux64/<id>.so` and keeps pythonfmu's
+binary beside it as `<id>_pythonfmu.so`. The shim starts this interpreter's shared libpython, with this
+environment's python as program name, in a host without Python; in a Python host it uses the host's
+interpreter. Either way the FMU runs on the machine and in the Python environment it was built in.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+SHIM_SOURCE = Path(__file__).with_name("fmi_shim.c")
+PLATFORM_DIR = "binaries/linux64"
+INNER_SUFFIX = "_pythonfmu"
+
+
+class ShimUnavailable(RuntimeError):
+    """The shim cannot be built with this interpreter and compiler (no C compiler, no shared libpython,
+    missing headers); the message says what is missing."""
+
+
+def source_digest() -> str:
+    """SHA-256 of the shim's source: an FMU built with another shim is out of date."""
+    return hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest()
+
+
+def inner_name(model_identifier: str) -> str:
+    """File name of pythonfmu's binary inside the FMU once the shim replaces it."""
+    return f"{model_identifier}{INNER_SUFFIX}.so"
+
+
+def install_shim(fmu: Path, libpython: str | None = None, python: str | None = None) -> None:
+    """Replace pythonfmu's Linux binary in `fmu` (rewritten in place) by the shim.
+
+    `libpython` and `python` default to this interpreter's shared library and `sys.executable`;
+    tests override them to make an FMU whose build environment is gone.
+    Raises ShimUnavailable when something the shim needs is missing, RuntimeError if the compiler fails.
+    """
+    fmu = Path(fmu)
+    compiler = _compiler()
+    libpython = libpython or _libpython()
+    python = python or sys.executable
+    if not python:
+        raise ShimUnavailable("this interpreter does not know its own executable (sys.executable is empty)")
+    with zipfile.ZipFile(fmu) as z:
+        guid, model_identifier = _identity(z.read("modelDescription.xml"))
+        names = set(z.namelist())
+        kept = f"{PLATFORM_DIR}/{inner_name(model_identifier)}"  # an FMU that has the shim already
+        pythonfmu_binary = z.read(kept if kept in names else f"{PLATFORM_DIR}/{model_identifier}.so")
+    with tempfile.TemporaryDirectory(prefix="wingsim_shim_") as tmp:
+        shim = Path(tmp) / f"{model_identifier}.so"
+        defines = {"SHIM_LIBPYTHON": libpython, "SHIM_PYTHON": python, "SHIM_GUID": guid,
+                   "SHIM_INNER": inner_name(model_identifier)}
+        command = compiler + ["-shared", "-fPIC", "-O2", "-pthread", "-Wall",
+                              "-I", str(_fmi_headers()), "-I", str(_python_headers())]
+        command += [f"-D{name}={_c_string(value)}" for name, value in defines.items()]
+        command += ["-o", str(shim), str(SHIM_SOURCE), "-ldl"]
+        proc = subprocess.run(command, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"compiling the FMU's native binary failed ({shlex.join(command)}):\n"
+                               f"{proc.stderr.strip()}")
+        _replace_binary(fmu, model_identifier, shim.read_bytes(), pythonfmu_binary)
+
+
+def unavailable_reason() -> str | None:
+    """What is missing to build the shim with this interpreter, or None if nothing is."""
+    try:
+        _compiler(), _libpython(), _python_headers(), _fmi_headers()
+    except ShimUnavailable as missing:
+        return str(missing)
+    return None
+
+
+def _compiler() -> list[str]:
+    if not sys.platform.startswith("linux"):
+        raise ShimUnavailable(f"the shim is built for Linux only, not {sys.platform}")
+    cc = shlex.split(os.environ.get("CC", "") or "cc")
+    if not cc or shutil.which(cc[0]) is None:
+        raise ShimUnavailable(f"no C compiler: {cc[0] if cc else 'cc'} (from $CC, else cc) was not found")
+    return cc
+
+
+def _libpython() -> str:
+    if not sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        raise ShimUnavailable(f"this Python ({sys.executable}) has no shared libpython "
+                              "(it was built without --enable-shared)")
+    name = sysconfig.get_config_var("INSTSONAME") or sysconfig.get_config_var("LDLIBRARY")
+    path = Path(sysconfig.get_config_var("LIBDIR") or "") / (name or "")
+    if not name or not path.is_file():
+        raise ShimUnavailable(f"the shared libpython of this Python was not found (looked for {path})")
+    return str(path)
+
+
+def _python_headers() -> Path:
+    include = Path(sysconfig.get_config_var("INCLUDEPY") or "")
+    if not (include / "Python.h").is_file():
+        raise ShimUnavailable(f"the Python headers are missing (no Python.h in {include}; a python3-dev "
+                              "package provides them)")
+    return include
+
+
+def _fmi_headers() -> Path:
+    spec = importlib.util.find_spec("fmpy")
+    folders = list(spec.submodule_search_locations or []) if spec else []
+    for folder in folders:
+        if (Path(folder) / "c-code" / "fmi2Functions.h").is_file():
+            return Path(folder) / "c-code"
+    raise ShimUnavailable("the FMI 2.0 headers (fmpy/c-code/fmi2Functions.h) were not found")
+
+
+def _identity(model_description: bytes) -> tuple[str, str]:
+    """(GUID, Co-Simulation modelIdentifier) of a modelDescription.xml."""
+    root = ET.fromstring(model_description)
+    cs = root.find("CoSimulation")
+    if cs is None or not root.get("guid") or not cs.get("modelIdentifier"):
+        raise RuntimeError("modelDescription.xml has no guid or no CoSimulation modelIdentifier")
+    return root.get("guid"), cs.get("modelIdentifier")
+
+
+def _c_string(text: str) -> str:
+    """`text` as a C string literal (UTF-8, every byte outside printable ASCII escaped in octal)."""
+    out = []
+    for byte in text.encode("utf-8"):
+        ch = chr(byte)
+        if ch in '"\\' or not 32 <= byte < 127:
+            out.append(f"\\{byte:03o}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _replace_binary(fmu: Path, model_identifier: str, shim: bytes, pythonfmu_binary: bytes) -> None:
+    """Rewrite `fmu` with `shim` as the Linux binary and pythonfmu's beside it."""
+    binary = f"{PLATFORM_DIR}/{model_identifier}.so"
+    kept = f"{PLATFORM_DIR}/{inner_name(model_identifier)}"
+    rewritten = fmu.with_name(fmu.name + ".shim")
+    try:
+        with zipfile.ZipFile(fmu) as old, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
+            for info in old.infolist():
+                if info.filename == kept:
+                    continue
+                if info.filename == binary:
+                    new.writestr(_executable_entry(binary, info.date_time), shim)
+                    new.writestr(_executable_entry(kept, info.date_time), pythonfmu_binary)
+                else:
+                    new.writestr(info, old.read(info))
+    except BaseException:
+        rewritten.unlink(missing_ok=True)
+        raise
+    os.replace(rewritten, fmu)
+
+
+def _executable_entry(name: str, date_time: tuple) -> zipfile.ZipInfo:
+    info = zipfile.ZipInfo(name, date_time=date_time)
+    info.compress_type = zipfile.ZIP_DEFLATED
+    info.external_attr = 0o755 << 16
+    return info
