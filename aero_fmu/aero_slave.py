@@ -28,10 +28,12 @@ host sets both from the structure unit before each step. Q is work-conjugate to 
 Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
 scene's `flow.direction` (normalized) when it gives one.
 
-Errors, exactly as the structure slave (the shared plumbing is structure_fmu/fmi_slave.py): after
-construction no FMI call raises. A non-finite e or de, `InputError`, `SolverDiverged` or any other failure
-in `do_step` is logged at error status with its reason and `do_step` returns False (pythonfmu 0.7.0:
-fmi2Discard), with the state unchanged.
+Errors, exactly as the structure slave (structure_fmu/fmi_slave.py lists every refused call): after
+construction no FMI call raises. A refused call logs its reason at error status and returns with the state
+unchanged; through the FMU's shim it answers fmi2Error. `do_step` is refused before initialization and
+after terminate, for a step size that is not finite and > 0, and for a communication point that is not the
+unit's time (FMI start time + aero time). A non-finite e or de, `InputError`, `SolverDiverged` or any
+other failure in the step is logged the same way and `do_step` returns False, with the state unchanged.
 """
 from __future__ import annotations
 
@@ -58,7 +60,8 @@ from structure_fmu.fmi_slave import (COORDINATE_UNITS, SolverSlave, coordinate_d
 from aero_fmu.solver import AeroSolver
 
 REQUIRED_OUTPUTS = ("CL", "lift", "wake_panels")
-# units and descriptions of the scalar outputs we know; others are published without a unit
+# unit and description of every scalar output of AeroSolver.outputs() (aero_fmu/loads.py); the unit refuses
+# to register an output missing here rather than publish it without a unit
 _OUTPUT_UNITS = {
     "CL": ("1", "lift coefficient: lift / (1/2 rho V^2 S_ref), 0 at zero dynamic pressure"),
     "lift": ("N", "aerodynamic force along the lift axis (normal to the free stream)"),
@@ -148,11 +151,16 @@ class AeroSlave(SolverSlave):
             self._reg(f"Q[{k + 1}]", 2 * n + k, COORDINATE_UNITS[vec][2],
                       f"generalized aerodynamic force on node {node} {comp}", **out)
         for j, name in enumerate(self.output_names):
-            unit, text = _OUTPUT_UNITS.get(name, (None, f"aero output {name}"))
+            if name not in _OUTPUT_UNITS:
+                raise ValueError(f"{self.label}: AeroSolver output {name!r} has no unit declared in "
+                                 "aero_slave._OUTPUT_UNITS")
+            unit, text = _OUTPUT_UNITS[name]
             self._reg(fmi_name(name), self.sl_out.start + j, unit, text, **out)
         self._register_parameters_and_hash("structure unit")
 
     def do_step(self, current_time, step_size):
+        if self._step_refused(current_time, step_size):
+            return False
         reason = (self._non_finite("e", self.sl_e, "", current_time)
                   or self._non_finite("de", self.sl_de, "rate of", current_time))
         if reason is not None:

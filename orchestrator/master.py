@@ -49,8 +49,9 @@ The unit interface (``orchestrator.units``): ``make_unit(kind, scene, backend, f
 unit with ``n``, ``topology_hash``, ``get_outputs()`` (structure: ``(e, de)``; aero: ``(Q,)``),
 ``set_inputs(...)`` (structure: ``Q``; aero: ``e, de``), ``do_step(t, h)`` (raises ``UnitError`` on an
 FMI error or discard, with the unit's logged reason), ``monitors()`` (structure: ``energy``,
-``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``; aero: ``CL``,
-``lift``, ...),
+``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``, ``probe_positions``,
+``probe_velocities``, ``strains``, all outputs of the unit: the master computes no sensor itself; aero:
+``CL``, ``lift``, ...),
 ``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
@@ -77,7 +78,6 @@ import numpy as np
 from orchestrator.acceleration import interface_residual, make_acceleration
 from orchestrator.progress import Progress
 from orchestrator.scene import hinge_joints
-from orchestrator.sensors import Sensors
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
 from structure_fmu.errors import SolverDiverged
 
@@ -224,19 +224,26 @@ def new_series(scene: dict) -> TimeSeries:
                       strain_names=[g["name"] for g in scene.get("strain_gauges", [])])
 
 
-def _record(series: TimeSeries, e: np.ndarray, structure: Any, aero: Any, sensors: Sensors, t: float,
+def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
             coupling: tuple[int, float] | None = None) -> dict:
-    """Append one sample; returns the hinges' latch times (s) the structure unit reports."""
+    """Append one sample of the units' outputs; returns the hinges' latch times (s) the structure unit
+    reports. The probes' positions and the gauges' strains are the structure unit's own outputs."""
     monitors = structure.monitors()
     loads = None
     if aero is not None:
         aero_monitors = aero.monitors()
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
-    series.append(t, sensors.positions(e), monitors.get("fold_angles_deg", {}),
+    probes, strains = monitors.get("probe_positions", {}), monitors.get("strains", {})
+    unread = [p for p in series.probe_names if p not in probes] + [g for g in series.strain_names if g not in strains]
+    if unread:
+        raise RuntimeError(f"the structure unit reports no output for the probe or strain gauge {unread[0]!r}: "
+                           "rebuild the FMUs (wingsim build)")
+    positions = np.array([probes[p] for p in series.probe_names], dtype=float).reshape(-1, 3)
+    series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
                   coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
-                  strains=sensors.strains(e))
+                  strains=strains)
     return monitors.get("latch_times", {})
 
 
@@ -296,7 +303,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     unit, returns its status.
 
     ``units`` (default ``orchestrator.units``) provides ``make_unit`` and ``UnitError``;
-    ``topology`` (default ``Topology.from_scene(scene)``) gives the probes' and gauges' shape rows (``point_rows``).
+    ``topology`` (default ``Topology.from_scene(scene)``) gives the number of coordinates the structure unit
+    must have (``n_coordinates``).
     Both are parameters so that the loop can be tested without the physics.
     """
     start = _time.perf_counter()
@@ -306,7 +314,6 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
         from structure_fmu.topology import Topology  # lazy: the physics package
 
         topology = Topology.from_scene(scene)
-    sensors = Sensors(scene, topology)
     series = new_series(scene)
     stop = scene["time"]["stop"]
     algorithm = scene.get("coupling", {}).get("algorithm", "gauss-seidel")
@@ -341,7 +348,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             acceleration = make_acceleration(coupling)
             tolerance, max_iterations = coupling.get("tolerance", 1e-6), coupling.get("max_iterations", 50)
             total_iterations = most_iterations = 0
-        latch_times = _record(series, e, structure, aero, sensors, times[0],
+        latch_times = _record(series, structure, aero, times[0],
                               coupling=(0, np.nan) if implicit else None)
         stepping_start = _time.perf_counter()
         for t0, t1 in zip(times[:-1], times[1:]):
@@ -371,7 +378,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         aero.do_step(t0, t1 - t0)
                         aero_inputs.append(t0, t1 - t0, e, de)
                         q, = aero.get_outputs()
-            latch_times = _record(series, e, structure, aero, sensors, t1, coupling=step_coupling)
+            latch_times = _record(series, structure, aero, t1, coupling=step_coupling)
             reached = t1
             if progress is not None:
                 progress.update(t1)

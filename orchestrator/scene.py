@@ -499,10 +499,33 @@ def check_physics(scene: dict) -> None:
     from structure_fmu.topology import Topology  # lazy: the physics packages are only needed here
 
     Topology.from_scene(scene)
+    _check_sensor_outputs(scene)
     if scene["aero"]["model"] != "none":
         from aero_fmu.solver import AeroSolver
 
         AeroSolver(scene)
+
+
+def _check_sensor_outputs(scene: dict) -> None:
+    """SceneError naming the probe or strain gauge one of whose outputs of the structure unit (``<probe>_x``
+    .. ``<probe>_vz``, ``<gauge>``) takes the name of another of its variables or of a timeseries.csv column.
+    Run after the topology check: the parameter names come from the bodies and joints."""
+    from structure_fmu.sensors import probe_output_names
+    from structure_fmu.solver import StructureSolver
+
+    hinges = [j["name"] for j in hinge_joints(scene)]
+    owner = {name: "an output of the structure unit" for name in ("topology_hash", *MONITOR_COLUMNS)}
+    owner.update({f"{kind}_{h}": f"an output of hinge {h}" for h in hinges for kind in ("fold_angle", "latch_time")})
+    owner.update({name: "a parameter of the structure unit" for name in StructureSolver.tunable_parameters(scene)})
+    owner.update({name: "a column of timeseries.csv" for name in ("time", *AERO_COLUMNS, *COUPLING_COLUMNS)})
+    sensors = [("probes", "probe", p["name"], sum(probe_output_names(p["name"]), [])) for p in scene["probes"]]
+    sensors += [("strain_gauges", "strain gauge", g["name"], [g["name"]]) for g in scene["strain_gauges"]]
+    for key, kind, sensor, outputs in sensors:
+        for output in outputs:
+            if output in owner:
+                raise SceneError(f"{key}.{sensor}.name", sensor, f"a {kind} name whose output {output!r} is not "
+                                 f"already {owner[output]}")
+            owner[output] = f"an output of {kind} {sensor}"
 
 
 def hinge_joints(scene: dict) -> list[dict]:

@@ -14,7 +14,12 @@
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
     unit.monitors()             structure: {"energy": J, "kinetic_energy": J, "constraint_residual": -,
                                             "fold_angles_deg": {hinge: deg},
-                                            "latch_times": {hinge: s, for the hinges latched so far}}
+                                            "latch_times": {hinge: s, for the hinges latched so far},
+                                            "probe_positions": {probe: (3,) m, global frame},
+                                            "probe_velocities": {probe: (3,) m/s, global frame},
+                                            "strains": {gauge: surface strain, -}}
+                                (the structure unit's outputs <probe>_x.., <probe>_vx.., <gauge> of the
+                                scene's probes and strain gauges)
                                 aero: {"CL": -, "lift": N, "wake_panels": count, ...every scalar output}
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
@@ -42,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from structure_fmu.fmi_slave import SCENE_RESOURCE
+from structure_fmu.sensors import output_names as sensor_output_names
 from structure_fmu.structure_slave import LATCH_PENDING
 
 
@@ -67,13 +73,14 @@ class UnitKind:
     monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
     scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale)
     hinge_monitors: bool = False      # fold_angle_<hinge> and latch_time_<hinge> outputs, per hinge of the scene
+    sensor_monitors: bool = False     # <probe>_x.._vz and <gauge> outputs, per probe and gauge of the scene
     extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
 
 
 KINDS = {
     "structure": UnitKind("structure.fmu", ("structure_fmu.structure_slave", "StructureSlave"), ("Q",),
-                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual"), ("structure",),
-                          hinge_monitors=True),
+                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual"),
+                          ("structure", "probes", "strain_gauges"), hinge_monitors=True, sensor_monitors=True),
     "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), ("e", "de"), ("Q",),
                      ("CL", "lift", "wake_panels"), ("structure", "aero", "flow"), extra_monitors=True),
 }
@@ -139,9 +146,13 @@ class Unit:
         if missing:
             raise UnitError(f"{port.label}: no output {missing[0]}; the unit does not match the scene (rebuild "
                             "the FMU)")
-        absent = [m for m in spec.monitors if m not in vr]
+        self.probes = [p["name"] for p in scene.get("probes", [])] if spec.sensor_monitors else []
+        self.gauges = [g["name"] for g in scene.get("strain_gauges", [])] if spec.sensor_monitors else []
+        sensor_names = sensor_output_names(self.probes, self.gauges)
+        absent = [m for m in (*spec.monitors, *sensor_names) if fmi_name(m) not in vr]
         if absent:
-            raise UnitError(f"{port.label}: no output {absent[0]}; rebuild the FMU")
+            raise UnitError(f"{port.label}: no output {absent[0]}; the unit does not match the scene (rebuild "
+                            "the FMU)")
         monitors = list(spec.monitors)
         if spec.extra_monitors:
             known = {v for b in block_vr.values() for v in b}
@@ -149,7 +160,8 @@ class Unit:
         self._monitor_names = monitors
         output_vrs = [v for b in spec.outputs for v in block_vr[b]]
         monitor_vrs = ([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
-                       + [vr[fmi_name(f"latch_time_{h}")] for h in self.hinges] + [vr[name] for name in monitors])
+                       + [vr[fmi_name(f"latch_time_{h}")] for h in self.hinges] + [vr[name] for name in monitors]
+                       + [vr[fmi_name(name)] for name in sensor_names])
         # get_outputs reads the monitors in the same call and keeps them until the unit steps or is set
         # (its outputs change only then): one fmi2GetReal per unit and step instead of two
         self._get_out = port.reader(output_vrs + monitor_vrs)
@@ -198,10 +210,16 @@ class Unit:
         m = self._get_mon() if self._monitor_values is None else self._monitor_values
         h = len(self.hinges)
         angles, latch_times = m[:h], m[h:2 * h]          # the order of monitor_vrs in __init__
-        out = {name: float(v) for name, v in zip(self._monitor_names, m[2 * h:])}
+        k, p = 2 * h + len(self._monitor_names), 3 * len(self.probes)
+        out = {name: float(v) for name, v in zip(self._monitor_names, m[2 * h:k])}
         if self._spec.hinge_monitors:
             out["fold_angles_deg"] = {name: float(a) for name, a in zip(self.hinges, angles)}
             out["latch_times"] = {name: float(t) for name, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
+        if self._spec.sensor_monitors:
+            positions, velocities = m[k:k + p].reshape(-1, 3).copy(), m[k + p:k + 2 * p].reshape(-1, 3).copy()
+            out["probe_positions"] = dict(zip(self.probes, positions))
+            out["probe_velocities"] = dict(zip(self.probes, velocities))
+            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 2 * p:])}
         return out
 
     def get_state(self):
@@ -269,6 +287,7 @@ class _FmuPort:
             raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
         try:
             self._check_scene(scene, spec.scene_sections)
+            self._check_layout(md, spec)
         except UnitError:
             self.close()
             raise
@@ -310,6 +329,16 @@ class _FmuPort:
         if keys:
             raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
                             "rebuild it (wingsim build SCENE)")
+
+    def _check_layout(self, md, spec: UnitKind) -> None:
+        """Refuse an FMU whose model description declares its variables otherwise than its unit's code
+        registers them (names, value references, causality, variability, type, unit: `orchestrator.layout`)."""
+        from orchestrator.layout import check
+
+        kind = next(k for k, s in KINDS.items() if s == spec)
+        problems = check(md, kind, Path(self._dir, "resources"))
+        if problems:
+            raise UnitError(f"{self.label}: refused: " + "; ".join(problems))
 
     def _reasons(self, since: int) -> str:
         msgs = [" ".join(m.split()) for s, m in self.log[since:] if s >= 1 and m]

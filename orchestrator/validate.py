@@ -1,6 +1,8 @@
 """`wingsim validate [FMU ...]`: check built FMUs as another FMI 2.0 tool would (DESIGN §7).
 
-For each FMU: fmpy's model-description validation, then a short simulation through fmpy (the same path as
+For each FMU: fmpy's model-description validation; the declared variables against the layout the unit's
+code registers (names, value references, causality, variability, type, unit: `orchestrator.layout`), so a
+model description edited after the build fails; then a short simulation through fmpy (the same path as
 `wingsim run --backend fmu`): instantiate with the scene embedded in the FMU, 10 communication steps with
 neutral inputs (structure: Q = 0; aero: the scene's initial coordinates at rest), every status checked and
 every output finite. Without arguments, every FMU under fmus/.
@@ -23,6 +25,24 @@ def _kind(path: Path) -> str:
     if identifier not in ("structure", "aero"):
         raise ValueError(f"model identifier {identifier!r} is not a wingsim unit (structure or aero)")
     return identifier
+
+
+def _layout(path: Path, kind: str) -> list[str]:
+    """Variables the FMU at `path` declares otherwise than its unit's code registers them
+    (`orchestrator.layout`); empty when they match."""
+    import zipfile
+
+    from fmpy import read_model_description
+
+    from orchestrator.build import BUILD_INFO_RESOURCE
+    from orchestrator.layout import check
+    from structure_fmu.fmi_slave import SCENE_RESOURCE
+
+    with tempfile.TemporaryDirectory(prefix="wingsim_layout_") as folder, zipfile.ZipFile(path) as z:
+        for name in (SCENE_RESOURCE, BUILD_INFO_RESOURCE):
+            if f"resources/{name}" in z.namelist():
+                z.extract(f"resources/{name}", folder)
+        return check(read_model_description(str(path)), kind, Path(folder, "resources"))
 
 
 def _simulate(path: Path, kind: str) -> list[str]:
@@ -67,7 +87,8 @@ def validate(path: Path) -> list[str]:
         problems = [f"model description: {p}" for p in validate_fmu(str(path))]
         if problems:
             return problems
-        return _simulate(path, _kind(path))
+        kind = _kind(path)
+        return _layout(path, kind) or _simulate(path, kind)
     except Exception as err:  # noqa: BLE001 - a broken file is a finding, not a crash
         return [f"{type(err).__name__}: {err}"]
 

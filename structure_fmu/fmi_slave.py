@@ -6,26 +6,62 @@ UnitDefinitions block, tunable parameters applied at exitInitializationMode, the
 internals, inputs, parameters) saved, restored and pickled. Pythonfmu's builder skips abstract classes, so a
 slave module that imports it still exposes exactly one concrete slave.
 
+Errors. Every FMI call is answered as the FMI 2.0 standard says, without raising: a call the standard
+forbids in the unit's state, or with arguments it cannot use, is refused by logging a message at error
+status that names the problem, and returns normally with the state unchanged (do_step returns False). The
+FMU's binary (a shim over pythonfmu's, orchestrator/native_binary.py) returns the worst status logged during a
+call, so a refused call answers fmi2Error; with pythonfmu's own binary (no C compiler at build time) it
+answers fmi2OK (fmi2Discard for do_step) with the error logged, and a host must read the log. Refused:
+  * fmi2Get/SetInteger, -Boolean, -String on a value reference that is not a variable of that type (every
+    variable is Real except the String `topology_hash`), fmi2GetReal/SetReal on one that is not Real, the
+    message naming each reference with its actual type and name; a get returns zeros, False or "" for
+    them. fmi2SetString on `topology_hash` (a constant); fmi2SetReal on an output, on a parameter after
+    initialization, or after fmi2Terminate;
+  * a call out of order: fmi2SetupExperiment or fmi2EnterInitializationMode after initialization began,
+    fmi2ExitInitializationMode outside initialization mode, fmi2DoStep before fmi2ExitInitializationMode
+    or after fmi2Terminate, fmi2Terminate before initialization or twice;
+  * fmi2DoStep with a step size that is not finite and > 0, or a communication point that is not the
+    unit's own time (FMI start time + solver time, within `TIME_TOLERANCE`): the message gives both;
+  * fmi2SetFMUstate of anything but a complete state this unit saved, and fmi2DeSerializeFMUstate of bytes
+    that do not hold one (`_StateUnpickler` builds only numpy arrays and the solvers' state dataclasses, so
+    foreign bytes never run code).
+A failure inside a step (non-finite input, `InputError`, `SolverDiverged`, any exception) is logged the
+same way; a unit that cannot go on (refused parameters, a state that failed half-way) refuses every later
+step until a good state is set. Values can be read in every state (the standard allows it from
+initialization mode on; before, they are the start values). The shim checks what Python cannot: NULL or
+foreign fmi2FMUstate pointers, a GUID that does not match. fmi2Reset is pythonfmu's: it constructs the
+slave anew, which is the state after instantiation.
+
 Facts about pythonfmu 0.7.0 this encodes (measured, see docs/fmu.md):
   * a Python exception in an FMI call becomes fmi2Fatal and the wrapper then releases the slave class and
-    instance twice (reference counts corrupted, the host segfaults later in the garbage collector): after
-    construction no call raises; failures are logged at error status, do_step returns False
-    (fmi2Discard) with the state unchanged, and a unit that cannot go on refuses every later step;
+    instance twice (reference counts corrupted, the host segfaults later in the garbage collector), hence
+    no call raises after construction;
+  * its default typed get/set raise on a value reference of another type: all are overridden;
+  * `_fmu_state_to_bytes` and `_fmu_state_from_bytes` are called on the slave class, not on the instance
+    (fmi2SerializeFMUstate, fmi2DeSerializeFMUstate): a refusal there is logged on the one live instance
+    of the class; with several instances of the same FMU in one process it cannot tell which one called,
+    and the refused state is then refused, with the same reason, by the fmi2SetFMUstate it is passed to;
   * log text is passed to the FMI logger as a printf format: '%' is doubled;
   * pythonfmu has no unit attribute on variables: `UnitReal` adds one.
 """
 from __future__ import annotations
 
+import dataclasses
+import functools
+import gc
+import io
 import json
 import math
 import os
 import pickle
 import re
+import sys
 import traceback
+import weakref
 from xml.etree.ElementTree import Element, SubElement
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real, String
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 from .errors import InputError, SolverDiverged
@@ -106,10 +142,79 @@ def base_unit(unit: str) -> tuple[dict, float] | None:
     return {k: v for k, v in exps.items() if v}, factor
 
 
+TIME_TOLERANCE = 1e-9
+"""Relative tolerance, of max(1 s, |t|), within which fmi2DoStep's communication point must equal the unit's
+time t. Both are sums of steps in double precision: the solver's time is the start time plus its internal
+steps (the structure solver ends an advance within 1e-12 max(1, |t|) of the target), a host's point a sum
+or multiple of its step sizes; after N steps they differ by about N x 2.2e-16 |t|. 1e-9 covers millions
+of steps, and a point off by more is a skipped or repeated step (at least a fraction of a step, which is
+far longer than 1e-9 s), not round-off."""
+
+PHASES = ("instantiated", "initialization", "stepping", "terminated")
+"""The FMI 2.0 co-simulation states a slave goes through, in order ("stepping": initialized, steps allowed)."""
+_PHASE_TEXT = {"instantiated": "not initialized yet", "initialization": "in initialization mode",
+               "stepping": "initialized", "terminated": "terminated"}
+# FMI call -> (phases the standard allows it in, as said in a refusal)
+_ALLOWED = {
+    "fmi2SetupExperiment": (("instantiated",), "only after fmi2Instantiate, before fmi2EnterInitializationMode"),
+    "fmi2EnterInitializationMode": (("instantiated",), "only once, after fmi2Instantiate"),
+    "fmi2ExitInitializationMode": (("initialization",), "only once, after fmi2EnterInitializationMode"),
+    "fmi2DoStep": (("stepping",), "only after fmi2ExitInitializationMode and before fmi2Terminate"),
+    "fmi2Terminate": (("stepping",), "only once, after fmi2ExitInitializationMode"),
+    "fmi2SetReal": (("instantiated", "initialization", "stepping"), "only before fmi2Terminate"),
+}
+
+STATE_FORMAT = "wingsim unit state 1"
+_STATE_KEYS = frozenset({"format", "unit", "topology_hash", "solver", "real", "t0", "phase", "failure",
+                         "solver_parameters"})
+# what a pickled numpy array refers to (numpy 1.x and 2.x names)
+_NUMPY_GLOBALS = frozenset((module, name) for module in ("numpy.core.multiarray", "numpy._core.multiarray",
+                                                         "numpy.core.numeric", "numpy._core.numeric", "numpy")
+                           for name in ("_reconstruct", "_frombuffer", "scalar", "dtype", "ndarray"))
+_STATE_PACKAGES = ("structure_fmu", "aero_fmu")
+
+
+class _StateUnpickler(pickle.Unpickler):
+    """Unpickles a unit state and nothing else: the only globals it resolves are numpy's array and dtype
+    constructors and the dataclasses of the solver packages (already imported), so bytes that are not our
+    state raise UnpicklingError instead of running code."""
+
+    def find_class(self, module, name):
+        if (module, name) in _NUMPY_GLOBALS:
+            return super().find_class(module, name)
+        if module.split(".")[0] in _STATE_PACKAGES and module in sys.modules and "." not in name:
+            obj = getattr(sys.modules[module], name, None)
+            if isinstance(obj, type) and dataclasses.is_dataclass(obj):
+                return obj
+        raise pickle.UnpicklingError(f"it refers to {module}.{name}, which no unit state holds")
+
+
+class _ClassOrInstanceMethod:
+    """A method called as f(cls, instance, *args) whether it is looked up on an instance or on the class
+    (instance None): pythonfmu 0.7.0 calls the state (de)serialization on the slave class, the direct
+    backend on the instance."""
+
+    def __init__(self, func):
+        self.func = func
+        functools.update_wrapper(self, func)
+
+    def __get__(self, obj, objtype=None):
+        return functools.partial(self.func, objtype if objtype is not None else type(obj), obj)
+
+
+_LIVE: "weakref.WeakKeyDictionary[type, weakref.WeakSet]" = weakref.WeakKeyDictionary()
+"""Slave class -> its instances, to log a refusal made in a call on the class (see `_log_on`)."""
+
+
+def _fmi_type(var) -> str:
+    return next((t.__name__ for t in (Real, Integer, Boolean, String) if isinstance(var, t)), type(var).__name__)
+
+
 class SolverSlave(Fmi2Slave):
     """Abstract slave over a solver. Subclasses set `label` and `solver_class`, lay out `self._real`
     (with `self._settable` and `self.sl_par`, the parameters' slice), register their variables with `_reg`
-    and `_register_parameters_and_hash`, and implement `_publish` and `do_step` (using `_advance`)."""
+    and `_register_parameters_and_hash`, and implement `_publish` and `do_step` (starting with
+    `_step_refused`, then stepping with `_advance`)."""
 
     label = "unit"
     solver_class = None
@@ -121,12 +226,20 @@ class SolverSlave(Fmi2Slave):
         self._solver = self.solver_class(self.scene, parameters=solver_parameters)
         self._solver_parameters = dict(self.defaults)
         self._t0 = 0.0                                  # FMI start time; solver time = t - t0
-        self._initialized = False
+        self._phase = "instantiated"                    # one of PHASES
         self._checked_references = {}   # ("get" | "set", value references) -> index array, checked once
         self._failure: str | None = None                # set when the unit cannot go on
+        _LIVE.setdefault(type(self), weakref.WeakSet()).add(self)
+
+    @property
+    def unit_time(self) -> float:
+        """The unit's time (s): the FMI start time plus the solver's time."""
+        return self._t0 + float(self._solver.time)
 
     # ---- variables ------------------------------------------------------------------------------
     def _reg(self, name, index, unit, description, **kw):
+        if not unit or not description:  # construction may raise: a build then fails naming the variable
+            raise ValueError(f"{self.label}: variable {name} needs a unit and a description")
         var = UnitReal(name, unit=unit, description=description,
                        getter=lambda i=index: float(self._real[i]), **kw)
         if self._settable[index]:
@@ -174,22 +287,113 @@ class SolverSlave(Fmi2Slave):
         self._failure = msg
         self._error(msg)
 
+    @classmethod
+    def _log_on(cls, slave, msg: str) -> None:
+        """Log `msg` at error status on `slave`, or, for a call pythonfmu made on the class (slave None), on
+        the one live instance of the class; with several there is no telling which one called, and nothing
+        is logged (the caller's result carries the reason instead)."""
+        if slave is None:
+            gc.collect()  # instances the host freed are held by their getters' cycles until collected
+            live = list(_LIVE.get(cls, ()))
+            if len(live) != 1:
+                return
+            slave = live[0]
+        slave._error(msg)
+
+    def _references(self, vrs) -> str:
+        """'value reference 12 (Real Q[1])' or 'value references 12 (Real Q[1]), 4000 (no such variable)'."""
+        return f"value reference{'' if len(vrs) == 1 else 's'} {self._describe(vrs)}"
+
+    def _not_variables(self, vrs, kind: str) -> str:
+        """'value reference 12 (Real Q[1]) is not a String variable', or the plural."""
+        if len(vrs) == 1:
+            return f"{self._references(vrs)} is not {'an' if kind[0] in 'AEIOU' else 'a'} {kind} variable"
+        return f"{self._references(vrs)} are not {kind} variables"
+
+    def _describe(self, vrs) -> str:
+        """Value references with what they are, e.g. '12 (Real Q[1]), 4000 (no such variable)'."""
+        words = []
+        for vr in list(vrs)[:6]:
+            vr = int(vr) & 0xFFFFFFFF  # pythonfmu passes the unsigned reference as a C int
+            var = self.vars.get(vr)
+            words.append(f"{vr} (no such variable)" if var is None else f"{vr} ({_fmi_type(var)} {var.name})")
+        more = len(vrs) - len(words)
+        return ", ".join(words) + (f" and {more} more" if more > 0 else "")
+
+    def _refused_in_phase(self, call: str) -> bool:
+        """True, with the reason logged at error status, if the standard does not allow `call` now."""
+        phases, when = _ALLOWED[call]
+        if self._phase in phases:
+            return False
+        self._error(f"{self.label}: {call} refused: it is allowed {when}, and the unit is "
+                    f"{_PHASE_TEXT[self._phase]}; state unchanged")
+        return True
+
     # ---- FMI calls: none raises ------------------------------------------------------------------
     def get_real(self, vrs):
         key = ("get", tuple(vrs))
         idx = self._checked_references.get(key)
         if idx is None:
             idx = np.asarray(vrs, dtype=np.intp)
-            ok = (idx >= 0) & (idx < self._real.size)
+            ok = (idx >= 0) & (idx < self._real.size)   # the Real value references are the buffer's indices
             if not ok.all():
-                self._error(f"{self.label}: value references {idx[~ok].tolist()} are not Real variables")
+                self._error(f"{self.label}: fmi2GetReal refused: {self._not_variables(idx[~ok], 'Real')}; NaN "
+                            "returned instead")
                 out = np.full(idx.size, np.nan)
                 out[ok] = self._real[idx[ok]]
                 return out.tolist()
             self._checked_references[key] = idx
         return self._real[idx].tolist()
 
+    def get_integer(self, vrs):
+        return self._get_typed("fmi2GetInteger", Integer, vrs, int, 0)
+
+    def get_boolean(self, vrs):
+        return self._get_typed("fmi2GetBoolean", Boolean, vrs, bool, False)
+
+    def get_string(self, vrs):
+        return self._get_typed("fmi2GetString", String, vrs, str, "")
+
+    def set_integer(self, vrs, values):
+        self._refuse_set("fmi2SetInteger", Integer, vrs)
+
+    def set_boolean(self, vrs, values):
+        self._refuse_set("fmi2SetBoolean", Boolean, vrs)
+
+    def set_string(self, vrs, values):
+        self._refuse_set("fmi2SetString", String, vrs)
+
+    def _get_typed(self, call: str, kind: type, vrs, convert, neutral) -> list:
+        """Values of the variables of type `kind`; `neutral` (and the refusal logged) for the other references."""
+        out, wrong = [], []
+        for vr in vrs:
+            var = self.vars.get(int(vr) & 0xFFFFFFFF)
+            if isinstance(var, kind):
+                out.append(convert(var.getter()))
+            else:
+                out.append(neutral)
+                wrong.append(vr)
+        if wrong:
+            self._error(f"{self.label}: {call} refused: {self._not_variables(wrong, kind.__name__)}; {neutral!r} "
+                        "returned instead")
+        return out
+
+    def _refuse_set(self, call: str, kind: type, vrs) -> None:
+        """The unit has no settable variable but Real ones (its String is a constant): refuse, saying why."""
+        vrs = list(vrs)
+        if not vrs:
+            return
+        wrong = [vr for vr in vrs if not isinstance(self.vars.get(int(vr) & 0xFFFFFFFF), kind)]
+        fixed = [self.vars[int(vr) & 0xFFFFFFFF] for vr in vrs if vr not in wrong]
+        reasons = [self._not_variables(wrong, kind.__name__)] if wrong else []
+        reasons += [f"{v.name} is {'a constant' if v.variability == Fmi2Variability.constant else 'an output'}"
+                    for v in fixed]
+        self._error(f"{self.label}: {call} refused: {'; '.join(reasons)}; nothing was set")
+
     def set_real(self, vrs, values):
+        if self._phase == "terminated":
+            self._refused_in_phase("fmi2SetReal")
+            return
         key = ("set", tuple(vrs))
         idx = self._checked_references.get(key)
         if idx is None:
@@ -199,24 +403,40 @@ class SolverSlave(Fmi2Slave):
             ok = (idx >= 0) & (idx < self._real.size)
             ok[ok] = self._settable[idx[ok]]
             if not ok.all():
-                names = [self.vars[int(i)].name if int(i) in self.vars else str(int(i)) for i in idx[~ok]]
-                self._error(f"{self.label}: cannot set {', '.join(names)}: only the inputs and the parameters are "
-                            "settable; nothing was set")
+                self._error(f"{self.label}: fmi2SetReal refused: {self._references(idx[~ok])} cannot be set (only "
+                            "the inputs and the parameters can); nothing was set")
                 return
-            if self._initialized and idx.max() >= self.sl_par.start:
-                names = [self.vars[int(i)].name for i in idx[idx >= self.sl_par.start]]
-                self._error(f"{self.label}: cannot set {', '.join(names)} after initialization (parameters have "
-                            "variability 'fixed'); nothing was set")
+            parameter = (idx >= self.sl_par.start) & (idx < self.sl_par.stop)
+            if parameter.any() and self._phase == "stepping":
+                names = [self.vars[int(i)].name for i in idx[parameter]]
+                self._error(f"{self.label}: fmi2SetReal refused: cannot set {', '.join(names)} after "
+                            "initialization (parameters have variability 'fixed'); nothing was set")
                 return
-            if idx.max() < self.sl_par.start:        # inputs only: settable in every mode, check them once
+            if not parameter.any():        # inputs only: settable until fmi2Terminate, check them once
                 self._checked_references[key] = idx
-        self._real[idx] = values
+        try:
+            self._real[idx] = values
+        except (TypeError, ValueError) as exc:
+            self._error(f"{self.label}: fmi2SetReal refused: {type(exc).__name__}: {exc}; nothing was set")
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self._t0 = float(start_time)
+        if self._refused_in_phase("fmi2SetupExperiment"):
+            return
+        t0 = float(start_time) if isinstance(start_time, (int, float)) else math.nan
+        if not math.isfinite(t0):
+            self._error(f"{self.label}: fmi2SetupExperiment refused: the start time {start_time!r} s is not a "
+                        "finite number; state unchanged")
+            return
+        self._t0 = t0
+
+    def enter_initialization_mode(self):
+        if not self._refused_in_phase("fmi2EnterInitializationMode"):
+            self._phase = "initialization"
 
     def exit_initialization_mode(self):
-        self._initialized = True
+        if self._refused_in_phase("fmi2ExitInitializationMode"):
+            return
+        self._phase = "stepping"
         parameters = dict(zip(self.tunables, self._real[self.sl_par].tolist()))
         if parameters == self._solver_parameters:
             return
@@ -226,6 +446,34 @@ class SolverSlave(Fmi2Slave):
             self._publish()
         except Exception as exc:  # noqa: BLE001
             self._fail(f"{self.label}: the parameters were refused: {type(exc).__name__}: {exc}")
+
+    def terminate(self):
+        if not self._refused_in_phase("fmi2Terminate"):
+            self._phase = "terminated"
+
+    def _step_refused(self, current_time, step_size) -> bool:
+        """True, with the reason logged at error status, when fmi2DoStep(current_time, step_size) must be
+        refused: out of phase, a step size that is not finite and > 0, or a communication point that is not
+        the unit's time (within TIME_TOLERANCE). Nothing is changed."""
+        if self._refused_in_phase("fmi2DoStep"):
+            return True
+        number = (int, float, np.floating)
+        t = float(current_time) if isinstance(current_time, number) else math.nan
+        h = float(step_size) if isinstance(step_size, number) else math.nan
+        now = self.unit_time
+        tolerance = TIME_TOLERANCE * max(1.0, abs(now))
+        if not (math.isfinite(h) and h > 0):
+            reason = f"the step size {step_size!r} s is not a finite number > 0"
+        elif not math.isfinite(t):
+            reason = f"the communication point {current_time!r} s is not a finite number"
+        elif abs(t - now) > tolerance:
+            reason = (f"the communication point t = {t!r} s is not the unit's time {now!r} s ("
+                      f"{'behind' if t < now else 'ahead'} by {abs(t - now):.3g} s, tolerance {tolerance:.1g} s): "
+                      "step on from the unit's time, or restore a saved state (fmi2SetFMUstate) to repeat a step")
+        else:
+            return False
+        self._error(f"{self.label}: fmi2DoStep refused: {reason}; state unchanged")
+        return True
 
     def _non_finite(self, label: str, block: slice, what: str, current_time) -> str | None:
         """The reason the input block `label` (e.g. Q) cannot be used (NaN or inf), or None."""
@@ -261,39 +509,87 @@ class SolverSlave(Fmi2Slave):
             return False
         return True
 
-    # ---- state: complete (solver internals, inputs, outputs, parameters), arrays copied ----------
+    # ---- state: complete (solver internals, inputs, outputs, parameters, phase), arrays copied ---
     def _get_fmu_state(self):
         try:
-            return {"solver": self._solver.get_state(), "real": self._real.copy(), "t0": self._t0,
-                    "initialized": self._initialized, "failure": self._failure,
+            return {"format": STATE_FORMAT, "unit": self.label, "topology_hash": self.topology_hash,
+                    "solver": self._solver.get_state(), "real": self._real.copy(), "t0": self._t0,
+                    "phase": self._phase, "failure": self._failure,
                     "solver_parameters": dict(self._solver_parameters)}
         except Exception as exc:  # noqa: BLE001
-            self._error(f"{self.label}: getting the state failed: {type(exc).__name__}: {exc}")
+            self._error(f"{self.label}: fmi2GetFMUstate failed: {type(exc).__name__}: {exc}")
             return {"error": f"the state could not be saved ({type(exc).__name__}: {exc})"}
 
     def _set_fmu_state(self, state):
+        problem = self._state_problem(state)
+        if problem is not None:
+            self._error(f"{self.label}: fmi2SetFMUstate refused: {problem}; state unchanged")
+            return
         try:
-            if "error" in state:
-                raise ValueError(state["error"])
             if state["solver_parameters"] != self._solver_parameters:
                 self._solver = self.solver_class(self.scene, parameters=state["solver_parameters"])
                 self._solver_parameters = dict(state["solver_parameters"])
             self._solver.set_state(state["solver"])
             self._real[:] = state["real"]
-            self._t0, self._initialized, self._failure = state["t0"], state["initialized"], state["failure"]
+            self._t0, self._phase, self._failure = state["t0"], state["phase"], state["failure"]
         except Exception as exc:  # noqa: BLE001
             self._fail(f"{self.label}: setting the state failed: {type(exc).__name__}: {exc}")
 
-    @staticmethod
-    def _fmu_state_to_bytes(state) -> bytes:
+    @classmethod
+    def _state_form_problem(cls, state) -> str | None:
+        """Why `state` is not a state saved by a unit of this class, or None."""
+        if not isinstance(state, dict):
+            return f"not a state of this unit (a {type(state).__name__})"
+        if "error" in state:
+            return str(state["error"])
+        if state.keys() != _STATE_KEYS or not isinstance(state["format"], str) or state["format"] != STATE_FORMAT:
+            return "not a state saved by this version of the unit"
+        if not isinstance(state["unit"], str) or state["unit"] != cls.label:
+            return f"a state of the {state['unit']}, not of the {cls.label}"
+        return None
+
+    def _state_problem(self, state) -> str | None:
+        """Why `state` cannot be set on this unit, or None: it must be complete and saved by a unit of the
+        same class and topology."""
+        try:
+            problem = self._state_form_problem(state)
+            if problem is not None:
+                return problem
+            real, parameters, failure = state["real"], state["solver_parameters"], state["failure"]
+            if not isinstance(state["topology_hash"], str) or state["topology_hash"] != self.topology_hash:
+                return "a state of a unit of another structural topology"
+            if not (isinstance(real, np.ndarray) and real.dtype == np.float64 and real.shape == self._real.shape):
+                return f"its value buffer is not {self._real.size} floats"
+            if not (isinstance(state["phase"], str) and state["phase"] in PHASES
+                    and isinstance(state["t0"], float) and math.isfinite(state["t0"])
+                    and (failure is None or isinstance(failure, str))):
+                return "its phase, start time or failure entry is not valid"
+            if not (isinstance(parameters, dict) and parameters.keys() == self._solver_parameters.keys()
+                    and all(isinstance(v, float) and math.isfinite(v) for v in parameters.values())):
+                return "its parameters are not this unit's"
+        except Exception as exc:  # noqa: BLE001 - a foreign object may fail any operation
+            return f"it cannot be read ({type(exc).__name__}: {exc})"
+        return None
+
+    @_ClassOrInstanceMethod
+    def _fmu_state_to_bytes(cls, slave, state) -> bytes:
         try:
             return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:  # noqa: BLE001 - never raise
-            return pickle.dumps({"error": f"the state could not be serialized ({type(exc).__name__}: {exc})"})
+            reason = f"the state could not be serialized ({type(exc).__name__}: {exc})"
+            cls._log_on(slave, f"{cls.label}: fmi2SerializeFMUstate failed: {reason}")
+            return pickle.dumps({"error": reason})
 
-    @staticmethod
-    def _fmu_state_from_bytes(state: bytes):
+    @_ClassOrInstanceMethod
+    def _fmu_state_from_bytes(cls, slave, data):
+        """The state serialized in `data`; for bytes that hold none, the refusal is logged (`_log_on`) and
+        an {"error": reason} entry returned, which fmi2SetFMUstate refuses with the same reason."""
         try:
-            return pickle.loads(state)
-        except Exception as exc:  # noqa: BLE001
-            return {"error": f"the serialized state could not be read ({type(exc).__name__}: {exc})"}
+            state = _StateUnpickler(io.BytesIO(data)).load()
+            problem = cls._state_form_problem(state)
+        except Exception as exc:  # noqa: BLE001 - garbage may fail in any way
+            problem = f"the bytes do not hold a state of this unit ({type(exc).__name__}: {exc})"
+        if problem is None:
+            return state
+        cls._log_on(slave, f"{cls.label}: fmi2DeSerializeFMUstate refused: {problem}")
+        return {"error": problem}

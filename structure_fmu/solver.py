@@ -11,6 +11,7 @@ import numpy as np
 from .errors import SceneError, SolverDiverged, checked_input
 from .integrators import RK4, GeneralizedAlpha, State, project
 from .model import StructureModel
+from .sensors import Sensors
 from .topology import Topology
 
 _DIVERGENCE_HINT = {
@@ -29,6 +30,7 @@ class StructureSolver:
 
     def __init__(self, scene: dict, parameters: dict | None = None):
         self.topology = Topology.from_scene(scene)
+        self.sensors = Sensors.from_scene(scene, self.topology)
         structure = scene["structure"]
         values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
         for name, value in (parameters or {}).items():
@@ -206,6 +208,12 @@ class StructureSolver:
 
     def fold_angles_deg(self) -> dict:
         return {k: math.degrees(v) for k, v in self._evaluated(self.state)[2].items()}
+
+    def sensor_outputs(self) -> np.ndarray:
+        """The scene's probes and strain gauges at the current state, flat in the order of
+        `self.sensors.output_names()`: probe positions (m), probe velocities (m/s), gauge strains (1)."""
+        E, dE, _, _ = self._evaluated(self.state)
+        return self.sensors.outputs(E, dE)
 
     def monitors(self) -> dict:
         E, dE, angles, residual = self._evaluated(self.state)

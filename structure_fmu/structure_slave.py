@@ -5,7 +5,8 @@ The resolved scene is read from the resource `scene.json` (inside the FMU, or th
 `resources` when the class is instantiated in-process by the `direct` backend).
 
 Variables, with value references laid out contiguously so that get/set are numpy fancy indexing
-(n = Topology.n_coordinates, H = number of hinges, P = number of tunable parameters):
+(n = Topology.n_coordinates, H = number of hinges, P = number of probes, G = number of strain gauges;
+s = 3n+2H+3, the first sensor output):
 
 | vr                | name                      | causality / variability  | unit                              |
 |-------------------|---------------------------|--------------------------|-----------------------------------|
@@ -17,11 +18,19 @@ Variables, with value references laid out contiguously so that get/set are numpy
 | 3n+H+1            | kinetic_energy            | output, continuous       | J                                 |
 | 3n+H+2            | constraint_residual       | output, continuous       | 1                                 |
 | 3n+H+3 .. 3n+2H+2 | latch_time_<hinge>        | output, discrete         | s                                 |
-| 3n+2H+3 ..        | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
+| s .. s+3P-1       | <probe>_x, _y, _z         | output, continuous       | m (global frame)                  |
+| s+3P .. s+6P-1    | <probe>_vx, _vy, _vz      | output, continuous       | m/s (global frame)                |
+| s+6P .. s+6P+G-1  | <gauge>                   | output, continuous       | 1 (surface strain)                |
+| s+6P+G ..         | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
 | last              | topology_hash (String)    | output, constant         | -                                 |
 
 Per node the 9 coordinates are r (3), r_x (3), r_y (3) in the global frame; Q is work-conjugate to e,
 hence N for r and N.m (= J) for the dimensionless gradients.
+
+The probes and strain gauges are those of the scene, in its order, named as the columns of wingsim's
+timeseries.csv (quoted by `fmi_name` where a name is not an identifier); the solver computes them
+(`structure_fmu.sensors`): a probe's position and velocity are its shape row on e and de, a gauge's strain
+is its surface distance times the flap curvature.
 
 latch_time_<hinge> is the time (FMI time, s) at which the hinge latched: its fold angle reached the stop
 within an internal step of the solver, interpolated linearly in that step (StructureSolver). It is
@@ -29,11 +38,15 @@ LATCH_PENDING (-1 s) until then, and stays so for a hinge without a stop. The ma
 deployment time from it instead of from the fold angles at the communication points, which the latch
 arrests within a step.
 
-Errors: after construction no FMI call raises (structure_fmu/fmi_slave.py says why). A non-finite Q,
-`InputError`, `SolverDiverged` or any other failure in `do_step` is logged at error status with its reason
-and `do_step` returns False (pythonfmu 0.7.0: fmi2Discard) with the state unchanged; the host can roll back
-or stop. Other refused calls return normally with an error logged. Hosts should treat an error-status log
-message as a failed call (orchestrator.units does).
+Errors (structure_fmu/fmi_slave.py lists every refused call): after construction no FMI call raises. A
+refused call logs its reason at error status and returns with the state unchanged; through the FMU's
+shim it answers fmi2Error. `do_step` is refused before initialization and after terminate, for a step size
+that is not finite and > 0, and for a communication point that is not the unit's time (FMI start time +
+solver time): a gap is never integrated in one call, a step is never repeated without restoring a state.
+A non-finite Q, `InputError`, `SolverDiverged` or any other failure in the step is logged the same way and
+`do_step` returns False with the state unchanged; the host can roll back or stop. Hosts of pythonfmu's own
+binary (no shim) get fmi2OK or fmi2Discard and must treat an error-status log message as a failed call
+(orchestrator.units does).
 """
 from __future__ import annotations
 
@@ -84,7 +97,9 @@ class StructureSlave(SolverSlave):
         self.sl_fold = slice(3 * n, 3 * n + nh)
         self.i_energy, self.i_kinetic, self.i_residual = 3 * n + nh, 3 * n + nh + 1, 3 * n + nh + 2
         self.sl_latch = slice(3 * n + nh + 3, 3 * n + 2 * nh + 3)
-        self.sl_par = slice(self.sl_latch.stop, self.sl_latch.stop + npar)
+        self.sensor_names = self._solver.sensors.output_names()
+        self.sl_sensor = slice(self.sl_latch.stop, self.sl_latch.stop + len(self.sensor_names))
+        self.sl_par = slice(self.sl_sensor.stop, self.sl_sensor.stop + npar)
         self._real = np.zeros(self.sl_par.stop)
         self._real[self.sl_par] = list(self.defaults.values())
         self._settable = np.zeros(self._real.size, dtype=bool)
@@ -121,9 +136,13 @@ class StructureSlave(SolverSlave):
             self._reg(fmi_name(f"latch_time_{hinge}"), self.sl_latch.start + j, "s",
                       f"time hinge {hinge} latched at its stop angle ({LATCH_PENDING:g} until then)",
                       **{**out, "variability": Fmi2Variability.discrete})
+        for j, (name, unit, text) in enumerate(self._solver.sensors.output_declarations()):
+            self._reg(fmi_name(name), self.sl_sensor.start + j, unit, text, **out)
         self._register_parameters_and_hash("aero unit")
 
     def do_step(self, current_time, step_size):
+        if self._step_refused(current_time, step_size):
+            return False
         reason = self._non_finite("Q", self.sl_q, "generalized force on", current_time)
         if reason is not None:
             self._error(reason)
@@ -145,3 +164,4 @@ class StructureSlave(SolverSlave):
         self._real[self.i_residual] = m["constraint_residual"]
         self._real[self.sl_latch] = [self._t0 + m["latch_times"][h] if h in m["latch_times"] else LATCH_PENDING
                                      for h in self.hinges]
+        self._real[self.sl_sensor] = s.sensor_outputs()

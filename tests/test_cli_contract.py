@@ -190,8 +190,8 @@ class FakeUnitError(RuntimeError):
 
 
 class FakeUnit:
-    """Moves every coordinate (e_k = t + k, so the tip along x at 1 m/s); fails at ``fail_at`` (s) with
-    ``reason``."""
+    """Moves every coordinate (e_k = t + k) and every probe of the example scene (along x at 1 m/s, from
+    (0, 1, 2) m); fails at ``fail_at`` (s) with ``reason``."""
 
     n = 18
 
@@ -213,7 +213,9 @@ class FakeUnit:
 
     def monitors(self):
         return {"energy": 1.0 + self.t, "kinetic_energy": 0.5 * self.t, "constraint_residual": 1e-12,
-                "fold_angles_deg": {"fold": 170 - 1000 * self.t}}
+                "fold_angles_deg": {"fold": 170 - 1000 * self.t},
+                "probe_positions": {p: self.t + np.arange(3.0) for p in ("bending_100mm", "tip")},
+                "strains": {"strain_20mm": 0.0}}
 
     def terminate(self):
         self.terminated = True
@@ -221,14 +223,6 @@ class FakeUnit:
 
 class FakeTopology:
     n_coordinates = 18
-    n_nodes = 2
-
-    @staticmethod
-    def point_rows(body, span, chord_fraction=0.0):
-        """Every point at e[0:3], with r' = e[3:6], r'' = 0 (no curvature) and r_y = e[6:9]."""
-        rows = np.zeros((4, 6))
-        rows[0, 0] = rows[1, 1] = rows[3, 2] = 1.0
-        return rows
 
 
 def fake_run(scene, unit, stop=0.0105, progress=None):
@@ -255,6 +249,16 @@ def test_run_ok_records_every_communication_point(scene):
     np.testing.assert_allclose(result.series.energy, 1.0 + result.series.time)
     np.testing.assert_allclose(result.series.kinetic_energy, 0.5 * result.series.time)
     assert np.all(result.series.constraint_residual == 1e-12)
+
+
+def test_a_unit_without_a_probe_output_stops_the_run_naming_the_probe(scene):
+    class Blind(FakeUnit):
+        def monitors(self):
+            out = super().monitors()
+            del out["probe_positions"]["tip"]
+            return out
+    result = fake_run(scene, Blind())
+    assert result.status == "error" and "'tip'" in result.message and len(result.series) == 0
 
 
 def test_diverged_unit_keeps_its_message_and_the_samples(scene, tmp_path):

@@ -96,7 +96,7 @@ def test_variables_match_topology(scene, fmu_dir):
     assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
         "Real", "J", "output", "continuous", "exact")
     # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, latch
-    # times, parameters
+    # times, probe positions and velocities and strain gauges (tests/test_sensors.py), parameters
     h = len(topology.hinge_names)
     assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
     assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [
@@ -105,7 +105,8 @@ def test_variables_match_topology(scene, fmu_dir):
     assert [x.valueReference for x in latch] == list(range(3 * n + h + 3, 3 * n + 2 * h + 3))
     assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
     tunables = StructureSolver.tunable_parameters(scene)
-    first = 3 * n + 2 * h + 3
+    sensors = 6 * len(scene["probes"]) + len(scene["strain_gauges"])
+    first = 3 * n + 2 * h + 3 + sensors
     assert [v[name].valueReference for name in tunables] == list(range(first, first + len(tunables)))
     for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
         p = v[name]

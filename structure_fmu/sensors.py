@@ -1,0 +1,94 @@
+"""The scene's probes and strain gauges: fixed material points of the wing read from its coordinates.
+
+A probe at (body, span x, chord fraction) is a material point: its global position is r = S(x, y) e
+(Otsuka et al. 2022, Eq. 2) and, S being constant for a material point, its velocity is r' = S(x, y) de.
+A strain gauge reads the extensional strain of the plate surface at distance d from the reference line,
+eps = d kappa_y (Euler-Bernoulli: strain = distance from the neutral surface x curvature), kappa_y the
+flap curvature of the reference line at the gauge's span (`structure_fmu.element.flap_curvature`).
+
+The shape rows are built once (`Topology.point_rows`), so that a sample is one matrix product on
+X = e.reshape(-1, 3). Everything is in the global frame: positions in m, velocities in m/s, strains in 1.
+
+The structure unit publishes these as outputs named like the columns of wingsim's timeseries.csv
+(`output_names`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .element import flap_curvature
+
+AXES = "xyz"
+
+
+def probe_output_names(probe: str) -> tuple[list[str], list[str]]:
+    """(position names ``<probe>_x/_y/_z``, velocity names ``<probe>_vx/_vy/_vz``) of a probe's outputs."""
+    return [f"{probe}_{a}" for a in AXES], [f"{probe}_v{a}" for a in AXES]
+
+
+def output_names(probe_names: list[str], gauge_names: list[str]) -> list[str]:
+    """Names of the sensor outputs in the structure unit's order: every probe's position, then every probe's
+    velocity, then the gauges' strains."""
+    names = [probe_output_names(p) for p in probe_names]
+    return [n for pos, _ in names for n in pos] + [n for _, vel in names for n in vel] + list(gauge_names)
+
+
+class Sensors:
+    """Probes and strain gauges of a resolved scene on its topology.
+
+    probes: [{"name", "body", "span" (m), "chord" (fraction of chord from the leading edge)}, ...];
+    gauges: [{"name", "body", "span" (m), "surface_distance" (m)}, ...] (the resolved scene's tables).
+    """
+
+    def __init__(self, probes: list[dict], gauges: list[dict], topology) -> None:
+        n_slots = 3 * topology.n_nodes
+        self._probes, self._gauges = [dict(p) for p in probes], [dict(g) for g in gauges]
+        self.probe_names = [p["name"] for p in probes]
+        self.gauge_names = [g["name"] for g in gauges]
+        self._probe_rows = np.array([topology.point_rows(p["body"], p["span"], p["chord"])[0] for p in probes]
+                                    ).reshape(len(probes), n_slots)           # (n_probes, n_slots): r = S e
+        self._gauge_rows = np.array([topology.point_rows(g["body"], g["span"])[1:] for g in gauges]
+                                    ).reshape(len(gauges), 3, n_slots)        # r', r'', r_y at each gauge
+        self._surface_distance = np.array([g["surface_distance"] for g in gauges], dtype=float)   # m
+
+    @classmethod
+    def from_scene(cls, scene: dict, topology) -> "Sensors":
+        """The sensors of a resolved scene (its ``probes`` and ``strain_gauges``, each possibly absent)."""
+        return cls(scene.get("probes", []), scene.get("strain_gauges", []), topology)
+
+    def positions(self, e: np.ndarray) -> np.ndarray:
+        """Probe global positions (n_probes, 3), m, from the coordinates e (n,)."""
+        return self._probe_rows @ np.asarray(e, dtype=float).reshape(-1, 3)
+
+    def velocities(self, de: np.ndarray) -> np.ndarray:
+        """Probe global velocities (n_probes, 3), m/s, from the coordinate rates de (n,): the same rows."""
+        return self._probe_rows @ np.asarray(de, dtype=float).reshape(-1, 3)
+
+    def strains(self, e: np.ndarray) -> np.ndarray:
+        """Surface strain of each gauge (n_gauges,), 1: d kappa_y, positive when the gauged (-n) face
+        stretches (`flap_curvature`)."""
+        if not self.gauge_names:
+            return np.zeros(0)
+        derivatives = self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3)     # (n_gauges, 3, 3)
+        return self._surface_distance * flap_curvature(derivatives)
+
+    def output_declarations(self) -> list[tuple[str, str, str]]:
+        """(name, unit, description) of each output, in the order of ``outputs`` (`output_names`)."""
+        where = [f"probe {p['name']} (body {p['body']}, span {p['span']:g} m, chord fraction {p['chord']:g})"
+                 for p in self._probes]
+        positions = [(name, "m", f"global {a} position of {w}")
+                     for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[0], AXES)]
+        velocities = [(name, "m/s", f"global {a} velocity of {w}")
+                      for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[1], AXES)]
+        strains = [(g["name"], "1", f"surface strain of strain gauge {g['name']} (body {g['body']}, span "
+                                    f"{g['span']:g} m, {g['surface_distance']:g} m from the reference line)")
+                   for g in self._gauges]
+        return positions + velocities + strains
+
+    def output_names(self) -> list[str]:
+        """Names of the outputs, in the order of ``outputs`` (`output_names`)."""
+        return output_names(self.probe_names, self.gauge_names)
+
+    def outputs(self, e: np.ndarray, de: np.ndarray) -> np.ndarray:
+        """All readings flat, in the order of ``output_names``: positions (m), velocities (m/s), strains (1)."""
+        return np.concatenate([self.positions(e).ravel(), self.velocities(de).ravel(), self.strains(e)])
