@@ -5,11 +5,16 @@ Modules (one concept each):
 - ``scene``       load a TOML scene, fill defaults, validate
 - ``overrides``   ``--set KEY=VALUE`` on a raw scene
 - ``build``       build the FMUs a scene needs, and tell whether built ones are up to date
+- ``native_binary`` the FMU's Linux binary: a C shim (``fmi_shim.c``) that starts the build's Python
+                  in a host without one and forwards every FMI call to pythonfmu's binary
 - ``units``       structure/aero units behind one interface (FMU through fmpy, or in-process)
 - ``master``      step the units from 0 to ``time.stop`` and record what the scene asks for
 - ``timeseries``  the recorded samples (time, probe positions, fold angles, monitors)
 - ``results``     ``timeseries.csv`` and ``summary.json`` (DESIGN §7)
 - ``plots``       PNG plots of a run
+- ``system``      the built FMUs as one coupled system (components, connections, public variables)
+- ``ssp``         that system as an SSP 1.0 package (``wingsim export``)
+- ``container``   that system as one FMU, ``wing.fmu`` (fmpy's container FMU)
 - ``progress``    the progress line on stderr
 - ``cli``         the ``wingsim`` command line
 """

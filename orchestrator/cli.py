@@ -4,6 +4,9 @@
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
   run, write ``timeseries.csv``, ``summary.json`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
+- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...]``: build the FMUs if needed (into the folder
+  ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU, ``DIR/wing.fmu``
+  (default ``export/<scene>/``).
 - ``wingsim sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--set KEY=VALUE ...] [--out DIR]
   [--backend direct|fmu] [--jobs N] [--scheduler ADDRESS] [--plots]``: every combination of the grid
   values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
@@ -30,6 +33,7 @@ NOT_IMPLEMENTED: dict[str, str] = {}
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
+EXPORT_ROOT = Path("export")
 
 
 def _debug() -> bool:
@@ -64,6 +68,17 @@ def build_parser() -> argparse.ArgumentParser:
                                                "description validation and a short simulation of each.")
     validate.add_argument("fmus", type=Path, nargs="*", metavar="FMU", help="FMU files (default: fmus/**/*.fmu)")
     validate.set_defaults(func=cmd_validate)
+
+    export = commands.add_parser("export", help="write the coupled system as an SSP package and as one FMU",
+                                 description="Build the scene's FMUs if needed and write the coupled system as "
+                                             "DIR/<scene>.ssp (System Structure and Parameterization 1.0: both "
+                                             "FMUs, every connection, the parameters, the default experiment) "
+                                             "and as DIR/wing.fmu (one FMU with the units coupled inside).")
+    export.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    export.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: export/<scene name>/)")
+    export.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
+    export.set_defaults(func=cmd_export)
 
     sweep = commands.add_parser("sweep", help="run every combination of --grid values, one row per run in sweep.csv",
                                 description="Run the scene for every combination of the --grid values "
@@ -108,6 +123,11 @@ def cmd_build(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fmu_dir(scene: dict) -> Path:
+    """The folder `run` and `export` build a scene's FMUs into and run them from."""
+    return FMU_ROOT / scene["name"]
+
+
 def _build_if_needed(scene: dict, fmu_dir: Path):
     """None when the FMUs are ready, else a failed RunResult saying why the build failed.
 
@@ -142,7 +162,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     out = args.out or RESULTS_ROOT / scene["name"]
-    fmu_dir = FMU_ROOT / scene["name"]
+    fmu_dir = _fmu_dir(scene)
     result = _build_if_needed(scene, fmu_dir) if args.backend == "fmu" else None
     if result is None:
         progress = Progress(scene["time"]["stop"], label=scene["name"])
@@ -163,6 +183,28 @@ def cmd_run(args: argparse.Namespace) -> int:
               f"not deployed: {waiting} had not latched at t = {result.simulated_time_s:g} s")
     print(f"results in {out}")
     return 0 if result.status == "ok" else 1
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from orchestrator.container import CONTAINER_FILE, write_container
+    from orchestrator.scene import load_scene
+    from orchestrator.ssp import write_ssp
+    from orchestrator.system import coupled_system
+
+    scene = load_scene(args.scene, args.overrides)
+    out = args.out or EXPORT_ROOT / scene["name"]
+    if out.exists() and not out.is_dir():
+        raise SceneError("--out", str(out), "a folder to write the .ssp and wing.fmu into (this is a file)")
+    fmu_dir = _fmu_dir(scene)
+    failed = _build_if_needed(scene, fmu_dir)
+    if failed is not None:
+        print(f"error: {failed.message}", file=sys.stderr)
+        return 1
+    system = coupled_system(scene, fmu_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    print(write_ssp(system, out / f"{scene['name']}.ssp"))
+    print(write_container(system, out / CONTAINER_FILE))
+    return 0
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
