@@ -1,7 +1,7 @@
 """The scene's probes and strain gauges: fixed material points of the wing read from its coordinates.
 
 A probe at (body, span x, chord fraction) is a material point: its global position is r = S(x, y) e
-(Otsuka et al. 2022, Eq. 2) and, S being constant for a material point, its velocity is r' = S(x, y) de.
+(Otsuka et al. 2019, Eq. 2) and, S being constant for a material point, its velocity is r' = S(x, y) de.
 A strain gauge reads the extensional strain of the plate surface at distance d from the reference line,
 eps = d kappa_y (Euler-Bernoulli: strain = distance from the neutral surface x curvature), kappa_y the
 flap curvature of the reference line at the gauge's span (`structure_fmu.element.flap_curvature`).

@@ -156,7 +156,7 @@ def test_probe_velocity_is_the_rate_of_its_position(rigid):
 
 
 def test_flexible_probes_and_gauge_from_the_element_shape_functions(flexible):
-    """deploy_flexible after 20 ms: each probe is S(x, y) e_el of its element (Otsuka et al. 2022, Eq. 2, on the
+    """deploy_flexible after 20 ms: each probe is S(x, y) e_el of its element (Otsuka et al. 2019, Eq. 2, on the
     element's own 18 coordinates), its velocity S(x, y) de_el; the gauge's strain is d x the flap curvature
     from central differences of the reference line r(x, 0) (exact for the cubic Hermite line but for
     rounding) and the chord vector r_y = r(x, 1) - r(x, 0)."""
