@@ -13,10 +13,6 @@
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   aero_slave.py     the FMI slave over AeroSolver
 
-Like structure_fmu, we ask for one BLAS thread (effective only if numpy is not imported yet): on the
-shared 2-core machines threaded OpenBLAS was many times slower for the small matrices we factorize.
+It imports only fmu_common (what both units share: topology, shape functions, errors, FMI plumbing) and
+its own modules, never the structure unit.
 """
-import os
-
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")

@@ -3,7 +3,7 @@
 No physics lives here: every number comes from `aero_fmu.solver.AeroSolver` (docs/aero_api.md). The
 resolved scene is read from the resource `scene.json` (inside the FMU, or the folder given as `resources`
 when the class is instantiated in-process by the `direct` backend). The structural topology, and so n and
-`topology_hash`, come from `structure_fmu.topology.Topology` exactly as in the structure unit.
+`topology_hash`, come from `fmu_common.topology.Topology` exactly as in the structure unit.
 
 The module name differs from the structure unit's (`structure_slave`): pythonfmu imports the slave script
 by its file name, and two FMUs in one process need distinct names (DESIGN §10).
@@ -28,7 +28,7 @@ host sets both from the structure unit before each step. Q is work-conjugate to 
 Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
 scene's `flow.direction` (normalized) when it gives one.
 
-Errors, exactly as the structure slave (structure_fmu/fmi_slave.py lists every refused call): after
+Errors, exactly as the structure slave (fmu_common/fmi_slave.py lists every refused call): after
 construction no FMI call raises. A refused call logs its reason at error status and returns with the state
 unchanged; through the FMU's shim it answers fmi2Error. `do_step` is refused before initialization and
 after terminate, for a step size that is not finite and > 0, and for a communication point that is not the
@@ -38,26 +38,15 @@ other failure in the step is logged the same way and `do_step` returns False, wi
 from __future__ import annotations
 
 import math
-import os
-import sys
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variability
 
-try:
-    import structure_fmu  # noqa: F401
-except ImportError:  # only the folder of this script is on sys.path: add the one holding structure_fmu/
-    _here = os.path.dirname(os.path.abspath(__file__))
-    for _cand in (_here, os.path.dirname(_here)):
-        if os.path.isfile(os.path.join(_cand, "structure_fmu", "errors.py")):
-            sys.path.append(_cand)
-            break
 # Only functions and the abstract SolverSlave are imported: pythonfmu's builder picks the one concrete
-# Fmi2Slave subclass of this module.
-from structure_fmu.fmi_slave import (COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name,
-                                     read_scene)
-
+# Fmi2Slave subclass of this module. Absolute imports: inside the FMU this script sits at the top of
+# resources/, which pythonfmu puts on sys.path, beside the embedded packages.
 from aero_fmu.solver import AeroSolver
+from fmu_common.fmi_slave import COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name, read_scene
 
 REQUIRED_OUTPUTS = ("CL", "lift", "wake_panels")
 # unit and description of every scalar output of AeroSolver.outputs() (aero_fmu/loads.py); the unit refuses

@@ -4,7 +4,7 @@ Each body (length L, chord c, reference line at chord fraction a) carries M chor
 panels of uniform size: panel (i, j) spans the chord fractions [i/M, (i+1)/M] (0 at the leading edge,
 1 at the trailing edge) and the span stations [j L/N, (j+1) L/N] from the body's root. A material point
 (span s, chord fraction f) lies on the element k = floor(s / l) of its body at x = s - k l (the last
-element takes s = L), y = section.chord_offset(f) = (f - a) c, i.e. measured from the reference line
+element takes s = L), y = body.chord_offset(f) = (f - a) c, i.e. measured from the reference line
 along r_y toward the trailing edge (000 Eq. 2).
 
 Katz & Plotkin placement: ring (i, j) has its leading (bound) segment at the panel's quarter chord,
@@ -15,7 +15,7 @@ three-quarter chord, f = (i + 3/4)/M, at mid panel span. The force of a panel ac
 bound segment, f = (i + 1/4)/M at mid span (the lumped-vortex centre of pressure).
 
 Every point is r = S(x, y) e on its element (000 Eq. 20), and S = kron(s, I_3) with the scalar shape row
-s of `structure_fmu.element`. We therefore store scalar matrices acting on the slot array
+s of `fmu_common.shape_functions`. We therefore store scalar matrices acting on the slot array
 X = E.reshape(-1, 3) (row 3 node + k holds r, r_x, r_y of a node): points = Sc @ X is the same as
 kron(Sc, I_3) @ E (000 Eq. 20), nine times fewer operations. Likewise the tangents at the collocation
 points r_x = Sx @ X (S_x: x-derivative of S) and r_y = Sy @ X (S_y = dS/dy: the r_y interpolation), from
@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from structure_fmu import element
-from structure_fmu.element import cross
+from fmu_common.shape_functions import hermite, shape_row
+from fmu_common.vectors import cross
 
 CORE_FRACTION = 1e-3   # vortex core radius / smallest reference panel dimension (see biot_savart.py)
 
@@ -52,8 +52,8 @@ def shape_rows(x, y, length):
     """s(x, y), s_x = ds/dx (1/m) and s_y = ds/dy (1/m) of 000 Eq. (2), each (..., 6), for
     [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]; x along the element (0..l, m), y along the chord (m)."""
     x, y, length = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, length)))
-    _, dN, _, L = element.hermite(x / length, length)
-    s = element.shape_row(x, y, length)
+    _, dN, _, L = hermite(x / length, length)
+    s = shape_row(x, y, length)
     dL = np.stack([-1.0 / length, 1.0 / length], axis=-1)
     yy = y[..., None]
     s_x = np.concatenate([dN[..., :2], yy * dL[..., :1], dN[..., 2:], yy * dL[..., 1:]], axis=-1)
@@ -116,11 +116,11 @@ class Lattice:
         self.trailing_panels = np.arange(B)[:, None] * n_p + (M - 1) * N + np.arange(N)[None, :]
         self.body = b_p
         self.panel_span = np.repeat([b.length / N for b in bodies], n_p)
-        self.panel_chord = np.repeat([b.section.chord / M for b in bodies], n_p)
-        self.chord = np.repeat([b.section.chord for b in bodies], n_p)
-        self.body_chords = np.array([b.section.chord for b in bodies], dtype=float)
+        self.panel_chord = np.repeat([b.chord / M for b in bodies], n_p)
+        self.chord = np.repeat([b.chord for b in bodies], n_p)
+        self.body_chords = np.array([b.chord for b in bodies], dtype=float)
         self._reference_panel_area = self.panel_span * self.panel_chord
-        self.reference_area = float(sum(b.length * b.section.chord for b in bodies))
+        self.reference_area = float(sum(b.length * b.chord for b in bodies))
         self.core_radius = core_fraction * float(min(self.panel_span.min(), self.panel_chord.min()))
 
     # ------------------------------------------------------------------ per time step
@@ -159,7 +159,7 @@ def _body_rows(body, num, den, fraction, slots, lengths, n_slots):
     k_local = np.minimum(num * n_el // den, n_el - 1)
     k = np.asarray(body.elements)[k_local]
     x = (num * n_el / den - k_local) * (body.length / n_el)
-    y = body.section.chord_offset(fraction)
+    y = body.chord_offset(fraction)
     out = np.zeros((3, len(num), n_slots))
     out[:, np.arange(len(num))[:, None], slots[k]] = np.stack(shape_rows(x, y, lengths[k]))
     return out

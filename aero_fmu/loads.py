@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from structure_fmu.element import cross
+from fmu_common.vectors import cross
 
 from .vlm import lift_axis
 

@@ -2,7 +2,7 @@
 
 Scene keys used: aero.model (strip | uvlm-flat | uvlm-prescribed | uvlm-free), aero.chordwise_panels,
 aero.spanwise_panels, aero.wake_length (chords; inf allowed), aero.step (s, optional), flow.speed,
-flow.density; the structure table builds the same `Topology` as the structure unit. Tunable parameters:
+flow.density; the structure table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters:
 flow.speed (m/s), flow.density (kg/m^3), flow.direction_x/_y/_z (normalized; default the first body's
 chord axis r_y).
 
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from structure_fmu.errors import InputError, SceneError, SolverDiverged, checked_input
-from structure_fmu.topology import Topology
+from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
+from fmu_common.topology import Topology
 
 from .strip import SPAN_CORRECTIONS, StripTheory
 from .uvlm import UVLM

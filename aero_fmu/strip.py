@@ -50,7 +50,7 @@ def aspect_ratio(topology) -> float:
     """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of length x chord (m^2)."""
     bodies = topology.bodies.values()
     span = sum(b.length for b in bodies)
-    return span ** 2 / sum(b.length * b.section.chord for b in bodies)
+    return span ** 2 / sum(b.length * b.chord for b in bodies)
 
 
 def helmbold_factor(aspect: float) -> float:

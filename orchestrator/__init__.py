@@ -18,5 +18,3 @@ Modules (one concept each):
 - ``progress``    the progress line on stderr
 - ``cli``         the ``wingsim`` command line
 """
-
-import structure_fmu  # noqa: F401  (first: it asks for single-threaded BLAS before numpy is loaded)

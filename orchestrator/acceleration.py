@@ -1,5 +1,5 @@
 """Interface acceleration for implicit coupling: the next interface force Q of a communication step from
-the previous iterations (DESIGN §6).
+the previous iterations (``orchestrator.coupling.Implicit``).
 
 Each scheme has `start()` (a new communication step) and `update(x, x_tilde) -> x_next`, where x is the Q
 used by the structure in this iteration and x_tilde the Q the aero unit returned for it.

@@ -3,9 +3,9 @@
 `build_fmus(scene, out_dir)` writes `out_dir/structure.fmu` and, when `aero.model != "none"`, `aero.fmu`.
 Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it from there, and puts
 `resources/` first on `sys.path`; the two scripts have distinct names, `structure_slave.py` and
-`aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`structure_fmu/`;
-`aero_fmu/` and `structure_fmu/` for the aero unit, copied as *.py files only), `scene.json`, and
-`build_info.json` (digests used by `fmus_up_to_date`).
+`aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`fmu_common/` and
+`structure_fmu/`; `fmu_common/` and `aero_fmu/` for the aero unit, never the structure solver; copied as
+*.py files only), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
 The FMUs do not bundle Python, numpy or scipy: they run in the Python environment they were built in.
 Their Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without
@@ -24,15 +24,15 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from fmu_common.fmi_slave import SCENE_RESOURCE
 from orchestrator import native_binary
-from structure_fmu.fmi_slave import SCENE_RESOURCE
 
 BUILD_INFO_RESOURCE = "build_info.json"
 
 # kind -> (FMU file name, slave module, packages embedded in resources/)
 UNITS = {
-    "structure": ("structure.fmu", "structure_fmu.structure_slave", ("structure_fmu",)),
-    "aero": ("aero.fmu", "aero_fmu.aero_slave", ("aero_fmu", "structure_fmu")),
+    "structure": ("structure.fmu", "structure_fmu.structure_slave", ("fmu_common", "structure_fmu")),
+    "aero": ("aero.fmu", "aero_fmu.aero_slave", ("fmu_common", "aero_fmu")),
 }
 
 
@@ -124,13 +124,16 @@ def _sources(kind: str) -> list[tuple[str, Path]]:
     return files
 
 
+def scene_digest(scene: dict) -> str:
+    """SHA-256 (hex) of the resolved scene as canonical JSON: the `scene_sha256` its FMUs carry."""
+    return hashlib.sha256(json.dumps(scene, sort_keys=True).encode()).hexdigest()
+
+
 def _build_info(kind: str, scene: dict) -> dict:
     h = hashlib.sha256()
     for name, f in _sources(kind):
         h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
-    scene_text = json.dumps(scene, sort_keys=True)
-    return {"unit": kind, "sources_sha256": h.hexdigest(),
-            "scene_sha256": hashlib.sha256(scene_text.encode()).hexdigest(),
+    return {"unit": kind, "sources_sha256": h.hexdigest(), "scene_sha256": scene_digest(scene),
             "native_binary_sha256": native_binary.source_digest()}
 
 
@@ -143,7 +146,8 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
     fmu_name, module_name, packages = UNITS[kind]
     _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
-    from structure_fmu.errors import SceneError
+
+    from fmu_common.errors import SceneError
 
     script = _slave_script(kind)
     dest = out_dir / fmu_name
@@ -193,11 +197,11 @@ def _native_binary(fmu: Path, dest: Path) -> None:
 
 
 def _check_scene(kind: str, scene: dict) -> None:
-    """Fail before building, with the structure package's SceneError naming the key."""
+    """Fail before building, with a SceneError naming the key."""
     if kind == "structure":
         from structure_fmu.solver import StructureSolver
-        from structure_fmu.topology import Topology
-        Topology.from_scene(scene)
+        from structure_fmu.topology import StructureTopology
+        StructureTopology.from_scene(scene)
         StructureSolver.tunable_parameters(scene)
     elif kind == "aero":
         from aero_fmu.solver import AeroSolver

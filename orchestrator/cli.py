@@ -2,7 +2,7 @@
 
 - ``wingsim build SCENE [--out DIR]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
-  run, write ``timeseries.csv``, ``summary.json`` and PNG plots into DIR (default ``results/<scene>/``).
+  run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
 - ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...]``: build the FMUs if needed (into the folder
   ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU, ``DIR/wing.fmu``
@@ -12,8 +12,17 @@
   values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
   ``results/<scene>/sweep/``); local processes, or a Dask cluster with ``--scheduler`` (docs/sweep.md).
 
-Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), or
-an unexpected error; 2 bad scene, bad arguments or a command not implemented yet.
+``run`` and ``export`` build and open the FMUs in ``fmus/<scene>/`` when no ``--set`` is given (the folder
+``build`` fills by default) and in ``fmus/<scene>-<first 12 hex digits of the resolved scene's SHA-256>/``
+with ``--set``, so that variants of one scene never overwrite each other's FMUs (``fmu_dir``).
+
+``--out`` is checked before anything runs (``results.check_out_dir``): a file, a path below a file or a
+folder that cannot be written is refused with exit 2.
+
+Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), a results
+file could not be written (the message names it), or an unexpected error; 2 bad scene or bad arguments
+(nothing runs); 130 interrupted by Ctrl-C (SIGINT), 143 terminated by SIGTERM: both are handled alike,
+the results so far are written (128 + the signal number, as a shell reports a process killed by it).
 Errors are one line, ``error: ...``; set ``WINGSIM_DEBUG=1`` to see tracebacks.
 """
 
@@ -22,22 +31,47 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 from typing import Sequence
 
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
+from fmu_common.threads import limit_blas_threads
 
-NOT_IMPLEMENTED: dict[str, str] = {}
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
 EXPORT_ROOT = Path("export")
+DIGEST_CHARS = 12
+"""Hex digits of the resolved scene's digest in the FMU folder of a ``--set`` variant."""
+HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _debug() -> bool:
     return os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM, raised where the main thread stands so that both unwind like Ctrl-C."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+_received: list[int] = []   # the handled signals received during this command, in order
+
+
+def _interrupt(signum: int, frame) -> None:
+    _received.append(signum)
+    raise Interrupted(signum)
+
+
+def interrupt_exit_code() -> int | None:
+    """128 + the number of the first signal received (130 for SIGINT, 143 for SIGTERM), or None."""
+    return 128 + _received[0] if _received else None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -101,8 +135,6 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--plots", action="store_true", help="write PNG plots into each run folder (off by default)")
     sweep.set_defaults(func=cmd_sweep)
 
-    for command, issue in NOT_IMPLEMENTED.items():
-        commands.add_parser(command, help=f"not implemented yet ({issue})")
     return parser
 
 
@@ -114,18 +146,26 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_build(args: argparse.Namespace) -> int:
     from orchestrator.build import build_fmus
+    from orchestrator.results import check_out_dir
     from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene)
-    out = args.out or FMU_ROOT / scene["name"]
+    out = check_out_dir(args.out or FMU_ROOT / scene["name"])
     for path in build_fmus(scene, out):
         print(path)
     return 0
 
 
-def _fmu_dir(scene: dict) -> Path:
-    """The folder `run` and `export` build a scene's FMUs into and run them from."""
-    return FMU_ROOT / scene["name"]
+def fmu_dir(scene: dict, overridden: bool) -> Path:
+    """The folder `run` and `export` build a scene's FMUs into and run them from: ``fmus/<scene>/`` for the
+    scene as its file writes it (where `build` puts them), ``fmus/<scene>-<digest>/`` for a ``--set``
+    variant (``overridden``), keyed by the first DIGEST_CHARS hex digits of the resolved scene's SHA-256,
+    so that concurrent runs of different variants never rebuild each other's FMUs."""
+    if not overridden:
+        return FMU_ROOT / scene["name"]
+    from orchestrator.build import scene_digest
+
+    return FMU_ROOT / f"{scene['name']}-{scene_digest(scene)[:DIGEST_CHARS]}"
 
 
 def _build_if_needed(scene: dict, fmu_dir: Path):
@@ -154,20 +194,36 @@ def _build_if_needed(scene: dict, fmu_dir: Path):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from orchestrator.master import run_scene
+    from orchestrator.master import RunResult, new_series, run_scene
     from orchestrator.plots import write_plots
     from orchestrator.progress import Progress
-    from orchestrator.results import deployment_time, latching_hinges, write_results
+    from orchestrator.results import (WriteError, check_out_dir, deployment_time, latching_hinges,
+                                      write_results, write_started)
     from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or RESULTS_ROOT / scene["name"]
-    fmu_dir = _fmu_dir(scene)
-    result = _build_if_needed(scene, fmu_dir) if args.backend == "fmu" else None
-    if result is None:
-        progress = Progress(scene["time"]["stop"], label=scene["name"])
-        result = run_scene(scene, backend=args.backend, fmu_dir=fmu_dir, progress=progress)
-    write_results(result, out)
+    out = check_out_dir(args.out or RESULTS_ROOT / scene["name"])
+    start = time.perf_counter()
+    try:   # from here on an interrupt still writes the results (run_scene handles its own)
+        try:
+            write_started(scene, out)
+        except WriteError as err:
+            print(f"error: {err}; nothing was run", file=sys.stderr)
+            return 1
+        folder = fmu_dir(scene, bool(args.overrides))
+        result = _build_if_needed(scene, folder) if args.backend == "fmu" else None
+        if result is None:
+            progress = Progress(scene["time"]["stop"], label=scene["name"])
+            result = run_scene(scene, backend=args.backend, fmu_dir=folder, progress=progress)
+    except KeyboardInterrupt as err:
+        result = RunResult("error", f"interrupted ({err or 'SIGINT'}) before the first communication step",
+                           time.perf_counter() - start, 0.0, scene, new_series(scene))
+    try:
+        write_results(result, out)   # summary.json first, then timeseries.csv
+    except WriteError as err:
+        print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
+        print(f"error: {err}", file=sys.stderr)
+        return interrupt_exit_code() or 1
     try:
         write_plots(result, out)
     except Exception as err:  # the data are written; a plotting problem must not hide them
@@ -182,32 +238,31 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"deployment time: {deployed:.6g} s" if deployed is not None else
               f"not deployed: {waiting} had not latched at t = {result.simulated_time_s:g} s")
     print(f"results in {out}")
-    return 0 if result.status == "ok" else 1
+    return interrupt_exit_code() or (0 if result.status == "ok" else 1)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     from orchestrator.container import CONTAINER_FILE, write_container
+    from orchestrator.results import check_out_dir
     from orchestrator.scene import load_scene
     from orchestrator.ssp import write_ssp
     from orchestrator.system import coupled_system
 
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or EXPORT_ROOT / scene["name"]
-    if out.exists() and not out.is_dir():
-        raise SceneError("--out", str(out), "a folder to write the .ssp and wing.fmu into (this is a file)")
-    fmu_dir = _fmu_dir(scene)
-    failed = _build_if_needed(scene, fmu_dir)
+    out = check_out_dir(args.out or EXPORT_ROOT / scene["name"])
+    folder = fmu_dir(scene, bool(args.overrides))
+    failed = _build_if_needed(scene, folder)
     if failed is not None:
         print(f"error: {failed.message}", file=sys.stderr)
-        return 1
-    system = coupled_system(scene, fmu_dir)
-    out.mkdir(parents=True, exist_ok=True)
+        return interrupt_exit_code() or 1
+    system = coupled_system(scene, folder)
     print(write_ssp(system, out / f"{scene['name']}.ssp"))
     print(write_container(system, out / CONTAINER_FILE))
     return 0
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
+    from orchestrator.results import check_out_dir
     from orchestrator.sweep import plan_sweep, run_sweep
 
     if args.jobs is not None and args.jobs < 1:
@@ -215,7 +270,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if not args.grid:
         raise SceneError("--grid", None, "give at least one --grid KEY=V1,V2,..., e.g. --grid flow.speed=0,10,20")
     runs = plan_sweep(args.scene, args.grid, args.overrides)   # SceneError (exit 2) before anything runs
-    out = args.out or RESULTS_ROOT / runs[0].scene["name"] / "sweep"
+    out = check_out_dir(args.out or RESULTS_ROOT / runs[0].scene["name"] / "sweep")
     where = f"the Dask cluster at {args.scheduler}" if args.scheduler else "local processes"
     print(f"sweep: {len(runs)} runs of {args.scene} on {where}, results in {out}", file=sys.stderr)
     outcome = run_sweep(runs, out, backend=args.backend, jobs=args.jobs, scheduler=args.scheduler,
@@ -224,7 +279,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     print(f"sweep: {outcome.runs} runs, {outcome.ran} run now ({counts}), {outcome.skipped} already done")
     print(f"results in {outcome.table}")
     rows_ok = all(row["status"] == "ok" for row in _read_rows(outcome.table))
-    return 0 if rows_ok else 1
+    return interrupt_exit_code() or (0 if rows_ok else 1)
 
 
 def _read_rows(path: Path) -> list[dict]:
@@ -239,21 +294,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if _debug():
         logging.basicConfig(level=logging.DEBUG)
-    if argv and argv[0] in NOT_IMPLEMENTED:
-        print(f"error: 'wingsim {argv[0]}' is not implemented yet ({NOT_IMPLEMENTED[argv[0]]})",
-              file=sys.stderr)
-        return 2
     args = build_parser().parse_args(argv)
+    limit_blas_threads()
+    from orchestrator.results import WriteError
+
+    _received.clear()
+    previous = _handle_signals()
     try:
         return args.func(args)
     except SceneError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:
+        print(f"error: interrupted ({err or 'SIGINT'})", file=sys.stderr)
+        return interrupt_exit_code() or 128 + signal.SIGINT
+    except WriteError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     except Exception as err:
         if _debug():
             raise
         print(f"error: {type(err).__name__}: {err} (set {DEBUG_ENV}=1 to see the traceback)", file=sys.stderr)
         return 1
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _handle_signals() -> dict:
+    """Install ``_interrupt`` for SIGINT and SIGTERM (main thread only); returns the previous handlers."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signum: signal.signal(signum, _interrupt) for signum in HANDLED_SIGNALS}

@@ -13,7 +13,7 @@ import re
 import tomllib
 from typing import Any, Iterable
 
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 
 INDEX_PATTERN = re.compile(r"\[(\d+)\]")
 

@@ -1,8 +1,17 @@
-"""Write a run's ``timeseries.csv`` and ``summary.json`` (DESIGN §7), also for a failed run.
+"""Write a run's ``summary.json`` and ``timeseries.csv`` (DESIGN §7), also for a failed run.
+
+Write order, so that a full disk or a killed process loses at most the big files and always leaves a
+summary (at worst the one written before the run):
+``check_out_dir`` refuses an output folder that cannot be written before anything runs;
+``write_started`` writes a summary with status "running" and the resolved scene before the run; at the end
+``write_results`` replaces it with the final summary, then writes ``timeseries.csv`` (the plots come after).
+Each file is written to a temporary name and renamed, so a file that exists is complete (a failed write
+leaves the previous summary in place). A failed write raises ``WriteError`` naming the file and the cause.
 
 Summary fields (SI units, angles in degrees):
 
-- ``status`` ("ok" | "diverged" | "error"), ``message``, ``wall_time_s`` (s, the whole run: loading the
+- ``status`` ("ok" | "diverged" | "error"; "running" only in the summary written before the run, which
+  a run that was killed leaves behind), ``message``, ``wall_time_s`` (s, the whole run: loading the
   units included), ``stepping_wall_time_s`` (s, the communication steps alone, null if none ran; over
   ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
   after ``--set``);
@@ -34,13 +43,16 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import tempfile
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from orchestrator.master import RunResult
+from fmu_common.errors import SceneError
+from orchestrator.master import RunResult, new_series
 from orchestrator.scene import hinge_joints
 from orchestrator.timeseries import TimeSeries
 
@@ -51,6 +63,11 @@ implicitly coupled one COUPLING_FIELD."""
 STRAIN_FIELD = "strain_gauges"
 AERO_FIELD = "aero"
 COUPLING_FIELD = "coupling"
+SUMMARY_FILE = "summary.json"
+TIMESERIES_FILE = "timeseries.csv"
+RUNNING = "running"
+"""Status of the summary written before the run; the end of the run replaces it with "ok", "diverged" or
+"error"."""
 ENERGY_FLOOR_J = 1e-12
 """Smallest energy scale (J) the energy drift is relative to, so that a structure at rest with E_0 = 0
 does not divide by zero."""
@@ -197,21 +214,98 @@ def json_safe(value: Any) -> Any:
     return value
 
 
+class OutFolderError(SceneError):
+    """An output folder (``--out``) that cannot be written: a file, below a file, or not writable. Raised
+    before anything runs (exit 2); the message names the option, the path and why."""
+
+    def __init__(self, option: str, path: Path, why: str):
+        ValueError.__init__(self, f"{option} {str(path)!r}: {why}")
+        self.key, self.value, self.allowed = option, str(path), why
+
+
+class WriteError(RuntimeError):
+    """A results file could not be written; the message names the file and the cause."""
+
+    def __init__(self, path: Path, err: OSError):
+        self.path, self.cause = Path(path), err
+        super().__init__(f"cannot write {path}: {err.strerror or err}")
+
+
+def check_out_dir(path: Path, option: str = "--out") -> Path:
+    """Create the folder ``path`` (and its parents) if missing and check that a file can be created in it
+    (by creating and removing one: permission bits alone do not tell, e.g. for root or a read-only mount);
+    returns ``path``. OutFolderError naming ``option``, the path and why, before anything runs."""
+    path = Path(path)
+    for existing in (path, *path.parents):
+        if existing.exists():
+            if not existing.is_dir():
+                why = ("is a file; give a folder (it is created if missing)" if existing == path else
+                       f"is below {str(existing)!r}, which is a file, not a folder")
+                raise OutFolderError(option, path, why)
+            break
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        handle, probe = tempfile.mkstemp(prefix=".wingsim-probe-", dir=path)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as err:
+        raise OutFolderError(option, path, f"cannot write there: {err.strerror or err}") from err
+    return path
+
+
+def _write_file(path: Path, write: Callable[[Path], None]) -> None:
+    """``write(temporary path)``, then rename it to ``path``: ``path`` is either complete or untouched."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as err:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        raise WriteError(path, err) from err
+
+
 def write_timeseries(series: TimeSeries, path: Path) -> None:
     """CSV with a header row (``time`` first) and one row per sample; NaN written as ``nan``."""
     np.savetxt(path, series.table(), delimiter=",", header=",".join(series.columns), comments="",
                fmt="%.12g")
 
 
-def write_summary(result: RunResult, path: Path) -> None:
-    path.write_text(json.dumps(summarize(result), indent=2, allow_nan=False) + "\n")
+def write_summary(result: RunResult, path: Path, summary: dict | None = None) -> None:
+    """``summary`` (default ``summarize(result)``) as strict JSON; WriteError naming the file."""
+    text = json.dumps(summary if summary is not None else summarize(result), indent=2, allow_nan=False) + "\n"
+    _write_file(Path(path), lambda tmp: tmp.write_text(text))
+
+
+def write_started(scene: dict, out_dir: Path, message: str = "the run has started") -> Path:
+    """The summary written before a run: status "running", the resolved scene, no figures yet."""
+    path = Path(out_dir) / SUMMARY_FILE
+    write_summary(RunResult(RUNNING, message, 0.0, 0.0, scene, new_series(scene)), path)
+    return path
 
 
 def write_results(result: RunResult, out_dir: Path) -> list[Path]:
-    """Write ``timeseries.csv`` and ``summary.json`` into ``out_dir`` (created); returns the paths."""
+    """Write ``summary.json``, then ``timeseries.csv``, into ``out_dir`` (created); returns the paths.
+
+    WriteError names the file that could not be written. When ``timeseries.csv`` fails, the summary's
+    message says so (if the summary can still be rewritten)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    csv_path, summary_path = out_dir / "timeseries.csv", out_dir / "summary.json"
-    write_timeseries(result.series, csv_path)
-    write_summary(result, summary_path)
+    summary_path, csv_path = out_dir / SUMMARY_FILE, out_dir / TIMESERIES_FILE
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise WriteError(summary_path, err) from err
+    summary = summarize(result)
+    write_summary(result, summary_path, summary)
+    try:
+        _write_file(csv_path, lambda tmp: write_timeseries(result.series, tmp))
+    except WriteError as err:
+        summary["message"] = f"{summary['message']} ({TIMESERIES_FILE} not written: {err.cause.strerror or err.cause})"
+        try:
+            write_summary(result, summary_path, summary)
+        except WriteError:
+            pass   # the summary written above stands; the error below names the missing file
+        raise
     return [csv_path, summary_path]

@@ -6,7 +6,7 @@ what ``summary.json`` records. SI units throughout (s, m, kg, N, m/s, kg/m^3).
 
 This module checks the top level and the scalar keys (time, coupling, flow, aero, probes, strain gauges
 and the scalar ``structure`` keys). The physics tables (bodies, joints, masses, loads) are checked by
-``structure_fmu.topology.Topology.from_scene``, and an aero scene by ``aero_fmu.solver.AeroSolver``,
+``structure_fmu.topology.StructureTopology.from_scene``, and an aero scene by ``aero_fmu.solver.AeroSolver``,
 which ``load_scene`` calls last, so that every bad scene fails before anything runs with a
 ``SceneError`` naming the key, the value and what is allowed.
 
@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterable
 from orchestrator.acceleration import ACCELERATIONS
 from orchestrator.overrides import apply_overrides
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS
-from structure_fmu.errors import SceneError, reject_unknown_keys
+from fmu_common.errors import SceneError, reject_unknown_keys
 
 Checker = Callable[[str, Any], Any]
 """(dotted key, value) -> normalised value; raises SceneError."""
@@ -496,9 +496,9 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> dict:
 def check_physics(scene: dict) -> None:
     """SceneError unless the units can be built from the resolved scene: the structural topology and,
     for an aero scene, the aero solver."""
-    from structure_fmu.topology import Topology  # lazy: the physics packages are only needed here
+    from structure_fmu.topology import StructureTopology  # lazy: the physics packages are only needed here
 
-    Topology.from_scene(scene)
+    StructureTopology.from_scene(scene)
     _check_sensor_outputs(scene)
     if scene["aero"]["model"] != "none":
         from aero_fmu.solver import AeroSolver

@@ -1,4 +1,4 @@
-"""``wingsim sweep``: run every combination of ``--grid KEY=V1,V2,...`` values (issue 5; docs/sweep.md).
+"""``wingsim sweep``: run every combination of ``--grid KEY=V1,V2,...`` values (docs/sweep.md).
 
 Each combination is one run of the scene with the ``--set`` overrides followed by the grid overrides
 (``load_scene(path, [*sets, *grid])`` then ``run_scene``). Every combination is loaded and checked
@@ -10,28 +10,35 @@ before any run starts and opened by the workers from ``OUT/fmus/<run>/``).
 
 Layout of the output folder ``OUT``:
 
-- ``OUT/runs/<index>_<key=value_...>/``: ``timeseries.csv``, ``summary.json`` (as ``wingsim run``),
+- ``OUT/runs/<index>_<key=value_...>/``: ``summary.json``, ``timeseries.csv`` (as ``wingsim run``),
   ``sweep_run.json`` (the run's overrides and backend, for resuming), PNG plots with ``plots=True``;
 - ``OUT/sweep.csv``: one row per run, appended as runs finish (a killed sweep keeps the finished
   rows) and rewritten complete, in grid order, at the end.
 
+Before any run starts, each run folder gets its ``sweep_run.json`` and a summary with status "running"
+(``results.write_started``). A run folder that cannot be written, a run that fails, and a run whose
+results cannot be written each get their row (status "error", the message naming the file or the
+cause) and the sweep goes on with the others.
+
 Resume: a run whose folder holds a ``summary.json`` (status ok, diverged or error) for the same
-overrides, backend and resolved scene is not run again.
+overrides, backend and resolved scene, and its ``timeseries.csv``, is not run again.
+
+Local workers die with the sweep's process: they ignore SIGINT (the sweep's process stops them), and on
+Linux each asks the kernel for SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)``), also when the
+sweep's process is itself killed by SIGKILL. multiprocessing's resource tracker then exits by itself: it
+stops when the last process holding its pipe (the sweep's process and its workers) is gone.
 """
 
 from __future__ import annotations
-
-import os
-
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):   # one BLAS thread per worker
-    os.environ.setdefault(_var, "1")   # inherited by the (spawned) workers, which import numpy afresh
 
 import csv
 import itertools
 import json
 import math
 import multiprocessing
+import os
 import re
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -39,8 +46,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence, TextIO
 
+from fmu_common.errors import SceneError
+from fmu_common.threads import limit_blas_threads
 from orchestrator.overrides import INDEX_PATTERN
-from structure_fmu.errors import SceneError
 
 DONE_STATUSES = ("ok", "diverged", "error")
 FIXED_COLUMNS = ("index",)
@@ -137,8 +145,7 @@ def plan_sweep(scene_path: Path, grid_items: Sequence[str], sets: Sequence[str] 
 
 def run_one(scene: dict, backend: str, fmu_dir: str | None) -> Any:
     """Run one resolved scene; the worker-side task (returns the RunResult; never writes files)."""
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")   # effective if this worker has not imported numpy yet
+    limit_blas_threads()   # one BLAS thread per worker
     from orchestrator.master import run_scene
 
     return run_scene(scene, backend=backend, fmu_dir=Path(fmu_dir) if fmu_dir else None, progress=None)
@@ -150,6 +157,26 @@ def _failed(scene: dict, message: str, wall: float = 0.0) -> Any:
     return RunResult("error", message, wall, 0.0, scene, new_series(scene))
 
 
+PR_SET_PDEATHSIG = 1   # linux/prctl.h
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Initializer of each local worker: on Linux, be sent SIGKILL by the kernel when the parent dies,
+    however it dies; exit at once if the parent is already gone (it died before the request took
+    effect); then ignore SIGINT (a Ctrl-C reaches the whole process group: the sweep's process stops its
+    workers itself)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+            errno = ctypes.get_errno()
+            raise OSError(errno, f"prctl(PR_SET_PDEATHSIG) failed: {os.strerror(errno)}")
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 # --- resume -----------------------------------------------------------------------------------------
 
 def _run_record(run: Run, backend: str) -> dict:
@@ -158,15 +185,15 @@ def _run_record(run: Run, backend: str) -> dict:
 
 def finished_summary(run: Run, run_dir: Path, backend: str) -> dict | None:
     """The run folder's summary if it holds a finished run of the same overrides, backend and scene."""
+    from orchestrator.results import SUMMARY_FILE, TIMESERIES_FILE, json_safe
+
     try:
         record = json.loads((run_dir / RUN_FILE).read_text())
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = json.loads((run_dir / SUMMARY_FILE).read_text())
     except (OSError, ValueError):
         return None
-    from orchestrator.results import json_safe
-
     same = (record.get("overrides") == run.overrides and record.get("backend") == backend
-            and summary.get("status") in DONE_STATUSES
+            and summary.get("status") in DONE_STATUSES and (run_dir / TIMESERIES_FILE).is_file()
             and summary.get("scene") == json.loads(json.dumps(json_safe(run.scene))))
     return summary if same else None
 
@@ -239,27 +266,43 @@ class SweepTable:
         self._writer: csv.DictWriter | None = None
 
     def add(self, row: dict) -> None:
+        """Keep the row and append it to the file; WriteError naming the file if that fails."""
+        from orchestrator.results import WriteError
+
         self.rows[row["index"]] = row
-        if self._writer is None:
-            self._file = self.path.open("w", newline="")
-            self._writer = csv.DictWriter(self._file, _columns(self.grid_keys, [row]), extrasaction="ignore")
-            self._writer.writeheader()
-        self._writer.writerow({k: _cell(v) for k, v in row.items()})
-        self._file.flush()
+        try:
+            if self._writer is None:
+                self._file = self.path.open("w", newline="")
+                self._writer = csv.DictWriter(self._file, _columns(self.grid_keys, [row]), extrasaction="ignore")
+                self._writer.writeheader()
+            self._writer.writerow({k: _cell(v) for k, v in row.items()})
+            self._file.flush()
+        except OSError as err:
+            raise WriteError(self.path, err) from err
 
     def close(self) -> None:
-        """Rewrite the file with every row so far, sorted by index, with the union of all columns."""
+        """Rewrite the file with every row so far, sorted by index, with the union of all columns;
+        WriteError naming the file if that fails (the file appended so far stays)."""
+        from orchestrator.results import WriteError
+
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass   # the rewrite below writes every row again
             self._file = self._writer = None
         rows = [self.rows[i] for i in sorted(self.rows)]
         tmp = self.path.with_suffix(".csv.tmp")
-        with tmp.open("w", newline="") as handle:
-            writer = csv.DictWriter(handle, _columns(self.grid_keys, rows))
-            writer.writeheader()
-            for row in rows:
-                writer.writerow({k: _cell(v) for k, v in row.items()})
-        tmp.replace(self.path)
+        try:
+            with tmp.open("w", newline="") as handle:
+                writer = csv.DictWriter(handle, _columns(self.grid_keys, rows))
+                writer.writeheader()
+                for row in rows:
+                    writer.writerow({k: _cell(v) for k, v in row.items()})
+            tmp.replace(self.path)
+        except OSError as err:
+            tmp.unlink(missing_ok=True)
+            raise WriteError(self.path, err) from err
 
 
 # --- the sweep --------------------------------------------------------------------------------------
@@ -269,7 +312,7 @@ class SweepOutcome:
     runs: int
     ran: int
     skipped: int
-    statuses: dict[str, int]
+    statuses: dict[str, int]   # status -> runs, of the rows of the runs run now
     table: Path
 
 
@@ -296,12 +339,13 @@ def _build_fmus(runs: list[Run], todo: list[Run], out: Path, stream: TextIO) -> 
 
 def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | None = None,
               scheduler: str | None = None, plots: bool = False, stream: TextIO | None = None) -> SweepOutcome:
-    """Run (or resume) the planned runs; writes the run folders and OUT/sweep.csv."""
-    from orchestrator.results import write_results
+    """Run (or resume) the planned runs; writes the run folders and OUT/sweep.csv (``out`` must be a
+    folder that can be written: ``results.check_out_dir``). A run folder that cannot be written, a failed
+    run or results that cannot be written give the run's row status "error" and the sweep goes on."""
+    from orchestrator.results import TIMESERIES_FILE, WriteError, summarize, write_results, write_started
 
     stream = stream if stream is not None else sys.stderr
     out = Path(out)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
     grid_keys = list(runs[0].values) if runs else []
     table = SweepTable(out / SWEEP_CSV, grid_keys)
     by_index = {run.index: run for run in runs}
@@ -321,29 +365,55 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
               file=stream)
     statuses: dict[str, int] = {}
 
-    def finish(run: Run, result: Any) -> None:
+    def record(run: Run, result: Any, status: str, message: str) -> None:
         nonlocal done
         run_dir = out / "runs" / run.name
-        run_dir.mkdir(parents=True, exist_ok=True)
-        (run_dir / "summary.json").unlink(missing_ok=True)   # a half-written run is never taken as done
-        (run_dir / RUN_FILE).write_text(json.dumps(_run_record(run, backend), indent=2) + "\n")
-        write_results(result, run_dir)   # summary.json last
-        if plots:
-            try:
-                from orchestrator.plots import write_plots
-
-                write_plots(result, run_dir)
-            except Exception as err:
-                print(f"warning: {run.name}: plots not written: {type(err).__name__}: {err}", file=stream)
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = {**summarize(result), "status": status, "message": message}
         table.add(sweep_row(run, summary, run_dir, out))
         done += 1
-        statuses[result.status] = statuses.get(result.status, 0) + 1
-        print(f"sweep: {done}/{total} runs done: {run.name}: {result.status} "
-              f"({result.wall_time_s:.2f} s){': ' + result.message if result.message else ''}", file=stream)
+        statuses[status] = statuses.get(status, 0) + 1
+        print(f"sweep: {done}/{total} runs done: {run.name}: {status} "
+              f"({result.wall_time_s:.2f} s){': ' + message if message else ''}", file=stream)
         stream.flush()
 
+    def finish(run: Run, result: Any) -> None:
+        run_dir = out / "runs" / run.name
+        status, message = result.status, result.message
+        try:
+            write_results(result, run_dir)   # summary.json, then timeseries.csv
+        except WriteError as err:
+            status, message = "error", f"{err} (the run itself: {result.status}: {result.message})"
+        else:
+            if plots:
+                try:
+                    from orchestrator.plots import write_plots
+
+                    write_plots(result, run_dir)
+                except Exception as err:
+                    print(f"warning: {run.name}: plots not written: {type(err).__name__}: {err}", file=stream)
+        record(run, result, status, message)
+
+    def prepare(run: Run) -> bool:
+        """Write the run folder's record and "running" summary; a row with the cause if that fails."""
+        run_dir = out / "runs" / run.name
+        path = run_dir
+        try:
+            run_dir.mkdir(parents=True, exist_ok=True)
+            path = run_dir / TIMESERIES_FILE
+            path.unlink(missing_ok=True)   # a stale one is never taken as this run's
+            path = run_dir / RUN_FILE
+            path.write_text(json.dumps(_run_record(run, backend), indent=2) + "\n")
+            write_started(run.scene, run_dir)
+        except WriteError as err:
+            record(run, _failed(run.scene, ""), "error", f"{err}; not run")
+            return False
+        except OSError as err:
+            record(run, _failed(run.scene, ""), "error", f"cannot write {path}: {err.strerror or err}; not run")
+            return False
+        return True
+
     try:
+        todo = [run for run in todo if prepare(run)]
         fmu_dirs: dict[int, str | None] = {run.index: None for run in todo}
         if backend == "fmu" and todo:
             for index, result in _build_fmus(runs, todo, out, stream).items():
@@ -354,6 +424,10 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
             _run_dask(todo, backend, fmu_dirs, scheduler, finish)
         elif todo:
             _run_local(todo, backend, fmu_dirs, jobs, finish)
+    except KeyboardInterrupt as err:
+        print(f"sweep: interrupted ({err or 'SIGINT'}) after {done}/{total} runs; sweep.csv holds the finished "
+              "ones, rerun the same command to resume", file=stream)
+        raise
     finally:
         table.close()
     return SweepOutcome(total, total - skipped, skipped, statuses, out / SWEEP_CSV)
@@ -361,8 +435,10 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
 
 def _run_local(todo: list[Run], backend: str, fmu_dirs: dict, jobs: int | None, finish) -> None:
     workers = max(1, min(jobs or os.cpu_count() or 1, len(todo)))
-    # spawn: each worker imports numpy afresh under OPENBLAS_NUM_THREADS=1 (no fork of a threaded process)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    others = set(multiprocessing.active_children())   # children that are not this pool's workers
+    # spawn: each worker imports numpy afresh (no fork of a process with threads)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
         futures = {pool.submit(run_one, run.scene, backend, fmu_dirs[run.index]): run for run in todo}
         try:
             for future in as_completed(futures):
@@ -373,6 +449,9 @@ def _run_local(todo: list[Run], backend: str, fmu_dirs: dict, jobs: int | None, 
                     result = _failed(run.scene, f"worker failed: {type(err).__name__}: {err}")
                 finish(run, result)
         except BaseException:
+            # stop the workers now: shutdown alone would wait for the runs they are in
+            for worker in set(multiprocessing.active_children()) - others:
+                worker.kill()
             pool.shutdown(wait=False, cancel_futures=True)
             raise
 

@@ -43,10 +43,11 @@ import weakref
 from ctypes import byref
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from structure_fmu.fmi_slave import SCENE_RESOURCE
+from fmu_common.fmi_slave import DIVERGED_CATEGORY, SCENE_RESOURCE
 from structure_fmu.sensors import output_names as sensor_output_names
 from structure_fmu.structure_slave import LATCH_PENDING
 
@@ -54,12 +55,26 @@ from structure_fmu.structure_slave import LATCH_PENDING
 class UnitError(RuntimeError):
     """A unit call failed. The message carries the unit's own logged reason.
 
-    `diverged` is True when the unit reported a diverging state (summary status "diverged").
+    `diverged` is True when the unit reported a diverging state (summary status "diverged"): it logged the
+    failure in the category `DIVERGED_CATEGORY`, whatever the message says.
     """
 
     def __init__(self, message: str, diverged: bool = False):
         super().__init__(message)
         self.diverged = diverged
+
+
+class LogEntry(NamedTuple):
+    """One message a unit logged: its fmi2Status (0 OK .. 4 Fatal), category and text ('%' undoubled)."""
+
+    status: int
+    category: str
+    text: str
+
+
+def _reported_divergence(entries) -> bool:
+    """True when one of the log entries is the unit's divergence signal (its category, not its text)."""
+    return any(entry.category == DIVERGED_CATEGORY for entry in entries)
 
 
 @dataclass(frozen=True)
@@ -125,8 +140,8 @@ class Unit:
     docstring."""
 
     def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure"):
-        from structure_fmu.fmi_slave import fmi_name
-        from structure_fmu.topology import Topology
+        from fmu_common.fmi_slave import fmi_name
+        from fmu_common.topology import Topology
 
         self._port = port
         self.kind = kind
@@ -276,7 +291,7 @@ class _FmuPort:
         self._dir = None
         self._live_states = weakref.WeakSet()
         self._initialized = False
-        self.log: list[tuple[int, str]] = []
+        self.log: list[LogEntry] = []
         if not fmu_path.is_file():
             raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
         try:
@@ -300,7 +315,8 @@ class _FmuPort:
             # not used, as it keeps ONE logger for the whole process (messages of every instance would go to
             # the last one registered, and into freed memory once that one is gone). The slave doubles '%'.
             text = message.decode("utf-8", "replace") if message else ""
-            self.log.append((int(status), text.replace("%%", "%")))
+            self.log.append(LogEntry(int(status), category.decode("utf-8", "replace") if category else "",
+                                     text.replace("%%", "%")))
 
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
@@ -341,7 +357,7 @@ class _FmuPort:
             raise UnitError(f"{self.label}: refused: " + "; ".join(problems))
 
     def _reasons(self, since: int) -> str:
-        msgs = [" ".join(m.split()) for s, m in self.log[since:] if s >= 1 and m]
+        msgs = [" ".join(m.split()) for s, _, m in self.log[since:] if s >= 1 and m]
         return "; ".join(msgs) if msgs else "no reason logged by the unit"
 
     def _call(self, what: str, fn, *args, **kwargs):
@@ -350,12 +366,11 @@ class _FmuPort:
         try:
             result = fn(*args, **kwargs)
         except Exception as exc:
-            reasons = self._reasons(mark)
-            raise UnitError(f"{self.label}: {what} failed ({exc}): {reasons}",
-                            diverged="diverged" in reasons) from None
-        if any(status >= _ERROR for status, _ in self.log[mark:]):
-            reasons = self._reasons(mark)
-            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged="diverged" in reasons)
+            raise UnitError(f"{self.label}: {what} failed ({exc}): {self._reasons(mark)}",
+                            diverged=_reported_divergence(self.log[mark:])) from None
+        if any(entry.status >= _ERROR for entry in self.log[mark:]):
+            raise UnitError(f"{self.label}: {what} failed: {self._reasons(mark)}",
+                            diverged=_reported_divergence(self.log[mark:]))
         return result
 
     def value_references(self) -> dict[str, int]:
@@ -447,7 +462,7 @@ class _DirectPort:
         self._slave = None
         self._tmp = tempfile.TemporaryDirectory(prefix="wingsim_direct_")
         Path(self._tmp.name, SCENE_RESOURCE).write_text(json.dumps(scene), encoding="utf-8")
-        self.log: list[tuple[int, str]] = []
+        self.log: list[LogEntry] = []
         self._slave = self._call("instantiate", slave_class, instance_name=instance_name,
                                  resources=self._tmp.name)
 
@@ -456,24 +471,24 @@ class _DirectPort:
         try:
             result = fn(*args, **kwargs)
         except Exception as exc:  # noqa: BLE001 - as fmi2Fatal through the FMU: report, never crash
-            reasons = self._drain(slave)[1]
+            reasons = _warnings_and_errors(self._drain(slave))
             raise UnitError(f"{self.label}: {what} failed ({type(exc).__name__}: {exc})"
                             + (f": {reasons}" if reasons else "")) from exc
-        error, reasons = self._drain(slave)
-        if error or (result is False and not ok_on_false):
-            reasons = reasons or "no reason logged by the unit"
-            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged="diverged" in reasons)
+        new = self._drain(slave)
+        if any(entry.status >= _ERROR for entry in new) or (result is False and not ok_on_false):
+            reasons = _warnings_and_errors(new) or "no reason logged by the unit"
+            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged=_reported_divergence(new))
         return result
 
-    def _drain(self, slave) -> tuple[bool, str]:
-        """Move the slave's queued log messages to self.log: (any error among them, warnings and errors)."""
+    def _drain(self, slave) -> list[LogEntry]:
+        """Move the slave's queued log messages to self.log; returns them."""
         if slave is None:
-            return False, ""
+            return []
         # the slave doubles '%' for the FMI logger's printf formatting: undo it as that logger would
-        new = [(int(m.status), m.msg.replace("%%", "%")) for m in slave.log_queue]
+        new = [LogEntry(int(m.status), m.category or "", m.msg.replace("%%", "%")) for m in slave.log_queue]
         slave.log_queue.clear()
         self.log += new
-        return any(s >= _ERROR for s, _ in new), "; ".join(m for s, m in new if s >= 1)
+        return new
 
     def value_references(self) -> dict[str, int]:
         return {v.name: vr for vr, v in self._slave.vars.items()}
@@ -533,6 +548,11 @@ class _DirectPort:
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None
+
+
+def _warnings_and_errors(entries: list[LogEntry]) -> str:
+    """The texts of the warnings and errors among `entries`, joined by '; '."""
+    return "; ".join(entry.text for entry in entries if entry.status >= 1)
 
 
 def _differing_keys(a, b, prefix: str) -> list[str]:

@@ -36,7 +36,7 @@ def _layout(path: Path, kind: str) -> list[str]:
 
     from orchestrator.build import BUILD_INFO_RESOURCE
     from orchestrator.layout import check
-    from structure_fmu.fmi_slave import SCENE_RESOURCE
+    from fmu_common.fmi_slave import SCENE_RESOURCE
 
     with tempfile.TemporaryDirectory(prefix="wingsim_layout_") as folder, zipfile.ZipFile(path) as z:
         for name in (SCENE_RESOURCE, BUILD_INFO_RESOURCE):
@@ -49,7 +49,7 @@ def _simulate(path: Path, kind: str) -> list[str]:
     """Problems found in a short simulation of the FMU at `path` (empty when it runs cleanly)."""
     from orchestrator.build import embedded_scene
     from orchestrator.units import FMU_FILES, UnitError, make_unit
-    from structure_fmu.topology import Topology
+    from fmu_common.topology import Topology
 
     scene = embedded_scene(path)
     step = float(scene.get("coupling", {}).get("step", 1e-3))

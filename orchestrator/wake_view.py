@@ -65,7 +65,7 @@ def aero_parameters(scene: dict) -> dict:
 
 
 def replay(scene: dict, inputs, at_steps, budget_s: float | None = None):
-    """Replay the aero unit over the recorded ``inputs`` (``master.AeroInputs``) up to the largest step
+    """Replay the aero unit over the recorded ``inputs`` (``coupling.AeroInputs``) up to the largest step
     index in ``at_steps`` (0-based), keeping a ``Snapshot`` after each of those steps.
 
     Returns (snapshots, solver, stopped): the solver as it is after the last replayed step, and

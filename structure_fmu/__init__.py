@@ -1,10 +1,19 @@
-"""Structure unit: the 18-DoF ANCF multibody solver (000 Secs. II-IV) and its FMI 2.0 slave.
+"""Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV) and its FMI 2.0 slave.
 
-Our matrices are small (n < 1000). On a loaded 2-core machine threaded OpenBLAS made an LU of size 158
-take 40-90 ms against 0.35 ms single-threaded, so we ask for one BLAS thread. This takes effect only if
-numpy is not imported yet: hosts that import numpy first should set OPENBLAS_NUM_THREADS=1 themselves.
+  solver.py          StructureSolver, the API of docs/solver_api.md (scene, parameters, inputs Q, state, outputs)
+  structure_slave.py the FMI slave over StructureSolver
+  topology.py        StructureTopology: the shared topology (fmu_common) plus joints, sections, motions, masses,
+                     loads, and the map E = T q + P p(t) to reduced coordinates
+  section.py         beam cross-section properties from a plate or explicit stiffnesses
+  element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
+  model.py           mass, forces, constraints and energy of the assembled structure (Eq. 4)
+  constraints.py     the nonlinear internal constraints (Eqs. 6, 17)
+  joints.py          hinges: fold angle, spring actuator, latch
+  motion.py          prescribed rigid motions: clamps, driven roots (Eq. 27), heave/pitch laws
+  damping.py         damping of deformation
+  integrators.py     RK4 and generalized-alpha with projection on the constraints
+  modes.py           natural frequencies and modes linearized at rest
+  sensors.py         probes and strain gauges
+
+Shared with the aero unit, in fmu_common: errors, the FMI slave plumbing, the topology, the shape functions.
 """
-import os
-
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")

@@ -12,8 +12,8 @@ import numpy as np
 
 
 class Constraints:
-    """Vectorized evaluation of the nonlinear constraints of a Topology whose free coordinates q map to
-    E = T q + P p (`T`, (n, n_q), `Topology.maps`).
+    """Vectorized evaluation of the nonlinear constraints of a StructureTopology whose free coordinates q map
+    to E = T q + P p (`T`, (n, n_q), `StructureTopology.maps`).
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
     X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane

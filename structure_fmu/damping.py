@@ -9,7 +9,7 @@ r_x/|r_x|, r_y, their cross product). The force F = -alpha (I - P)^T M (I - P) d
 """
 import numpy as np
 
-from .element import cross
+from fmu_common.vectors import cross
 
 
 def _skew(v):

@@ -4,9 +4,8 @@ Element coordinates (000 Eq. 3): e = [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B], 18 
 dimensionless for the gradients. Every kernel here is a pure function vectorized over elements: arrays
 of element coordinates have shape (n_elements, 18), element lengths shape (n_elements,).
 
-Position of a material point (000 Eq. 2): r(x, y) = S(x, y) e with x along the span (0..l) and y along the
-chord, measured from the reference line toward the trailing edge: cubic Hermite along the span for r and
-r_x, r_y linear along the span, r(x, y) = r(x, 0) + y r_y(x).
+Position of a material point (000 Eq. 2): r(x, y) = S(x, y) e, the shape functions of
+fmu_common.shape_functions (shared with the aero unit).
 
 Elastic energy (000 Eq. 7) and its definitions, written down here because the paper leaves freedom:
   * axial strain   an assumed quadratic field eps(x) with the nodal stretches |r_x^A| - 1, |r_x^B| - 1 at
@@ -29,25 +28,13 @@ import functools
 
 import numpy as np
 
+from fmu_common.shape_functions import hermite
+from fmu_common.vectors import cross
+
 # Gauss-Legendre points and weights on [0, 1]; 5 points integrate degree 9 exactly.
 _GAUSS_XI, _GAUSS_W = np.polynomial.legendre.leggauss(5)
 GAUSS_XI = 0.5 * (_GAUSS_XI + 1.0)
 GAUSS_W = 0.5 * _GAUSS_W
-
-
-def hermite(xi, length):
-    """Span shape functions and their x-derivatives at xi = x / l.
-
-    Returns (N, dN, ddN, L) with N, dN, ddN of shape (..., 4) for (r^A, r_x^A, r^B, r_x^B) and
-    L of shape (..., 2) for (r_y^A, r_y^B). `length` broadcasts against xi.
-    """
-    xi, length = np.broadcast_arrays(np.asarray(xi, dtype=float), np.asarray(length, dtype=float))
-    l, x2, x3 = length, xi**2, xi**3
-    N = np.stack([1 - 3 * x2 + 2 * x3, l * (xi - 2 * x2 + x3), 3 * x2 - 2 * x3, l * (x3 - x2)], axis=-1)
-    dN = np.stack([(6 * x2 - 6 * xi) / l, 1 - 4 * xi + 3 * x2, (6 * xi - 6 * x2) / l, 3 * x2 - 2 * xi], axis=-1)
-    ddN = np.stack([(12 * xi - 6) / l**2, (6 * xi - 4) / l, (6 - 12 * xi) / l**2, (6 * xi - 2) / l], axis=-1)
-    L = np.stack([1 - xi, xi], axis=-1)
-    return N, dN, ddN, L
 
 
 # Assumed axial strain eps(xi) = eps_A phi_A + eps_B phi_B + eps_arc phi_C: phi_A, phi_B linear minus the
@@ -77,16 +64,6 @@ def _cached_per_lengths(build):
 def gauss_basis(length):
     """hermite() at the Gauss points for each element length, (n, 5, .), cached (lengths are constant)."""
     return hermite(GAUSS_XI[None, :], length[:, None])
-
-
-def shape_row(x, y, length):
-    """Scalar shape row s(x, y) of 000 Eq. (2), shape (..., 6); S(x, y) = kron(s, I_3).
-
-    Ordering follows e: [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]. x, y in metres.
-    """
-    N, _, _, L = hermite(np.asarray(x) / length, length)
-    y = np.asarray(y, dtype=float)[..., None]
-    return np.concatenate([N[..., :2], y * L[..., :1], N[..., 2:], y * L[..., 1:]], axis=-1)
 
 
 def flap_curvature(derivatives):
@@ -139,18 +116,6 @@ def distributed_force(length, mass_per_length, first_moment, acceleration):
          + first_moment[:, None, None] * np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]], axis=-1))
     weights = np.einsum("ng,nga->na", w, s)
     return np.einsum("na,i->nai", weights, np.asarray(acceleration, dtype=float)).reshape(-1, 18)
-
-
-def cross(a, b):
-    """Cross product on the last axis; complex-safe and much faster than np.cross on small arrays."""
-    same = a.shape == b.shape and a.dtype == b.dtype
-    out = np.empty_like(a) if same else np.empty(np.broadcast(a, b).shape, dtype=np.result_type(a, b))
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out[..., 0] = a1 * b2 - a2 * b1
-    out[..., 1] = a2 * b0 - a0 * b2
-    out[..., 2] = a0 * b1 - a1 * b0
-    return out
 
 
 def _dot(a, b):

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dposv
 
-from .errors import SolverDiverged
+from fmu_common.errors import SolverDiverged
 
 
 @dataclass

@@ -10,8 +10,10 @@ import numpy as np
 import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
+from fmu_common.shape_functions import shape_row
+from fmu_common.vectors import cross
+
 from . import element
-from .element import cross
 from .constraints import Constraints
 from .motion import Fixed
 from .damping import deformation_damping_force, deformation_damping_matrix
@@ -19,7 +21,7 @@ from .joints import actuator_terms
 
 
 class StructureModel:
-    """Mass, forces, constraints and energy of a Topology with given tunable parameters."""
+    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters."""
 
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         self.top = topology
@@ -123,7 +125,7 @@ class StructureModel:
             F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
         for load in self.loads:
             k = load["element"]
-            s = element.shape_row(load["x"], load["y"], self.lengths[k])
+            s = shape_row(load["x"], load["y"], self.lengths[k])
             F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
         for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
@@ -163,7 +165,7 @@ class StructureModel:
     # ---------------------------------------------------------------- monitors
     def potential_energy(self, E, latched, angles):
         """Elastic + gravity potential + actuator spring potential, J, at E with the fold angles
-        {hinge: rad} of E (`Topology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
+        {hinge: rad} of E (`StructureTopology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
         elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
             if self.flexible else 0.0
         potential = -float(self.gravity_E @ E)

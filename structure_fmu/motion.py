@@ -8,12 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def rotation_about(axis, angle):
-    """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
-    a = np.asarray(axis, dtype=float)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+from fmu_common.vectors import rotation_about
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Cross-section properties of a wing body, from a rectangular plate or given explicitly."""
 from dataclasses import dataclass
 
-from .errors import SceneError, reject_unknown_keys
+from fmu_common.errors import SceneError, reject_unknown_keys
+from fmu_common.topology import SECTION_TABLE, chord_line
 
 
 @dataclass(frozen=True)
@@ -29,10 +30,6 @@ class Section:
     def stiffness(self):
         return (self.axial, self.flap, self.chordwise, self.torsion)
 
-    def chord_offset(self, chord_fraction):
-        """y (m) of the point at `chord_fraction` of the chord from the leading edge."""
-        return (chord_fraction - self.axis_position) * self.chord
-
 
 _PLATE = ("thickness", "density", "youngs_modulus")
 _EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
@@ -54,12 +51,9 @@ def section_from_scene(key: str, table: dict) -> Section:
     The mass is spread uniformly over the chord.
     """
     if not isinstance(table, dict):
-        raise SceneError(key, table, "a table with chord, torsional_rigidity and plate or explicit properties")
+        raise SceneError(key, table, SECTION_TABLE)
     reject_unknown_keys(table, key, _ALLOWED)
-    chord = _positive(key, table, "chord")
-    axis = table.get("axis_position", 0.5)
-    if not isinstance(axis, (int, float)) or not 0.0 <= axis <= 1.0:
-        raise SceneError(f"{key}.axis_position", axis, "a fraction of chord in [0, 1]")
+    chord, axis = chord_line(key, table)
     torsion = _positive(key, table, "torsional_rigidity")
     derived, h = {}, None
     if any(name in table for name in _PLATE):
@@ -80,5 +74,5 @@ def section_from_scene(key: str, table: dict) -> Section:
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
                    chordwise=values["bending_stiffness_chord"], torsion=torsion, mass_per_length=mu,
                    first_moment=mu * (trail**2 - lead**2) / (2 * chord),
-                   chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=float(axis),
+                   chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
                    thickness=h)

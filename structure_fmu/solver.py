@@ -8,11 +8,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import SceneError, SolverDiverged, checked_input
+from fmu_common.errors import SceneError, SolverDiverged, checked_input
+
 from .integrators import RK4, GeneralizedAlpha, State, project
 from .model import StructureModel
 from .sensors import Sensors
-from .topology import Topology
+from .topology import StructureTopology
 
 _DIVERGENCE_HINT = {
     "rk4": "reduce structure.step below the explicit stability limit, or use structure.integrator = "
@@ -29,7 +30,7 @@ class StructureSolver:
     """The structural solver of one scene. See docs/solver_api.md."""
 
     def __init__(self, scene: dict, parameters: dict | None = None):
-        self.topology = Topology.from_scene(scene)
+        self.topology = StructureTopology.from_scene(scene)
         self.sensors = Sensors.from_scene(scene, self.topology)
         structure = scene["structure"]
         values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}

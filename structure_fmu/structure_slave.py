@@ -38,7 +38,7 @@ LATCH_PENDING (-1 s) until then, and stays so for a hinge without a stop. The ma
 deployment time from it instead of from the fold angles at the communication points, which the latch
 arrests within a step.
 
-Errors (structure_fmu/fmi_slave.py lists every refused call): after construction no FMI call raises. A
+Errors (fmu_common/fmi_slave.py lists every refused call): after construction no FMI call raises. A
 refused call logs its reason at error status and returns with the state unchanged; through the FMU's
 shim it answers fmi2Error. `do_step` is refused before initialization and after terminate, for a step size
 that is not finite and > 0, and for a communication point that is not the unit's time (FMI start time +
@@ -50,26 +50,15 @@ binary (no shim) get fmi2OK or fmi2Discard and must treat an error-status log me
 """
 from __future__ import annotations
 
-import os
-import sys
-
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variability
 
-try:
-    import structure_fmu  # noqa: F401
-except ImportError:  # only the folder of this script is on sys.path: add the one holding structure_fmu/
-    _here = os.path.dirname(os.path.abspath(__file__))
-    for _cand in (_here, os.path.dirname(_here)):
-        if os.path.isfile(os.path.join(_cand, "structure_fmu", "errors.py")):
-            sys.path.append(_cand)
-            break
 # Only functions and the abstract SolverSlave are imported: pythonfmu's builder picks the one concrete
-# Fmi2Slave subclass of this module.
-from structure_fmu.fmi_slave import (COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name,
-                                     read_scene)
+# Fmi2Slave subclass of this module. Absolute imports: inside the FMU this script sits at the top of
+# resources/, which pythonfmu puts on sys.path, beside the embedded packages.
+from fmu_common.fmi_slave import COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name, read_scene
+from fmu_common.topology import Topology
 from structure_fmu.solver import StructureSolver
-from structure_fmu.topology import Topology
 
 LATCH_PENDING = -1.0
 """Value (s) of latch_time_<hinge> until the hinge latches. Latch times are at or after the start time,

@@ -2,6 +2,8 @@
 check, rollback, and the Gauss-Seidel / Jacobi exchange order of the master."""
 import json
 import os
+import subprocess
+import sys
 import types
 import zipfile
 from pathlib import Path
@@ -15,10 +17,11 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 from orchestrator import units as real_units  # noqa: E402
 from orchestrator.build import build_fmus, fmus_up_to_date  # noqa: E402
+from orchestrator.cli import fmu_dir as run_fmu_dir  # noqa: E402  (a fixture below is named fmu_dir)
 from orchestrator.master import CouplingError, check_connection, run_scene  # noqa: E402
 from orchestrator.scene import load_scene  # noqa: E402
 from orchestrator.units import UnitError, make_unit  # noqa: E402
-from structure_fmu.topology import Topology  # noqa: E402
+from fmu_common.topology import Topology  # noqa: E402
 from subprocesses import simulate_in_fresh_python, wingsim  # noqa: E402
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -80,7 +83,7 @@ def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
     assert validate_fmu(str(fmu)) == []
     names = zipfile.ZipFile(fmu).namelist()
     for member in ("resources/scene.json", "resources/aero_slave.py", "resources/aero_fmu/solver.py",
-                   "resources/structure_fmu/topology.py", "binaries/linux64/aero.so"):
+                   "resources/fmu_common/topology.py", "binaries/linux64/aero.so"):
         assert member in names
     assert "resources/structure_slave.py" not in names      # distinct slave module names (DESIGN §10)
     assert fmus_up_to_date(scene, fmu_dir)
@@ -105,6 +108,42 @@ def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
     assert v["topology_hash"].type == "String" and v["topology_hash"].start == topology.topology_hash
     structure_md = read_model_description(str(fmu_dir / "structure.fmu"))
     assert {x.name: x.start for x in structure_md.modelVariables}["topology_hash"] == topology.topology_hash
+
+
+def test_each_fmu_embeds_the_shared_package_and_its_own_never_the_other_unit(fmu_dir):
+    """aero.fmu holds fmu_common and aero_fmu and no module of the structure unit (its solver, integrators,
+    element...); structure.fmu holds fmu_common and structure_fmu, no aero_fmu; both the same fmu_common.
+    (pythonfmu's builder adds its own package to every FMU.)"""
+    def python_files(fmu):
+        with zipfile.ZipFile(fmu) as z:
+            return {n: z.read(n) for n in z.namelist() if n.startswith("resources/") and n.endswith(".py")}
+
+    aero, structure = python_files(fmu_dir / "aero.fmu"), python_files(fmu_dir / "structure.fmu")
+    package = lambda name: name.split("/")[1] if name.count("/") > 1 else "(slave script)"
+    assert {package(n) for n in aero} == {"(slave script)", "pythonfmu", "fmu_common", "aero_fmu"}
+    assert {package(n) for n in structure} == {"(slave script)", "pythonfmu", "fmu_common", "structure_fmu"}
+    assert not [n for n in aero if "structure" in n or "integrators" in n]
+    assert not [n for n in structure if "aero" in n]
+    shared = lambda files: {n: data for n, data in files.items() if package(n) == "fmu_common"}
+    assert shared(aero) == shared(structure) and "resources/fmu_common/fmi_slave.py" in shared(aero)
+
+
+def test_the_aero_fmu_alone_never_imports_the_structure_unit(fmu_dir, tmp_path):
+    """In a fresh host where structure_fmu is installed (and so importable), simulating aero.fmu imports
+    fmu_common and aero_fmu from the FMU and no structure_fmu module at all."""
+    code = ("import json, sys, fmpy\n"
+            f"fmpy.simulate_fmu({str(fmu_dir / 'aero.fmu')!r}, stop_time=0.2, output_interval=0.1)\n"
+            "ours = ('fmu_common', 'aero_fmu', 'structure_fmu')\n"
+            "print(json.dumps({m: getattr(sys.modules[m], '__file__', None) for m in sys.modules"
+            " if m.split('.')[0] in ours}))\n")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    modules = json.loads(out.stdout.splitlines()[-1])
+    assert "fmu_common.topology" in modules and "aero_fmu.solver" in modules
+    assert not [m for m in modules if m.startswith("structure_fmu")]
+    assert all(f"resources{os.sep}" in (path or "resources" + os.sep) for path in modules.values())
 
 
 def test_aero_fmu_runs_alone_in_a_fresh_host_from_its_embedded_packages(fmu_dir, tmp_path):
@@ -352,4 +391,5 @@ def test_strip_theory_scene_runs_end_to_end(tmp_path):
     header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and header[-2:] == ["CL", "lift"]
     assert (out / "lift_coefficient.png").stat().st_size > 1000
-    assert (tmp_path / "fmus" / "steady_wing" / "aero.fmu").is_file()
+    variant = load_scene(SCENES / "steady_wing.toml", ["aero.model=strip"])
+    assert (tmp_path / run_fmu_dir(variant, overridden=True) / "aero.fmu").is_file()   # a --set variant's own folder

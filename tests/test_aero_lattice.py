@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from aero_fmu.lattice import Lattice
-from structure_fmu.motion import rotation_about
-from structure_fmu.topology import Topology
+from fmu_common.vectors import rotation_about
+from fmu_common.topology import Topology
 
 RNG = np.random.default_rng(11)
 SECTION = {"chord": 0.3, "axis_position": 0.4, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9,
@@ -85,7 +85,7 @@ def test_matrices_are_the_element_shape_functions_on_any_E():
     h = 1e-5
     for b, name in enumerate(["inner", "outer"]):
         body = top.bodies[name]
-        L, c = body.length, body.section.chord
+        L, c = body.length, body.chord
         for i in range(M):
             for j in range(N):
                 p = b * M * N + i * N + j

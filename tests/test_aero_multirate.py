@@ -15,7 +15,7 @@ import pytest
 from aero_fmu.solver import AeroSolver
 from orchestrator.overrides import parse_value
 from orchestrator.scene import load_scene, resolve_scene
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 from structure_fmu.solver import StructureSolver
 from test_aero_unsteady import assert_heave_matches, fitted_amplitude, heave_theory, wing_scene
 

@@ -10,7 +10,7 @@ import pytest
 
 from aero_fmu.solver import AeroSolver
 from aero_fmu.vlm import SteadyVLM
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 from structure_fmu.solver import StructureSolver
 
 SECTION = {"chord": 0.8, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}

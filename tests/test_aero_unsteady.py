@@ -21,7 +21,7 @@ from scipy.special import hankel2
 from aero_fmu import wake as wakes
 from aero_fmu.solver import AeroSolver
 from aero_fmu.vlm import SteadyVLM
-from structure_fmu.errors import InputError, SceneError, SolverDiverged
+from fmu_common.errors import InputError, SceneError, SolverDiverged
 from structure_fmu.solver import StructureSolver
 
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}

@@ -18,9 +18,9 @@ import pytest
 from aero_fmu import biot_savart
 from aero_fmu.lattice import Lattice
 from aero_fmu.vlm import SteadyVLM, bound_segments, ring_segments, steady_lift
-from structure_fmu.motion import rotation_about
+from fmu_common.vectors import rotation_about
 from structure_fmu.solver import StructureSolver
-from structure_fmu.topology import Topology
+from fmu_common.topology import Topology
 
 RHO, SPEED = 1.2, 10.0
 U = np.array([SPEED, 0.0, 0.0])

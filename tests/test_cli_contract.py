@@ -186,17 +186,20 @@ def test_deployment_time_waits_for_every_latched_hinge(scene):
 # --- the run loop, with a stand-in unit -----------------------------------------------------------
 
 class FakeUnitError(RuntimeError):
-    pass
+    def __init__(self, message, diverged=False):
+        super().__init__(message)
+        self.diverged = diverged
 
 
 class FakeUnit:
     """Moves every coordinate (e_k = t + k) and every probe of the example scene (along x at 1 m/s, from
-    (0, 1, 2) m); fails at ``fail_at`` (s) with ``reason``."""
+    (0, 1, 2) m); fails at ``fail_at`` (s) with ``reason``, reporting a divergence if ``diverged``."""
 
     n = 18
 
-    def __init__(self, fail_at=None, reason=""):
+    def __init__(self, fail_at=None, reason="", diverged=False):
         self.t, self.fail_at, self.reason, self.steps, self.terminated = 0.0, fail_at, reason, [], False
+        self.diverged = diverged
 
     def get_outputs(self):
         return self.t + np.arange(self.n, dtype=float), np.ones(self.n)
@@ -207,7 +210,7 @@ class FakeUnit:
     def do_step(self, t, h):
         assert t == pytest.approx(self.t)
         if self.fail_at is not None and t + h > self.fail_at + 1e-12:
-            raise FakeUnitError(self.reason)
+            raise FakeUnitError(self.reason, diverged=self.diverged)
         self.steps.append(h)
         self.t = t + h
 
@@ -263,11 +266,33 @@ def test_a_unit_without_a_probe_output_stops_the_run_naming_the_probe(scene):
 
 def test_diverged_unit_keeps_its_message_and_the_samples(scene, tmp_path):
     reason = "structure: diverged at t = 0.005 s: constraint residual 3.2. Hint: reduce structure.step"
-    result = fake_run(scene, FakeUnit(fail_at=0.005, reason=reason))
+    result = fake_run(scene, FakeUnit(fail_at=0.005, reason=reason, diverged=True))
     assert result.status == "diverged" and result.message == reason
     assert result.simulated_time_s == pytest.approx(0.005) and len(result.series) == 6
     write_results(result, tmp_path)
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "diverged"
+
+
+def test_a_reported_divergence_is_diverged_whatever_its_message_says(scene):
+    reason = "structure: constraint residual 3.2 over its limit at t = 0.005 s"
+    result = fake_run(scene, FakeUnit(fail_at=0.005, reason=reason, diverged=True))
+    assert result.status == "diverged" and result.message == reason
+
+
+class PlainFailure(FakeUnit):
+    """Fails with a RuntimeError, not the units' error type."""
+
+    def do_step(self, t, h):
+        if t + h > self.fail_at + 1e-12:
+            raise RuntimeError(self.reason)
+        super().do_step(t, h)
+
+
+@pytest.mark.parametrize("unit_class", [FakeUnit, PlainFailure])
+def test_a_failure_whose_message_says_diverged_is_an_error(scene, unit_class):
+    reason = "aero: the wake file diverged from its checksum"
+    result = fake_run(scene, unit_class(fail_at=0.005, reason=reason))
+    assert result.status == "error" and reason in result.message and "t = 0.005" in result.message
 
 
 def test_other_unit_failure_is_an_error(scene):

@@ -1,4 +1,4 @@
-"""Implicit coupling of the structure and aero units (orchestrator/master.py, DESIGN §6): convergence at
+"""Implicit coupling of the structure and aero units (orchestrator/coupling.py): convergence at
 every step with Aitken and IQN-ILS, agreement with Gauss-Seidel at a smaller step, the explicit schemes'
 coupling error falling with the step, stability where Gauss-Seidel diverges, non-convergence and rollback
 failures, the replay of the accepted aero inputs, and the fmu backend.

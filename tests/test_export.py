@@ -27,10 +27,10 @@ import pytest
 from lxml import etree
 
 from orchestrator import native_binary
-from orchestrator.cli import main
+from orchestrator.cli import fmu_dir, main
 from orchestrator.master import run_scene
 from orchestrator.scene import hinge_joints, load_scene
-from structure_fmu.topology import Topology
+from fmu_common.topology import Topology
 from subprocesses import wingsim
 from test_c_host import UnitSpec, fmpy_run, host, run_c_host  # noqa: F401  (host: the compiled C host fixture)
 from test_compliance_checker import CHECKER, assert_clean, assert_replayed_by_fmpy, check
@@ -48,7 +48,8 @@ STILL_AIR = ["aero.model=none"]
 
 
 def export(folder: Path, *overrides: str) -> dict[str, Path]:
-    """`wingsim export` of deploy_rigid in a fresh process in `folder` (its FMUs go to folder/fmus/...)."""
+    """`wingsim export` of deploy_rigid in a fresh process in `folder` (its FMUs go to folder/fmus/<folder>/,
+    ``orchestrator.cli.fmu_dir``)."""
     args = ["export", SCENE, "--out", folder / "export"]
     for item in overrides:
         args += ["--set", item]
@@ -56,7 +57,8 @@ def export(folder: Path, *overrides: str) -> dict[str, Path]:
     assert out.returncode == 0, out.stdout + out.stderr
     written = [Path(line) for line in out.stdout.split()]
     assert [p.name for p in written] == ["deploy_rigid.ssp", "wing.fmu"]
-    return {"ssp": folder / written[0], "container": folder / written[1], "fmus": folder / "fmus" / "deploy_rigid"}
+    fmus = folder / fmu_dir(load_scene(SCENE, overrides), overridden=bool(overrides))   # where export built them
+    return {"ssp": folder / written[0], "container": folder / written[1], "fmus": fmus}
 
 
 @pytest.fixture(scope="module")

@@ -28,9 +28,9 @@ from orchestrator import native_binary  # noqa: E402
 from orchestrator.build import build_fmus  # noqa: E402
 from orchestrator.scene import load_scene  # noqa: E402
 from orchestrator.units import FMU_FILES, KINDS  # noqa: E402
-from structure_fmu.fmi_slave import SCENE_RESOURCE  # noqa: E402
+from fmu_common.fmi_slave import SCENE_RESOURCE  # noqa: E402
 from structure_fmu.solver import StructureSolver  # noqa: E402
-from structure_fmu.topology import Topology  # noqa: E402
+from fmu_common.topology import Topology  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-3  # communication step, s

@@ -16,8 +16,8 @@ from orchestrator.layout import Variable, mismatches
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
 from orchestrator.units import UnitError, make_unit
-from structure_fmu.fmi_slave import fmi_name
-from structure_fmu.topology import Topology
+from fmu_common.fmi_slave import fmi_name
+from fmu_common.topology import Topology
 
 SCENE = "scenes/deploy_rigid.toml"
 

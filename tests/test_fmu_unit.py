@@ -3,6 +3,7 @@ import json
 import os
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -11,10 +12,11 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
+from fmu_common.fmi_slave import DIVERGED_CATEGORY  # noqa: E402
 from orchestrator.build import build_fmus, embedded_scene, fmus_up_to_date  # noqa: E402
 from orchestrator.units import UnitError, make_unit  # noqa: E402
 from structure_fmu.solver import StructureSolver  # noqa: E402
-from structure_fmu.topology import Topology  # noqa: E402
+from fmu_common.topology import Topology  # noqa: E402
 from subprocesses import simulate_in_fresh_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +68,8 @@ def test_build_embeds_scene_and_package_and_validates(scene, fmu_dir):
     assert validate_fmu(str(fmu)) == []
     names = zipfile.ZipFile(fmu).namelist()
     for member in ("resources/scene.json", "resources/structure_slave.py", "resources/structure_fmu/solver.py",
-                   "resources/structure_fmu/topology.py", "binaries/linux64/structure.so"):
+                   "resources/structure_fmu/topology.py", "resources/fmu_common/topology.py",
+                   "resources/fmu_common/fmi_slave.py", "binaries/linux64/structure.so"):
         assert member in names
     assert embedded_scene(fmu) == json.loads(json.dumps(scene))
     assert fmus_up_to_date(scene, fmu_dir)
@@ -153,7 +156,7 @@ def test_non_finite_input_is_reported_and_host_survives(units, backend, bad):
 
 @pytest.mark.parametrize("backend", ["fmu", "direct"])
 def test_divergence_reaches_the_host_with_reason_and_hint(units, backend, monkeypatch):
-    from structure_fmu.errors import SolverDiverged
+    from fmu_common.errors import SolverDiverged
     unit = units(backend)  # the FMU in this process shares the host's structure_fmu modules
 
     def diverge(self, t_end, Q=None):  # '%s' checks the text is not taken as a printf format on the way
@@ -163,6 +166,25 @@ def test_divergence_reaches_the_host_with_reason_and_hint(units, backend, monkey
         unit.do_step(0.0, H)
     assert info.value.diverged and "reduce structure.step" in str(info.value)
     assert "(100% %s over the limit)" in str(info.value)
+    # the signal is the log category, not the text
+    assert [e.category for e in unit._port.log if e.status >= 3] == [DIVERGED_CATEGORY]
+
+
+@pytest.mark.parametrize("backend", ["fmu", "direct"])
+def test_a_failure_whose_text_says_diverged_is_not_a_divergence(units, backend, monkeypatch):
+    unit = units(backend)
+
+    def fail(self, t_end, Q=None):
+        raise RuntimeError("the tabulated load diverged from its source")
+    monkeypatch.setattr(StructureSolver, "advance", fail)
+    with pytest.raises(UnitError, match="the tabulated load diverged from its source") as info:
+        unit.do_step(0.0, H)
+    assert not info.value.diverged
+
+
+def test_the_divergence_log_category_is_declared(fmu_dir):
+    md = ElementTree.fromstring(zipfile.ZipFile(fmu_dir / "structure.fmu").read("modelDescription.xml"))
+    assert DIVERGED_CATEGORY in [c.get("name") for c in md.iterfind("LogCategories/Category")]
 
 
 @pytest.mark.parametrize("backend", ["fmu", "direct"])

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 from structure_fmu.motion import SpinUp
 from structure_fmu.solver import StructureSolver
 

@@ -8,7 +8,7 @@ import pytest
 
 from orchestrator.overrides import apply_overrides, parse_override, parse_value
 from orchestrator.scene import MISSING, SECTIONS, load_scene, read_scene_file, resolve_scene
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"

@@ -21,10 +21,10 @@ from orchestrator.build import build_fmus  # noqa: E402
 from orchestrator.master import communication_times, new_series, run_scene  # noqa: E402
 from orchestrator.scene import load_scene  # noqa: E402
 from orchestrator.units import UnitError, make_unit  # noqa: E402
-from structure_fmu import element  # noqa: E402
-from structure_fmu.errors import SceneError  # noqa: E402
-from structure_fmu.fmi_slave import fmi_name  # noqa: E402
-from structure_fmu.topology import Topology  # noqa: E402
+from fmu_common.errors import SceneError  # noqa: E402
+from fmu_common.fmi_slave import fmi_name  # noqa: E402
+from fmu_common.shape_functions import shape_row  # noqa: E402
+from fmu_common.topology import Topology  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGID, FLEXIBLE = ROOT / "scenes" / "deploy_rigid.toml", ROOT / "scenes" / "deploy_flexible.toml"
@@ -129,7 +129,7 @@ def test_rigid_probes_follow_the_rigid_body_formula_and_its_rate(rigid):
     for p in scene["probes"]:
         body = top.bodies[p["body"]]
         root = body.nodes[0]
-        y = (p["chord"] - body.section.axis_position) * body.section.chord
+        y = (p["chord"] - body.axis_position) * body.chord
         combination = lambda c: (c[:, 9 * root:9 * root + 3] + p["span"] * c[:, 9 * root + 3:9 * root + 6]
                                  + y * c[:, 9 * root + 6:9 * root + 9])
         got = np.array([out[v] for v in probe_names(scene, p["name"])]).T
@@ -176,11 +176,11 @@ def test_flexible_probes_and_gauge_from_the_element_shape_functions(flexible):
         k = min(int(span / l_el), len(body.elements) - 1)
         a, b = top.element_nodes[body.elements[k]]
         slots = np.r_[9 * a:9 * a + 9, 9 * b:9 * b + 9]
-        return np.kron(element.shape_row(span - k * l_el, y, l_el), np.eye(3)) @ c[slots]
+        return np.kron(shape_row(span - k * l_el, y, l_el), np.eye(3)) @ c[slots]
 
     for p in scene["probes"]:
-        section = top.bodies[p["body"]].section
-        y = (p["chord"] - section.axis_position) * section.chord
+        body = top.bodies[p["body"]]
+        y = (p["chord"] - body.axis_position) * body.chord
         got = np.array([out[v] for v in probe_names(scene, p["name"])])
         np.testing.assert_allclose(got[:3], element_point(p["body"], p["span"], e, y), rtol=0, atol=1e-14)
         np.testing.assert_allclose(got[3:], element_point(p["body"], p["span"], de, y), rtol=0, atol=1e-13)

@@ -1,4 +1,4 @@
-"""`wingsim sweep` (issue 5): local processes, resume, a Dask cluster on loopback, bad grids (docs/sweep.md)."""
+"""`wingsim sweep`: local processes, resume, a Dask cluster on loopback, bad grids (docs/sweep.md)."""
 import csv
 import json
 from pathlib import Path
@@ -9,7 +9,7 @@ from orchestrator.master import run_scene
 from orchestrator.results import summarize
 from orchestrator.scene import load_scene
 from orchestrator.sweep import combinations, parse_grid, split_values, summary_figures
-from structure_fmu.errors import SceneError
+from fmu_common.errors import SceneError
 from subprocesses import CODE_ROOT, wingsim
 
 SCENE = CODE_ROOT / "scenes" / "deploy_rigid.toml"
@@ -118,8 +118,10 @@ def test_resume_runs_only_missing(tmp_path):
     runs = sorted((out / "runs").iterdir())
     assert len(runs) == 4
     mtimes = {run.name: (run / "summary.json").stat().st_mtime_ns for run in runs}
-    # a killed sweep: run 1 never finished (no summary), run 2 was never started; sweep.csv has 2 rows
-    (runs[1] / "summary.json").unlink()
+    # a killed sweep: run 1 was running (its summary still says so), run 2 was never started; sweep.csv
+    # has 2 rows
+    started = json.loads((runs[1] / "summary.json").read_text())
+    (runs[1] / "summary.json").write_text(json.dumps({**started, "status": "running"}))
     for path in runs[2].iterdir():
         path.unlink()
     runs[2].rmdir()

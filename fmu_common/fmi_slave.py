@@ -26,9 +26,11 @@ answers fmi2OK (fmi2Discard for do_step) with the error logged, and a host must 
     that do not hold one (`_StateUnpickler` builds only numpy arrays and the solvers' state dataclasses, so
     foreign bytes never run code).
 A failure inside a step (non-finite input, `InputError`, `SolverDiverged`, any exception) is logged the
-same way; a unit that cannot go on (refused parameters, a state that failed half-way) refuses every later
-step until a good state is set. Values can be read in every state (the standard allows it from
-initialization mode on; before, they are the start values). The shim checks what Python cannot: NULL or
+same way, a `SolverDiverged` in the category `DIVERGED_CATEGORY` (declared in the model description's
+LogCategories) so that a host tells a divergence from other errors without reading the text; a unit that
+cannot go on (refused parameters, a state that failed half-way) refuses every later step until a good state
+is set. Values can be read in every state (the standard allows it from initialization mode on; before, they
+are the start values). The shim checks what Python cannot: NULL or
 foreign fmi2FMUstate pointers, a GUID that does not match. fmi2Reset is pythonfmu's: it constructs the
 slave anew, which is the state after instantiation.
 
@@ -65,12 +67,15 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variab
 from pythonfmu.enums import Fmi2Status
 
 from .errors import InputError, SolverDiverged
+from .threads import limit_blas_threads
 
 SCENE_RESOURCE = "scene.json"
+DIVERGED_CATEGORY = "wingsim.diverged"
+"""Log category of the error a step logs when its solver diverged (`SolverDiverged`)."""
 _COMPONENTS = [(vec, axis) for vec in ("r", "r_x", "r_y") for axis in "xyz"]
 _BNAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 COORDINATE_UNITS = {"r": ("m", "m/s", "N"), "r_x": ("1", "1/s", "N.m"), "r_y": ("1", "1/s", "N.m")}
-"""Per vector of a node: units of e, de and the work-conjugate generalized force Q (000 Eq. 12)."""
+"""Per vector of a node: units of e, de and the work-conjugate generalized force Q (Otsuka et al. 2019, Eq. 12)."""
 
 
 def fmi_name(name: str) -> str:
@@ -171,18 +176,21 @@ _STATE_KEYS = frozenset({"format", "unit", "topology_hash", "solver", "real", "t
 _NUMPY_GLOBALS = frozenset((module, name) for module in ("numpy.core.multiarray", "numpy._core.multiarray",
                                                          "numpy.core.numeric", "numpy._core.numeric", "numpy")
                            for name in ("_reconstruct", "_frombuffer", "scalar", "dtype", "ndarray"))
-_STATE_PACKAGES = ("structure_fmu", "aero_fmu")
 
 
 class _StateUnpickler(pickle.Unpickler):
     """Unpickles a unit state and nothing else: the only globals it resolves are numpy's array and dtype
-    constructors and the dataclasses of the solver packages (already imported), so bytes that are not our
-    state raise UnpicklingError instead of running code."""
+    constructors and the dataclasses of `packages` (the units' solver packages, already imported), so bytes
+    that are not our state raise UnpicklingError instead of running code."""
+
+    def __init__(self, file, packages):
+        super().__init__(file)
+        self.packages = packages
 
     def find_class(self, module, name):
         if (module, name) in _NUMPY_GLOBALS:
             return super().find_class(module, name)
-        if module.split(".")[0] in _STATE_PACKAGES and module in sys.modules and "." not in name:
+        if module.split(".")[0] in self.packages and module in sys.modules and "." not in name:
             obj = getattr(sys.modules[module], name, None)
             if isinstance(obj, type) and dataclasses.is_dataclass(obj):
                 return obj
@@ -218,6 +226,19 @@ class SolverSlave(Fmi2Slave):
 
     label = "unit"
     solver_class = None
+    log_categories = {**Fmi2Slave.log_categories,
+                      DIVERGED_CATEGORY: "A step failed because the solver diverged (logged at fmi2Error)."}
+
+    def __init__(self, **kwargs):
+        limit_blas_threads()   # the unit starts here, in whatever host: one BLAS thread (threads.py)
+        super().__init__(**kwargs)
+
+    @staticmethod
+    def _state_packages() -> frozenset[str]:
+        """Packages whose dataclasses a saved unit state may hold: the solvers' of the slave classes loaded
+        (a state of another unit is then read, and refused as such by `_state_form_problem`)."""
+        return frozenset(sub.solver_class.__module__.split(".")[0] for sub in SolverSlave.__subclasses__()
+                         if sub.solver_class is not None)
 
     def _start(self, tunables: dict, solver_parameters: dict | None = None):
         """Common construction: the tunables, a solver with the defaults, the bookkeeping of a run."""
@@ -497,7 +518,8 @@ class SolverSlave(Fmi2Slave):
             advance()
             self._publish()
         except SolverDiverged as exc:
-            self._error(f"{self.label}: solver diverged at t = {exc.time:.6g} s: {exc.reason}. Hint: {exc.hint}")
+            self.log(f"{self.label}: solver diverged at t = {exc.time:.6g} s: {exc.reason}. Hint: {exc.hint}",
+                     Fmi2Status.error, DIVERGED_CATEGORY)
             return False
         except InputError as exc:
             self._error(f"{self.label} rejected its input at t = {current_time:.6g} s: {exc}")
@@ -585,7 +607,7 @@ class SolverSlave(Fmi2Slave):
         """The state serialized in `data`; for bytes that hold none, the refusal is logged (`_log_on`) and
         an {"error": reason} entry returned, which fmi2SetFMUstate refuses with the same reason."""
         try:
-            state = _StateUnpickler(io.BytesIO(data)).load()
+            state = _StateUnpickler(io.BytesIO(data), cls._state_packages()).load()
             problem = cls._state_form_problem(state)
         except Exception as exc:  # noqa: BLE001 - garbage may fail in any way
             problem = f"the bytes do not hold a state of this unit ({type(exc).__name__}: {exc})"

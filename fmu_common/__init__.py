@@ -1,0 +1,14 @@
+"""What the structure and aero units share, and nothing else: no structural or aerodynamic physics.
+
+  errors.py           SceneError, InputError, SolverDiverged; unknown-key and input checks
+  topology.py         the structural topology both units build from a scene: bodies, nodes, elements,
+                      reference lines, chords, hinges, initial coordinates and the topology hash
+  shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
+                      unit maps panel points and forces to the exchanged coordinates (Eq. 12)
+  vectors.py          3-vector kernels: cross product, rotation about an axis
+  fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave, UnitReal, units, scene resource)
+  threads.py          limit_blas_threads(), called where a process or a unit starts
+
+Both FMUs embed this package beside their own (structure.fmu: structure_fmu; aero.fmu: aero_fmu), the
+same version, so that they run in one process.
+"""

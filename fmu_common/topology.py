@@ -1,0 +1,281 @@
+"""The structural topology both units build from a scene: bodies, nodes, elements and their initial geometry.
+
+Each body is a beam of ANCF elements along its reference line (`structure.elements_per_body` of them, one
+for a rigid or prescribed body: Otsuka et al. 2019, Sec. IV), with its chord c (m) and the reference line at
+a fraction a of the chord from the leading edge. A node carries r (m), r_x and r_y (-) in the global frame
+(Otsuka et al. 2019, Eq. 3); the exchanged coordinates E (9 n_nodes,) stack them node after node. A body
+starts at its `root` along `span_axis` with the chord along `chord_axis`, or, hinged, at its parent's tip
+node, its span turned by the hinge's initial angle about the parent's chord vector.
+
+The units compare `topology_hash`: the same hash, the same nodes, elements, lengths, chords and hinges.
+What only the structure needs (sections' stiffness and mass, joints as shared or prescribed coordinates,
+motions, masses, loads) is the structure unit's `StructureTopology`, which extends this class.
+"""
+import hashlib
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import SceneError, checked_number, checked_vector, reject_unknown_keys
+from .shape_functions import hermite, shape_row
+from .vectors import rotation_about
+
+BODY_KEYS = {"name", "length", "root", "span_axis", "chord_axis", "damping", "section", "angular_velocity"}
+JOINT_KEYS = {
+    "clamp": {"type", "body"},
+    "pin": {"type", "body", "axis"},
+    "driven": {"type", "body", "law", "omega", "ramp_time"},
+    "hinge": {"type", "name", "parent", "child", "initial_angle_deg", "stiffness", "damping", "torque",
+              "stop_angle_deg", "latch_factor"},
+}
+SECTION_TABLE = "a table with chord, torsional_rigidity and plate or explicit properties"
+
+
+@dataclass
+class Body:
+    """A body of the wing: length (m), chord c (m), reference line at axis_position a (fraction of the chord
+    from the leading edge), global element and node indices (root first), and its frame at t = 0: root
+    position (m), unit span direction and chord direction (-)."""
+
+    name: str
+    length: float
+    chord: float
+    axis_position: float
+    elements: list = field(default_factory=list)
+    nodes: list = field(default_factory=list)
+    root: np.ndarray = None
+    span_axis: np.ndarray = None
+    chord_axis: np.ndarray = None
+
+    def chord_offset(self, chord_fraction):
+        """y (m) of the point at `chord_fraction` of the chord from the leading edge."""
+        return (chord_fraction - self.axis_position) * self.chord
+
+
+@dataclass(frozen=True)
+class HingeLine:
+    """A hinge between the tip node of body `parent` and the root node of body `child`, about the parent's
+    tip chord vector r_y; the child's span starts turned by `initial_angle` (rad) from the parent's."""
+
+    name: str
+    parent: str
+    child: str
+    initial_angle: float
+
+
+def chord_line(key: str, table) -> tuple[float, float]:
+    """(chord c (m), axis_position a) of the section table at dotted key `key` (a defaults to 0.5)."""
+    if not isinstance(table, dict):
+        raise SceneError(key, table, SECTION_TABLE)
+    chord = table.get("chord")
+    if not isinstance(chord, (int, float)) or isinstance(chord, bool) or not chord > 0:
+        raise SceneError(f"{key}.chord", chord, "a number > 0")
+    axis = table.get("axis_position", 0.5)
+    if not isinstance(axis, (int, float)) or not 0.0 <= axis <= 1.0:
+        raise SceneError(f"{key}.axis_position", axis, "a fraction of chord in [0, 1]")
+    return float(chord), float(axis)
+
+
+class Topology:
+    """Nodes, elements, bodies and hinges of a scene's `structure` table, with their initial geometry: what
+    the aero unit needs of the structure, and what `topology_hash` digests."""
+
+    def __init__(self):
+        self.bodies: dict[str, Body] = {}
+        self.node_names: list[str] = []
+        self.node_initial: list[np.ndarray] = []      # (3, 3) r, r_x, r_y per node at t = 0
+        self.element_nodes: list[tuple[int, int]] = []
+        self.element_body: list[str] = []
+        self.hinge_lines: list[HingeLine] = []
+        self.root_joints: dict[str, tuple[str, dict]] = {}   # body -> (dotted key, table) of its root joint
+        self.fidelity = "flexible"
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_scene(cls, scene: dict):
+        """The topology of `scene["structure"]`; raises SceneError naming the key."""
+        top = cls()
+        structure = scene.get("structure")
+        if not isinstance(structure, dict):
+            raise SceneError("structure", structure, "a table describing bodies and joints")
+        top.fidelity = structure.get("fidelity", "flexible")
+        if top.fidelity not in ("prescribed", "rigid", "flexible"):
+            raise SceneError("structure.fidelity", top.fidelity, "one of prescribed, rigid, flexible")
+        n_el = structure.get("elements_per_body", 4)
+        if isinstance(n_el, bool) or not isinstance(n_el, int) or n_el < 1:
+            raise SceneError("structure.elements_per_body", n_el, "an integer >= 1")
+        if top.fidelity != "flexible":
+            n_el = 1   # Otsuka et al. 2019, Sec. IV: one element per rigid body
+        bodies = structure.get("bodies")
+        if not isinstance(bodies, list) or not bodies:
+            raise SceneError("structure.bodies", bodies, "a non-empty array of body tables")
+        specs = {}
+        for i, spec in enumerate(bodies):
+            key = f"structure.bodies[{i}]"
+            if not isinstance(spec, dict):
+                raise SceneError(key, spec, "a table")
+            reject_unknown_keys(spec, key, BODY_KEYS)
+            name = spec.get("name")
+            if not isinstance(name, str) or not name or name in specs:
+                raise SceneError(f"{key}.name", name, "a unique non-empty body name")
+            specs[name] = (key, spec)
+        parent_of = top._parse_joints(structure.get("joints", []), specs)
+        for name in _body_order(specs, parent_of):
+            top._add_body(name, specs[name], n_el)
+        return top
+
+    def _parse_joints(self, joints, specs) -> dict:
+        """Fill `root_joints`; return child body -> parent body of every hinge."""
+        if not isinstance(joints, list):
+            raise SceneError("structure.joints", joints, "an array of joint tables")
+        parent_of = {}
+        for i, spec in enumerate(joints):
+            key = f"structure.joints[{i}]"
+            kind = spec.get("type") if isinstance(spec, dict) else None
+            if kind not in JOINT_KEYS:
+                raise SceneError(f"{key}.type", kind, f"one of {sorted(JOINT_KEYS)}")
+            reject_unknown_keys(spec, key, JOINT_KEYS[kind])
+            bodies = [spec.get("parent"), spec.get("child")] if kind == "hinge" else [spec.get("body")]
+            for field_name, body in zip(("parent", "child") if kind == "hinge" else ("body",), bodies):
+                if body not in specs:
+                    raise SceneError(f"{key}.{field_name}", body, f"one of the bodies {sorted(specs)}")
+            target = spec["child"] if kind == "hinge" else spec["body"]
+            if target in self.root_joints:
+                raise SceneError(key, target, "a body root can carry only one clamp, pin, driven or hinge joint")
+            self.root_joints[target] = (key, spec)
+            if kind == "hinge":
+                if spec["parent"] == spec["child"]:
+                    raise SceneError(f"{key}.child", spec["child"], "a body other than the parent")
+                parent_of[spec["child"]] = spec["parent"]
+        return parent_of
+
+    def _new_body(self, key: str, spec: dict, name: str, length: float) -> Body:
+        """The Body of the table `spec` at dotted key `key` (its section read for the chord line)."""
+        return Body(name, length, *chord_line(f"{key}.section", spec.get("section")))
+
+    def _add_body(self, name, key_spec, n_el):
+        key, spec = key_spec
+        length = checked_number(f"{key}.length", spec.get("length"), "a length > 0 (m)", lambda v: v > 0)
+        body = self._new_body(key, spec, name, length)
+        joint_key, joint = self.root_joints.get(name, (None, None))
+        if joint is not None and joint["type"] == "hinge":
+            tip = self.bodies[joint["parent"]].nodes[-1]
+            r0, x_parent, y0 = self.node_initial[tip]
+            hinge = self._hinge_line(joint_key, joint)
+            x0 = rotation_about(y0 / np.linalg.norm(y0), hinge.initial_angle) @ x_parent
+            if "root" in spec or "span_axis" in spec:
+                raise SceneError(f"{key}.root", spec.get("root", spec.get("span_axis")),
+                                 "not allowed: a hinged body starts at its parent's tip")
+            self.hinge_lines.append(hinge)
+        else:
+            r0 = checked_vector(f"{key}.root", spec.get("root", [0.0, 0.0, 0.0]))
+            x0 = checked_vector(f"{key}.span_axis", spec.get("span_axis", [1.0, 0.0, 0.0]), unit=True)
+            y0 = checked_vector(f"{key}.chord_axis", spec.get("chord_axis", [0.0, 1.0, 0.0]), unit=True)
+            if abs(x0 @ y0) > 1e-9:
+                raise SceneError(f"{key}.chord_axis", spec.get("chord_axis"), "a direction perpendicular to span_axis")
+        x0 = x0 / np.linalg.norm(x0)
+        body.root, body.span_axis, body.chord_axis = r0, x0, y0
+        first_node = len(self.node_names)
+        for i in range(n_el + 1):
+            self.node_names.append(f"{name}.{i}")
+            self.node_initial.append(np.array([r0 + x0 * length * i / n_el, x0, y0]))
+            body.nodes.append(first_node + i)
+        for i in range(n_el):
+            body.elements.append(len(self.element_nodes))
+            self.element_nodes.append((first_node + i, first_node + i + 1))
+            self.element_body.append(name)
+        self.bodies[name] = body
+
+    def _hinge_line(self, key, spec) -> HingeLine:
+        name = spec.get("name")
+        if not isinstance(name, str) or not name or any(h.name == name for h in self.hinge_lines):
+            raise SceneError(f"{key}.name", name, "a unique non-empty hinge name")
+        # in (-180, 180) deg like the fold angle itself, which wraps at +-180
+        initial = np.radians(checked_number(f"{key}.initial_angle_deg", spec.get("initial_angle_deg", 0.0),
+                                            "an angle in (-180, 180) deg", lambda v: -180 < v < 180))
+        return HingeLine(name, spec["parent"], spec["child"], initial)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def n_nodes(self):
+        return len(self.node_names)
+
+    @property
+    def n_coordinates(self):
+        return 9 * self.n_nodes
+
+    @property
+    def hinge_names(self):
+        return [h.name for h in self.hinge_lines]
+
+    def element_lengths(self):
+        """Length (m) of each element, (n_elements,)."""
+        return np.array([self.bodies[b].length / len(self.bodies[b].elements) for b in self.element_body])
+
+    def element_dofs(self):
+        """E indices of each element's 18 coordinates, (n_elements, 18)."""
+        a, b = np.array(self.element_nodes).T
+        base = np.arange(9)
+        return np.concatenate([9 * a[:, None] + base, 9 * b[:, None] + base], axis=1)
+
+    def initial_coordinates(self):
+        """E at t = 0 from the scene geometry, (9 n_nodes,)."""
+        return np.concatenate([v.ravel() for v in self.node_initial])
+
+    def locate(self, body_name, span, chord_fraction):
+        """(element index, x (m), y (m)) of a material point given by span (m) and chord fraction."""
+        body = self.bodies[body_name]
+        n_el = len(body.elements)
+        l_el = body.length / n_el
+        k = min(int(span / l_el), n_el - 1)
+        return body.elements[k], span - k * l_el, body.chord_offset(chord_fraction)
+
+    def point_rows(self, body, span, chord_fraction=0.0):
+        """Scalar shape rows (4, 3 n_nodes) of the material point at `span` (m) and `chord_fraction` of
+        `body`, acting on X = E.reshape(-1, 3) (Otsuka et al. 2019, Eq. 2, S = kron(s, I_3)): rows @ X gives
+        its position r(x, y) (m), and on the reference line at that span r' (-), r'' (1/m) along the span
+        and r_y (-)."""
+        k, x, y = self.locate(body, span, chord_fraction)
+        a, b = self.element_nodes[k]
+        length = self.bodies[body].length / len(self.bodies[body].elements)
+        _, dN, ddN, L = hermite(x / length, length)
+        rows = np.zeros((4, 6))                     # on the element's [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]
+        rows[0] = shape_row(x, y, length)
+        rows[1:3, [0, 1, 3, 4]] = dN, ddN
+        rows[3, [2, 5]] = L
+        out = np.zeros((4, 3 * self.n_nodes))
+        out[:, [3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * b + 2]] = rows
+        return out
+
+    def point_position(self, e, body, span, chord_fraction):
+        """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
+        return self.point_rows(body, span, chord_fraction)[0] @ np.asarray(e, dtype=float).reshape(-1, 3)
+
+    @property
+    def topology_hash(self):
+        """Hex digest of what both units must agree on: nodes, elements, lengths, chords, axes, hinges."""
+        data = {
+            "nodes": self.node_names,
+            "elements": self.element_nodes,
+            "bodies": {n: [b.length, b.chord, b.axis_position, len(b.elements)] for n, b in self.bodies.items()},
+            "hinges": self.hinge_names,
+        }
+        return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _body_order(specs, parent_of):
+    """Body names, every parent before its children; SceneError for a closed loop of hinges."""
+    order, placed = [], set()
+    while len(order) < len(specs):
+        progress = False
+        for name in specs:
+            parent = parent_of.get(name)
+            if name not in placed and (parent is None or parent in placed):
+                order.append(name)
+                placed.add(name)
+                progress = True
+        if not progress:
+            loop = sorted(set(specs) - placed)
+            raise SceneError("structure.joints", loop, "hinges must form a tree (no closed loops)")
+    return order
