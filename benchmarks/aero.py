@@ -1,35 +1,33 @@
 """Aero unit cost per step: each model against the bound and wake panel counts, and the free/flat cost
-ratio on the 000 deployment mesh (000 Sec. VII.A reports the flat wake 95% cheaper than the free wake).
+ratio on the deployment mesh (Otsuka et al. 2019, Sec. VII.A, report the flat wake 95% cheaper than the free
+wake).
 
     python benchmarks/aero.py [--quick]
 
-Three measurements, wall time per `AeroSolver.advance` (mean of the last steps, one BLAS thread):
+Four measurements, wall time per `AeroSolver.advance` (mean of the last steps, one BLAS thread):
   1. bound panels: an AR-8 wing, M x N from 2 x 7 to 8 x 64, wake 5 chords (5 M rows once filled),
      dt = c/(MV); "rigid": a heaving wing (the influence matrix is factorized once), "deforming": a
      non-rigid E each step (matrix and LU rebuilt every step, as in a deployment);
   2. wake panels: M x N = 4 x 16, wake 2.5 to 20 chords (10 to 80 rows), prescribed and free wakes;
-  3. the 000 deployment mesh: scenes/deploy_rigid.toml (two bodies, M = 2, N = 7 per body, L_w = 5) at
-     15 m/s, the structure run by its own solver, only the aero step timed, over the first 0.1 s;
-  4. Biot-Savart throughput (000 Eq. 19): segment-point pairs per second for an influence matrix (normal
-     wash, ring weights) and for the induced velocity of known circulations.
+  3. the deployment mesh of Otsuka et al. 2019: scenes/deploy_rigid.toml (two bodies, M = 2, N = 7 per body,
+     L_w = 5) at 15 m/s, the structure run by its own solver, only the aero step timed, over the first 0.1 s;
+  4. Biot-Savart throughput (Otsuka et al. 2019, Eq. 19): segment-point pairs per second for an influence
+     matrix (normal wash, ring weights) and for the induced velocity of known circulations.
 The machines are shared and noisy: compare the ratios of one run, not absolute times across runs.
 """
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from report import ROOT, limit_blas_threads
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from aero_fmu.solver import AeroSolver  # noqa: E402
-from orchestrator.scene import read_scene_file, resolve_scene  # noqa: E402
-from structure_fmu.solver import StructureSolver  # noqa: E402
+from aero_fmu.solver import AeroSolver
+from orchestrator.scene import read_scene_file, resolve_scene
+from structure_fmu.solver import StructureSolver
 
 MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+SCENES = ROOT / "scenes"
 
 
 def wing(model, M, N, wake_length, fidelity="prescribed"):
@@ -39,8 +37,10 @@ def wing(model, M, N, wake_length, fidelity="prescribed"):
         structure.update(motion={"heave_amplitude": 0.05, "frequency": 3.0}, joints=[])
     else:
         structure["elements_per_body"] = 4
-    return {"structure": structure, "flow": {"speed": 10.0, "density": 1.2},
-            "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": N, "wake_length": wake_length}}
+    return resolve_scene({"time": {"stop": 1.0}, "coupling": {"step": 0.1}, "structure": structure,
+                          "flow": {"speed": 10.0, "density": 1.2},
+                          "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": N,
+                                   "wake_length": wake_length}}, "wing")
 
 
 def per_step(aero, inputs, timed):
@@ -101,15 +101,15 @@ def deployment(duration):
     structure = StructureSolver(scene)
     step = scene["coupling"]["step"]
     inputs = []
-    for k in range(1, int(round(duration / step)) + 1):
+    for k in range(1, round(duration / step) + 1):
         structure.advance(k * step)
         inputs.append((k * step, structure.e, structure.de))
     fold = np.degrees(structure.topology.fold_angles(inputs[-1][1])["fold"])
-    print(f"3. 000 deployment mesh (deploy_rigid at 15 m/s, M = 2, N = 7 per body, L_w = 5, {len(inputs)} steps "
+    print(f"3. deployment mesh (Otsuka et al. 2019; deploy_rigid at 15 m/s, M = 2, N = 7 per body, L_w = 5, {len(inputs)} steps "
           f"of {step:g} s, fold angle {fold:.0f} deg at the end)")
     times = {}
     for model in MODELS:
-        scene["aero"] = {"model": model, "chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0}
+        scene["aero"].update(model=model, chordwise_panels=2, spanwise_panels=7, wake_length=5.0)
         aero = AeroSolver(scene)
         start = time.perf_counter()
         for t, e, de in inputs:
@@ -118,7 +118,7 @@ def deployment(duration):
         print(f"   {model:<16} {1e3 * times[model]:8.3f} ms per step, wake panels {aero.outputs()['wake_panels']}, "
               f"C_L at the end {aero.outputs()['CL']:+.3f}")
     print(f"   flat / free cost: {times['uvlm-flat'] / times['uvlm-free']:.3f} "
-          f"(flat {100 * (1 - times['uvlm-flat'] / times['uvlm-free']):.0f}% cheaper; 000 reports 95%)")
+          f"(flat {100 * (1 - times['uvlm-flat'] / times['uvlm-free']):.0f}% cheaper; Otsuka et al. 2019 report 95%)")
 
 
 def biot_savart_throughput(points=2000, segments=4000, repeats=3):
@@ -149,6 +149,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes, fewer steps")
     quick = parser.parse_args().quick
+    limit_blas_threads()
     bound_scaling([(2, 7), (4, 16)] if quick else [(2, 7), (4, 16), (8, 32), (8, 64)], 3 if quick else 5)
     wake_scaling([2.5, 5.0] if quick else [2.5, 5.0, 10.0, 20.0], 3 if quick else 5)
     deployment(0.02 if quick else 0.1)

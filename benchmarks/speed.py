@@ -2,32 +2,23 @@
 
     python benchmarks/speed.py [--scenes deploy_rigid deploy_flexible] [--stop 0.3] [--repeat N] [--profile]
 
-For each scene (as shipped: uvlm-flat aero unit, Gauss-Seidel coupling at 1 ms) it builds the FMUs (not
-timed), takes ten untimed warm-up steps through each backend, then runs the scene once through the FMUs
-(`backend="fmu"`, what `wingsim run SCENE` runs) and once with the same slaves in-process
-(`backend="direct"`), one BLAS thread. The two runs take turns, one communication step each (`Lockstep`),
-on one CPU: the shared machine's slow phases, which last seconds to minutes, then fall on both runs alike,
-so their ratio is the FMU backend's own cost and not the machine's mood. Each run's time is the sum of its
-own turns; the waiting for the other run is not counted. (Taking turns across the two CPUs, where a turn
-presumably starts on caches the other run left, the deploy_rigid overhead spread from -10% to +17% in five
-runs; on one CPU from +6.7% to +8.1% in five runs alternating with those.)
-From this one run of each it prints:
+For each scene as shipped it builds the FMUs (not timed), takes ten untimed warm-up steps through each
+backend, then runs the scene through the FMUs (`backend="fmu"`, what `wingsim run SCENE` runs) and with the
+same slaves in-process (`backend="direct"`), one BLAS thread. The two runs take turns, one communication
+step each (`Lockstep`), on one CPU, so that a slow phase of a shared machine falls on both alike and their
+ratio is the FMU backend's own cost. Each run's time is the sum of its own turns. Printed per run:
 
-    real-time factor   stepping wall time / simulated time, through the FMUs (1 = real time; issue 5
-                       targets: deploy_rigid <= 1, deploy_flexible <= 20). The stepping covers the
-                       communication steps after the first: both units' doStep, the exchange, the recording
-                       (the first step's turn also holds the loading of the units, which is counted in the
-                       whole run instead).
+    real-time factor   stepping wall time / simulated time through the FMUs (1 = real time; targets:
+                       deploy_rigid <= 1, deploy_flexible <= 20). The stepping is the communication
+                       steps after the first (the first turn also loads the units: counted in the whole run).
     FMU overhead       stepping wall time fmu / direct - 1 (target <= 15%), and the same for the whole run
-                       (loading and instantiating the units, and terminating them, included).
+                       (loading, instantiating and terminating the units included).
 
-The machine is shared and noisy: compare ratios from one run, not absolute times across runs.
---repeat N takes N such runs of each scene in a row (default 1) and prints a row for each, then per scene the
-range of the real-time factor, how many runs met its target, and the range of the FMU overhead: the spread
-across the machine's phases, which one run cannot show (CI prints it with N = 3). It also prints the
-real-time factor of the fastest of the N turns of each communication step, summed over the steps: the
-machine's slow phases last seconds, so this drops them and estimates what the stepping costs when the
-machine is quiet. No single run achieved it; it is a floor, not a measurement of one run.
+--repeat N runs each scene N times in a row and adds, per scene, the range of the real-time factor, the
+runs within its target, the range of the FMU overhead, and the real-time factor of the fastest of the N
+turns of each communication step summed over the steps: a floor that drops the machine's slow phases, not
+a measurement of one run; and last the median of each figure over the runs, the table of docs/performance.md
+(made with `--repeat 3`).
 --profile prints the 25 most expensive functions (cProfile, cumulative) of one direct run per scene.
 """
 import argparse
@@ -36,22 +27,16 @@ import sys
 import tempfile
 import threading
 import time
+from pathlib import Path
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):   # one BLAS thread, as in CI runs
-    os.environ.setdefault(_var, "1")
+import numpy as np
+from report import ROOT, limit_blas_threads
 
-from pathlib import Path  # noqa: E402
+from orchestrator.build import build_fmus
+from orchestrator.master import run_scene
+from orchestrator.scene import load_scene
 
-import numpy as np  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from orchestrator.build import build_fmus  # noqa: E402
-from orchestrator.master import run_scene  # noqa: E402
-from orchestrator.scene import load_scene  # noqa: E402
-
-TARGET = {"deploy_rigid": 1.0, "deploy_flexible": 20.0}   # real-time factor through the FMUs (issue 5)
+TARGET = {"deploy_rigid": 1.0, "deploy_flexible": 20.0}   # real-time factor through the FMUs
 FMU_OVERHEAD_TARGET = 0.15
 BACKENDS = ("fmu", "direct")
 
@@ -195,6 +180,23 @@ def print_table(rows):
     return met
 
 
+def print_median(rows):
+    """Per scene, the median over its runs of each figure (the table of docs/performance.md)."""
+    print("\nMedian over the runs of each scene:\n\n| scene | simulated time (s) | stepping through the FMUs (s) "
+          "| real-time factor | target | stepping, direct (s) | FMU overhead, stepping | FMU overhead, whole run |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in dict.fromkeys(row[0] for row in rows):
+        figures = np.median([(simulated, step_fmu, step_fmu / simulated, step_direct, step_fmu / step_direct - 1,
+                              whole_fmu / whole_direct - 1)
+                             for scene, simulated, step_fmu, whole_fmu, step_direct, whole_direct in rows
+                             if scene == name], axis=0)
+        simulated, step_fmu, factor, step_direct, overhead, whole = figures
+        target = TARGET.get(name)
+        print(f"| {name} | {simulated:.3g} | {step_fmu:.3g} | {factor:.2g} | "
+              f"{'-' if target is None else f'<= {target:g}'} | {step_direct:.3g} | {100 * overhead:+.1f}% | "
+              f"{100 * whole:+.1f}% |")
+
+
 def print_spread(rows, fmu_turns):
     """Per scene, over its runs: the range of the real-time factor, the runs within its target, the
     real-time factor of the fastest turn of each step (`fmu_turns`: {scene: [turn times (s) of each run]})
@@ -221,6 +223,7 @@ def main(argv=None):
                         help="timed runs of each scene, one after the other (default 1)")
     parser.add_argument("--profile", action="store_true", help="print a cProfile of one direct run per scene")
     args = parser.parse_args(argv)
+    limit_blas_threads()                                # one BLAS thread, as in CI runs
     if args.repeat < 1:
         parser.error(f"--repeat must be at least 1, got {args.repeat}")
     rows, fmu_turns = [], {}
@@ -248,6 +251,7 @@ def main(argv=None):
     met = print_table(rows)
     if args.repeat > 1:
         print_spread(rows, fmu_turns)
+        print_median(rows)
     print(f"\nall targets met: {'yes' if met else 'no'} (real-time factors as above; FMU overhead of the stepping "
           f"<= {100 * FMU_OVERHEAD_TARGET:.0f}%{', in every run' if args.repeat > 1 else ''})")
     return 0

@@ -12,21 +12,14 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
+from report import ROOT, limit_blas_threads
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from orchestrator.build import build_fmus
+from orchestrator.master import run_scene
+from orchestrator.scene import load_scene
+from orchestrator.stability import frequency_range, rk4_step_limit
 
-from orchestrator.build import build_fmus  # noqa: E402
-from orchestrator.master import run_scene  # noqa: E402
-from orchestrator.scene import load_scene  # noqa: E402
-from structure_fmu.modes import natural_frequencies  # noqa: E402
-from structure_fmu.solver import StructureSolver  # noqa: E402
-
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
-
-
-def rk4_limit(scene):
-    return 2 * np.sqrt(2) / natural_frequencies(StructureSolver(scene), count=None).max()
+SCENES = ROOT / "scenes"
 
 
 def measure(name, overrides, backend, fmu_root):
@@ -45,9 +38,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter simulated intervals")
     quick = parser.parse_args().quick
+    limit_blas_threads()
     flexible_stop = 0.05 if quick else 0.3
-    flexible_rk4 = load_scene(SCENES / "deploy_flexible.toml")
-    limit = rk4_limit(flexible_rk4)
+    limit = rk4_step_limit(frequency_range(load_scene(SCENES / "deploy_flexible.toml"))[1])
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         fmu_root = Path(tmp)

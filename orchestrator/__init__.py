@@ -10,11 +10,14 @@ Modules (one concept each):
 - ``units``       structure/aero units behind one interface (FMU through fmpy, or in-process)
 - ``master``      step the units from 0 to ``time.stop`` and record what the scene asks for
 - ``timeseries``  the recorded samples (time, probe positions, fold angles, monitors)
-- ``results``     ``timeseries.csv`` and ``summary.json`` (DESIGN §7)
+- ``results``     ``timeseries.csv`` and ``summary.json`` (README, Outputs)
 - ``plots``       PNG plots of a run
 - ``system``      the built FMUs as one coupled system (components, connections, public variables)
 - ``ssp``         that system as an SSP 1.0 package (``wingsim export``)
 - ``container``   that system as one FMU, ``wing.fmu`` (fmpy's container FMU)
 - ``progress``    the progress line on stderr
+- ``metrics``     figures of merit of runs (CL error, peak bending, tip deflection, ...) for tests and studies
+- ``stability``   stability estimates: time-step limits, the added-mass limit of explicit coupling, divergence
+- ``study``       many runs in worker processes, recorded and resumable (the studies in benchmarks/)
 - ``cli``         the ``wingsim`` command line
 """

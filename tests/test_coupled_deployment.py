@@ -1,13 +1,13 @@
-"""The wind-tunnel deployments with the aero unit coupled (000 Sec. VII, 003 Sec. 5).
+"""The wind-tunnel deployments with the aero unit coupled (Otsuka et al. 2019, Sec. VII, Otsuka et al. 2022, Sec. 5).
 
 Every run is the scene as shipped (uvlm-flat, M = 2, N = 7 per body, L_w = 5, Gauss-Seidel at 1 ms) with the
 overrides named, through `run_scene(..., backend="direct")` (the FMU backend is the same code, checked
 bit-identical in tests/test_fmu_unit.py and tests/test_aero_fmu.py). References are the papers' numbers;
-docs/deployment.md has the tables.
+docs/studies/deployment.md has the tables.
 """
-import numpy as np
 import pytest
 
+from orchestrator import metrics
 from orchestrator.master import run_scene
 from orchestrator.results import summarize
 from orchestrator.scene import load_scene
@@ -28,54 +28,52 @@ def run(path, *overrides, scene_edit=None):
 
 
 def peak_bending(result):
-    """Largest |out-of-plane (global y) displacement| of probe bending_100mm over the run, m (000 Fig. 15)."""
-    y = result.series.column("bending_100mm_y")
-    return float(np.max(np.abs(y - y[0])))
+    """Largest |out-of-plane (global y) displacement| of probe bending_100mm over the run, m (Otsuka et al. 2019, Fig. 15)."""
+    return metrics.peak_displacement(result.series, "bending_100mm", "y")
 
 
 def tip_deflection(result, t):
-    """Distance of the tip probe from the undeformed span line (the z axis) at time t, m (003 Sec. 5)."""
-    k = int(np.argmin(np.abs(result.series.time - t)))
-    assert abs(result.series.time[k] - t) < 1e-9
-    return float(np.hypot(result.series.column("tip_x")[k], result.series.column("tip_y")[k]))
+    """Distance of the tip probe from the undeformed span line (the z axis) at time t, m (Otsuka et al. 2022, Sec. 5)."""
+    series = result.series
+    return metrics.tip_deflection(series.time, series.column("tip_x"), series.column("tip_y"), t)
 
 
 @pytest.fixture(scope="module")
 def flexible_runs():
-    """deploy_flexible at 0, 10 and 20 m/s (003 Sec. 5), 0.25 s."""
+    """deploy_flexible at 0, 10 and 20 m/s (Otsuka et al. 2022, Sec. 5), 0.25 s."""
     return {speed: run(FLEXIBLE, f"flow.speed={speed}", "time.stop=0.25") for speed in (0, 10, 20)}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("speed, latched", [(0, 0.120), (10, 0.166), (20, 0.198)])
 def test_flexible_deployment_time_matches_003(flexible_runs, speed, latched):
-    """003 Sec. 5, Fig. 10: the fold angle reaches 0 at 0.120, 0.166 and 0.198 s at 0, 10 and 20 m/s."""
+    """Otsuka et al. 2022, Sec. 5, Fig. 10: the fold angle reaches 0 at 0.120, 0.166 and 0.198 s at 0, 10 and 20 m/s."""
     _, summary = flexible_runs[speed]
     assert summary["deployment_time_s"] == pytest.approx(latched, rel=0.10)
 
 
 @pytest.mark.slow
 def test_tip_deflection_at_10_ms_is_18_percent_of_the_span(flexible_runs):
-    """003 Sec. 5: at 10 m/s the wingtip deflection is 18% of the span (0.056 m of 0.3 m) at 0.2 s."""
+    """Otsuka et al. 2022, Sec. 5: at 10 m/s the wingtip deflection is 18% of the span (0.056 m of 0.3 m) at 0.2 s."""
     result, _ = flexible_runs[10]
     assert tip_deflection(result, 0.2) / SPAN == pytest.approx(0.18, rel=0.25)
 
 
 @pytest.mark.slow
 def test_peak_bending_and_strain_fall_with_flow_speed(flexible_runs):
-    """000 Fig. 15 (maximum bending displacement 100 mm from the root) and 003 Fig. 12 (maximum strain
+    """Otsuka et al. 2019, Fig. 15 (maximum bending displacement 100 mm from the root) and Otsuka et al. 2022, Fig. 12 (maximum strain
     0.02 m from the root) both fall as the flow speed rises: the aerodynamic force damps the wing."""
     speeds = sorted(flexible_runs)
     bending = [peak_bending(flexible_runs[v][0]) for v in speeds]
     strain = [flexible_runs[v][1]["strain_gauges"]["strain_20mm"]["peak"] for v in speeds]
     assert all(a > b for a, b in zip(bending, bending[1:])), bending
     assert all(a > b for a, b in zip(strain, strain[1:])), strain
-    # the strain is h/2 x curvature of a 2 mm PVC plate bent by a few cm: of order 1e-3 (003 Fig. 11)
+    # the strain is h/2 x curvature of a 2 mm PVC plate bent by a few cm: of order 1e-3 (Otsuka et al. 2022, Fig. 11)
     assert 1e-3 < strain[0] < 1e-2
 
 
 def test_rigid_deployment_time_rises_with_flow_speed():
-    """000 Fig. 11a: the rigid wing deploys later at higher flow speed, 0 to 30 m/s in 5 m/s steps."""
+    """Otsuka et al. 2019, Fig. 11a: the rigid wing deploys later at higher flow speed, 0 to 30 m/s in 5 m/s steps."""
     times = [run(RIGID, f"flow.speed={v}", "time.stop=0.5")[1]["deployment_time_s"] for v in range(0, 35, 5)]
     assert None not in times, times
     assert all(a < b for a, b in zip(times, times[1:])), times
@@ -92,19 +90,14 @@ def test_aero_fidelity_is_one_key_and_the_models_agree_on_the_deployment_time():
         assert t == pytest.approx(reference, rel=0.15), (model, times)
 
 
-def cl_error(run_cl, reference_cl):
-    """000 Eq. (28): RMS(CL - CL_ref) / max |CL_ref|, over the samples after t = 0 (same time grid)."""
-    diff = run_cl[1:] - reference_cl[1:]
-    return float(np.sqrt(np.mean(diff ** 2)) / np.max(np.abs(reference_cl[1:])))
-
-
 def test_wake_length_convergence_of_the_rigid_deployment():
-    """000 Fig. 12a, Eq. (28): rigid deployment at 15 m/s, free wake, M = N = 1 per body, 0.2 s. The CL
+    """Otsuka et al. 2019, Fig. 12a, Eq. (28): rigid deployment at 15 m/s, free wake, M = N = 1 per body, 0.2 s. The CL
     error against the whole wake (60 chords at the end) falls with L_w and is below 1% by L_w = 5."""
     common = ["flow.speed=15", "aero.model=uvlm-free", "aero.chordwise_panels=1", "aero.spanwise_panels=1",
               "time.stop=0.2"]
     whole, _ = run(RIGID, *common, scene_edit=lambda scene: scene["aero"].update(wake_length=float("inf")))
-    errors = {L: cl_error(run(RIGID, *common, f"aero.wake_length={L}")[0].series.CL, whole.series.CL)
+    t, reference = whole.series.time, whole.series.CL
+    errors = {L: metrics.cl_error_pct(t, run(RIGID, *common, f"aero.wake_length={L}")[0].series.CL, t, reference)
               for L in (1, 3, 5)}
     assert errors[1] > errors[3] > errors[5]
-    assert errors[1] > 0.01 and errors[5] < 0.01, errors
+    assert errors[1] > 1.0 and errors[5] < 1.0, errors

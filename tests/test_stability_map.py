@@ -1,4 +1,4 @@
-"""Pinned points of the stability map (docs/stability.md, benchmarks/stability.py), each computed here with its
+"""Pinned points of the stability map (docs/studies/stability.md, benchmarks/stability.py), each computed here with its
 own runs of scenes/stability_wing.toml (the clamped PVC wing body under a sudden tip load P, linear static tip
 deflection delta_s = P L^3 / (3 EI)):
 
@@ -18,10 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from orchestrator import stability
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
-from structure_fmu.modes import natural_frequencies
-from structure_fmu.solver import StructureSolver
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "stability_wing.toml"
 AIR = 1.2      # kg/m^3
@@ -29,30 +28,20 @@ AIR = 1.2      # kg/m^3
 
 def stiffness(E):
     """Overrides giving the wing Young's modulus E (Pa), GJ scaled with it (fixed Poisson ratio)."""
-    section = load_scene(SCENE)["structure"]["bodies"][0]["section"]
-    return [f"structure.bodies.wing.section.youngs_modulus={float(E)!r}",
-            f"structure.bodies.wing.section.torsional_rigidity="
-            f"{float(section['torsional_rigidity'] * E / section['youngs_modulus'])!r}"]
+    return stability.stiffness_overrides(load_scene(SCENE), "wing", E)
 
 
 def frequencies(overrides):
     """(omega_1, omega_max) rad/s of the wing linearized at rest."""
-    omega = natural_frequencies(StructureSolver(load_scene(SCENE, overrides)), count=None)
-    return float(omega[0]), float(omega.max())
+    return stability.frequency_range(load_scene(SCENE, overrides))
 
 
 def run(overrides):
     """(result, bounded): the run, and whether KE <= P delta_s and |tip displacement| <= 4 delta_s throughout."""
     scene = load_scene(SCENE, overrides)
-    body = scene["structure"]["bodies"][0]
-    EI = body["section"]["youngs_modulus"] * body["section"]["chord"] * body["section"]["thickness"] ** 3 / 12
-    P = scene["load"]["parameter"] * EI / body["length"] ** 2
-    delta = P * body["length"] ** 3 / (3 * EI)
     result = run_scene(scene, backend="direct")
-    tip = result.series.positions[:, 0]
-    bounded = (np.nanmax(result.series.kinetic_energy) <= P * delta
-               and np.nanmax(np.linalg.norm(tip - tip[0], axis=1)) <= 4 * delta)
-    return result, bool(bounded)
+    P, delta = stability.tip_load_scale(scene, "wing")
+    return result, stability.sudden_load_response(result.series, "tip", P, delta)["bounded"]
 
 
 @pytest.mark.parametrize("E", [1e6, 1e12])
@@ -86,7 +75,7 @@ def test_gauss_seidel_is_reported_diverged_in_dense_air_where_implicit_coupling_
     section = load_scene(SCENE)["structure"]["bodies"][0]["section"]
     m_s = section["density"] * section["chord"] * section["thickness"]            # kg/m
     m_a = (3 + 1 / 2) * AIR * factor * math.pi * section["chord"] ** 2 / 4         # uvlm-flat's, M = 2, kg/m
-    assert m_a / m_s > 1.0     # beyond the added-mass limit of explicit coupling (0.5 to 1.4, docs/stability.md)
+    assert m_a / m_s > 1.0     # beyond the added-mass limit of explicit coupling (0.5 to 1.4, docs/studies/stability.md)
     common = ["aero.model=uvlm-flat", "flow.speed=0", f"flow.density={AIR * factor!r}", "coupling.step=1e-3",
               "structure.step=2.5e-4", "time.stop=0.05"]
     explicit, _ = run(common + ["coupling.algorithm=gauss-seidel"])
