@@ -1,4 +1,4 @@
-"""Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory), 000 Sec. V.
+"""Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory), Otsuka et al. 2019, Sec. V.
 
   solver.py         AeroSolver, the API of docs/aero_api.md (scene, parameters, inputs, state, outputs)
   uvlm.py           unsteady vortex-lattice step: no penetration (Eq. 22), Kutta condition, unsteady

@@ -6,7 +6,7 @@ when the class is instantiated in-process by the `direct` backend). The structur
 `topology_hash`, come from `fmu_common.topology.Topology` exactly as in the structure unit.
 
 The module name differs from the structure unit's (`structure_slave`): pythonfmu imports the slave script
-by its file name, and two FMUs in one process need distinct names (DESIGN §10).
+by its file name, and two FMUs in one process need distinct names (docs/fmu.md).
 
 Variables, value references laid out contiguously so that get/set are numpy fancy indexing
 (n = Topology.n_coordinates, K = number of extra scalar outputs of the solver, P = tunable parameters):
@@ -24,9 +24,9 @@ Variables, value references laid out contiguously so that get/set are numpy fanc
 | last              | topology_hash (String)    | output, constant         | -                                 |
 
 The start values of e are the scene's initial coordinates (Topology.initial_coordinates), of de zero; a
-host sets both from the structure unit before each step. Q is work-conjugate to e (000 Eq. 12).
+host sets both from the structure unit before each step. Q is work-conjugate to e (Otsuka et al. 2019, Eq. 12).
 Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
-scene's `flow.direction` (normalized) when it gives one.
+resolved scene's `flow.direction`, normalized.
 
 Errors, exactly as the structure slave (fmu_common/fmi_slave.py lists every refused call): after
 construction no FMI call raises. A refused call logs its reason at error status and returns with the state
@@ -65,23 +65,6 @@ _OUTPUT_UNITS = {
 }
 
 
-def tunable_defaults(scene: dict) -> dict[str, tuple[float, str, str]]:
-    """AeroSolver.tunable_parameters(scene), with the scene's `flow.direction` (normalized) as the default of
-    flow.direction_x/_y/_z when the scene gives one (the solver's own default is the first chord axis)."""
-    tunables = dict(AeroSolver.tunable_parameters(scene))
-    direction = (scene.get("flow") or {}).get("direction")
-    if direction is not None:
-        d = np.asarray(direction, dtype=float)
-        norm = float(np.linalg.norm(d))
-        if d.shape == (3,) and np.isfinite(norm) and norm > 0:
-            for c, value in zip("xyz", d / norm):
-                name = f"flow.direction_{c}"
-                if name in tunables:
-                    _, unit, text = tunables[name]
-                    tunables[name] = (float(value), unit, text)
-    return tunables
-
-
 def _scalar_output_names(outputs: dict) -> list[str]:
     """The required outputs first, then every other finite-or-not real scalar of AeroSolver.outputs()."""
     extra = [k for k, v in outputs.items() if k not in REQUIRED_OUTPUTS
@@ -99,7 +82,7 @@ class AeroSlave(SolverSlave):
         super().__init__(**kwargs)
         self.scene = read_scene(self.resources, self.label)
         self.modelName = "aero"
-        tunables = tunable_defaults(self.scene)
+        tunables = AeroSolver.tunable_parameters(self.scene)
         self._start(tunables, solver_parameters={name: float(v[0]) for name, v in tunables.items()})
         self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)
@@ -120,8 +103,7 @@ class AeroSlave(SolverSlave):
         self._publish()
         self._register(n)
 
-        stop = self.scene.get("time", {}).get("stop")
-        step = self.scene.get("coupling", {}).get("step")
+        stop, step = self.scene["time"]["stop"], self.scene["coupling"]["step"]
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=stop, step_size=step)
 
     def _register(self, n):

@@ -1,7 +1,7 @@
-"""Velocity induced by straight vortex segments (000 Eq. 19), vectorized over points x segments.
+"""Velocity induced by straight vortex segments (Otsuka et al. 2019, Eq. 19), vectorized over points x segments.
 
 A segment runs from a to b and carries circulation Gamma (m^2/s); at a point p, with r1 = p - a,
-r2 = p - b, r0 = b - a (000 Eq. 19; Katz & Plotkin, Low-Speed Aerodynamics, straight vortex segment):
+r2 = p - b, r0 = b - a (Otsuka et al. 2019, Eq. 19; Katz & Plotkin, Low-Speed Aerodynamics, straight vortex segment):
 
     v = Gamma / (4 pi) * (r1 x r2) / |r1 x r2|^2 * r0 . (r1 / |r1| - r2 / |r2|)          (m/s)
 
@@ -43,7 +43,7 @@ BLOCK_PAIRS = 1 << 16   # point-segment pairs per block in `influence` (0.5 MB p
 
 
 def _kernel(points, starts, ends, core, semi_infinite):
-    """Parts of 000 Eq. (19) with the Scully core per unit circulation: (c_x, c_y, c_z, k), each (P, S),
+    """Parts of Otsuka et al. 2019, Eq. (19) with the Scully core per unit circulation: (c_x, c_y, c_z, k), each (P, S),
     with v = k c. c = r1 x r2 (= r0 x r1) or d x r1; k the scalar factor. In-place arithmetic on
     component arrays (about 1.5 times faster than the plain expression)."""
     p = np.asarray(points, dtype=float).T[:, :, None]          # (3, P, 1)
@@ -109,7 +109,7 @@ def _safe_divide(x, y):
 
 
 def segment_velocity(points, starts, ends, core=0.0, semi_infinite=False):
-    """Velocity (m/s) induced at each point by each segment of unit circulation (1 m^2/s), 000 Eq. (19).
+    """Velocity (m/s) induced at each point by each segment of unit circulation (1 m^2/s), Otsuka et al. 2019, Eq. (19).
 
     points (P, 3) m; starts (S, 3) m; ends (S, 3) m, or unit directions when `semi_infinite`;
     core: Scully core radius delta (m), see the module docstring. Returns (P, S, 3).
@@ -124,7 +124,7 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
     weights (S, K) (dense or scipy.sparse): segment circulation = weights @ unknowns, so for vortex
     rings it is the +-1 incidence of segments in rings, and for known circulations a column (S, 1).
     Without normals returns (P, 3, K): v_p = result[p] @ unknowns (m/s). With normals (P, 3) returns
-    the normal wash (P, K): n_p . v_p per unit unknown, the rows of an influence matrix (000 Eq. 22).
+    the normal wash (P, K): n_p . v_p per unit unknown, the rows of an influence matrix (Otsuka et al. 2019, Eq. 22).
     Computed in blocks of points; no Python loop over points or segments inside a block.
     """
     points = np.asarray(points, dtype=float)

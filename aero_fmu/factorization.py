@@ -2,10 +2,10 @@
 lattice moves rigidly.
 
 For the circulations Gamma (n_panels,) of the bound rings, the velocity they induce at the collocation
-points is v_p = T_p Gamma with T (n_panels, 3, n_panels) from 000 Eq. (19). The solvers need three
+points is v_p = T_p Gamma with T (n_panels, 3, n_panels) from Otsuka et al. 2019, Eq. (19). The solvers need three
 contractions of it, each invariant under a rigid motion of the lattice (and of the flat wake with it):
 
-    A   = n . T      normal wash, the matrix of the no-penetration condition (000 Eq. 22)
+    A   = n . T      normal wash, the matrix of the no-penetration condition (Otsuka et al. 2019, Eq. 22)
     A_x = r_x . T    and  A_y = r_y . T: the products V . r_x, V . r_y of Eq. (23) (m/s per m^2/s)
 
 `BoundSystem` builds them (one kernel pass) and the LU of A at a reference geometry, and reuses them
@@ -26,7 +26,7 @@ DENSE_WEIGHTS = 100_000  # segment x panel entries up to which the stacked weigh
 
 
 class BoundSystem:
-    """Bound rings of a lattice, optionally with flat horseshoe wakes along the free stream (000 Sec. V)
+    """Bound rings of a lattice, optionally with flat horseshoe wakes along the free stream (Otsuka et al. 2019, Sec. V)
     of `wake_length` chords (inf: semi-infinite legs). `builds` counts the factorizations."""
 
     def __init__(self, lattice, rings, flat_wake=False, wake_length=np.inf):
@@ -56,7 +56,7 @@ class BoundSystem:
                 weights += [legs, span]
         self._start, self._end = np.concatenate(starts), np.concatenate(ends)
         stacked = scipy.sparse.vstack(weights, format="csr")
-        # small lattices (000's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
+        # small lattices (Otsuka et al. 2019's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
         self._weights = stacked.toarray() if stacked.shape[0] * stacked.shape[1] <= DENSE_WEIGHTS else stacked
 
     def matrices(self, geometry, direction):

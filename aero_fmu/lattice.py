@@ -5,7 +5,7 @@ panels of uniform size: panel (i, j) spans the chord fractions [i/M, (i+1)/M] (0
 1 at the trailing edge) and the span stations [j L/N, (j+1) L/N] from the body's root. A material point
 (span s, chord fraction f) lies on the element k = floor(s / l) of its body at x = s - k l (the last
 element takes s = L), y = body.chord_offset(f) = (f - a) c, i.e. measured from the reference line
-along r_y toward the trailing edge (000 Eq. 2).
+along r_y toward the trailing edge (Otsuka et al. 2019, Eq. 2).
 
 Katz & Plotkin placement: ring (i, j) has its leading (bound) segment at the panel's quarter chord,
 f = (i + 1/4)/M, and its trailing segment at the next panel's quarter chord, so the last ring's trailing
@@ -14,12 +14,12 @@ r(x, y) = r(x, 0) + y r_y(x) extends it off the plate). The collocation point is
 three-quarter chord, f = (i + 3/4)/M, at mid panel span. The force of a panel acts at the middle of its
 bound segment, f = (i + 1/4)/M at mid span (the lumped-vortex centre of pressure).
 
-Every point is r = S(x, y) e on its element (000 Eq. 20), and S = kron(s, I_3) with the scalar shape row
+Every point is r = S(x, y) e on its element (Otsuka et al. 2019, Eq. 20), and S = kron(s, I_3) with the scalar shape row
 s of `fmu_common.shape_functions`. We therefore store scalar matrices acting on the slot array
 X = E.reshape(-1, 3) (row 3 node + k holds r, r_x, r_y of a node): points = Sc @ X is the same as
-kron(Sc, I_3) @ E (000 Eq. 20), nine times fewer operations. Likewise the tangents at the collocation
+kron(Sc, I_3) @ E (Otsuka et al. 2019, Eq. 20), nine times fewer operations. Likewise the tangents at the collocation
 points r_x = Sx @ X (S_x: x-derivative of S) and r_y = Sy @ X (S_y = dS/dy: the r_y interpolation), from
-which n = r_x x r_y / |r_x x r_y| (000 Eq. 21) and tau_x, tau_y (000 Eq. 24). All matrices are built
+which n = r_x x r_y / |r_x x r_y| (Otsuka et al. 2019, Eq. 21) and tau_x, tau_y (Otsuka et al. 2019, Eq. 24). All matrices are built
 once; `geometry(E)` is one matrix product.
 """
 from dataclasses import dataclass
@@ -37,7 +37,7 @@ class Geometry:
     """The lattice at one E. Points in metres (global frame); tangents dimensionless.
 
     corners (n_corners, 3); collocation, application, r_x, r_y, normal (n_panels, 3) with normal the unit
-    r_x x r_y (000 Eq. 21); area (n_panels,) m^2 = |r_x x r_y| * panel span * panel chord.
+    r_x x r_y (Otsuka et al. 2019, Eq. 21); area (n_panels,) m^2 = |r_x x r_y| * panel span * panel chord.
     """
     corners: np.ndarray
     collocation: np.ndarray
@@ -49,7 +49,7 @@ class Geometry:
 
 
 def shape_rows(x, y, length):
-    """s(x, y), s_x = ds/dx (1/m) and s_y = ds/dy (1/m) of 000 Eq. (2), each (..., 6), for
+    """s(x, y), s_x = ds/dx (1/m) and s_y = ds/dy (1/m) of Otsuka et al. 2019, Eq. (2), each (..., 6), for
     [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]; x along the element (0..l, m), y along the chord (m)."""
     x, y, length = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, length)))
     _, dN, _, L = hermite(x / length, length)
@@ -69,7 +69,7 @@ class Lattice:
     b (M+1)(N+1) + i (N+1) + j; panel (b, i, j), i < M, j < N, is b M N + i N + j.
     Attributes: `rings` (n_panels, 4) corner indices of each ring in circulation order
     (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1), so a positive circulation induces velocity along -n
-    inside the ring and, in a flow from leading to trailing edge, makes a force along +n (000 Eq. 25);
+    inside the ring and, in a flow from leading to trailing edge, makes a force along +n (Otsuka et al. 2019, Eq. 25);
     `trailing_corners` (n_bodies, N + 1) and `trailing_panels` (n_bodies, N); per panel `panel_span`,
     `panel_chord` (reference lengths, m), `chord` (body chord, m), `body` (body index); `body_chords` (B,) m;
     `reference_area` (sum of body length x chord, m^2) and `core_radius` (m).
@@ -101,7 +101,7 @@ class Lattice:
         self.collocation_matrix = stack("collocation", 0)        # Sp
         self.tangent_x_matrix = stack("collocation", 1)          # Sx
         self.tangent_y_matrix = stack("collocation", 2)          # Sy
-        self.application_matrix = stack("application", 0)       # Sa, where panel forces act (000 Eq. 12)
+        self.application_matrix = stack("application", 0)       # Sa, where panel forces act (Otsuka et al. 2019, Eq. 12)
         self.grid_matrix = stack("grid", 0)                      # panel edges: f = i/M (leading edge 0, trailing 1)
         self._all = np.vstack([self.corner_matrix, self.collocation_matrix, self.application_matrix,
                                self.tangent_x_matrix, self.tangent_y_matrix])
@@ -125,7 +125,7 @@ class Lattice:
 
     # ------------------------------------------------------------------ per time step
     def geometry(self, E):
-        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (000 Eqs. 20-21, 24)."""
+        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (Otsuka et al. 2019, Eqs. 20-21, 24)."""
         X = np.asarray(E, dtype=float).reshape(-1, 3)
         P = self._all @ X
         nc, n_p = self.n_corners, self.n_panels
@@ -142,12 +142,12 @@ class Lattice:
 
     def generalized_force(self, forces):
         """Q (9 n_nodes,) of panel forces a (n_panels, 3) N acting at the application points:
-        Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12), virtual-work consistent with r = S e."""
+        Q = sum_panels S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12), virtual-work consistent with r = S e."""
         return (self.application_matrix.T @ np.asarray(forces, dtype=float)).ravel()
 
     @staticmethod
     def full(matrix):
-        """kron(matrix, I_3): the (3 n, 9 n_nodes) form acting on E directly (000 Eq. 20)."""
+        """kron(matrix, I_3): the (3 n, 9 n_nodes) form acting on E directly (Otsuka et al. 2019, Eq. 20)."""
         return np.kron(matrix, np.eye(3))
 
 

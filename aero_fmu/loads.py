@@ -1,4 +1,4 @@
-"""Resultants of the panel forces: generalized force (000 Eq. 12), lift, drag, moments, coefficients.
+"""Resultants of the panel forces: generalized force (Otsuka et al. 2019, Eq. 12), lift, drag, moments, coefficients.
 
 Axes: drag along the free-stream unit direction d; lift along `vlm.lift_axis` (the area-weighted wing
 normal without its component along d); side force along d x lift axis. Moments about the global origin,
@@ -31,7 +31,7 @@ OUTPUT_NAMES = ("CL", "lift", "wake_panels", "drag", "side_force", "CD", "moment
 
 def resultants(lattice, geometry, forces, direction, speed, density, wake_panels) -> Loads:
     """Loads of panel forces (n_panels, 3) N acting at geometry.application; direction (3,) unit, speed
-    m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (000 Eq. 12)."""
+    m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12)."""
     points = geometry.application
     total = forces.sum(axis=0)
     # sum_p x_p x f_p from the 3 x 3 moment sum_p x_p f_p^T: one product instead of a cross per panel

@@ -1,6 +1,6 @@
 """Does a point set move rigidly? (Kabsch fit), so that influence matrices can be reused.
 
-An influence coefficient n_p . v_q(r_p) (000 Eqs. 19, 22) depends only on the relative positions of
+An influence coefficient n_p . v_q(r_p) (Otsuka et al. 2019, Eqs. 19, 22) depends only on the relative positions of
 points and segments and on the normals, so it does not change when the whole lattice translates and
 rotates. The aero solvers keep their matrices (and the LU) of a reference geometry and reuse them while
 the current geometry is that reference moved rigidly: a heaving or pitching rigid wing factorizes once.

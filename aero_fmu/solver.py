@@ -1,10 +1,10 @@
 """AeroSolver: the aero unit's solver API (docs/aero_api.md), a thin owner of one aero model and its state.
 
-Scene keys used: aero.model (strip | uvlm-flat | uvlm-prescribed | uvlm-free), aero.chordwise_panels,
-aero.spanwise_panels, aero.wake_length (chords; inf allowed), aero.step (s, optional), flow.speed,
-flow.density; the structure table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters:
-flow.speed (m/s), flow.density (kg/m^3), flow.direction_x/_y/_z (normalized; default the first body's
-chord axis r_y).
+Scene keys used (of the resolved scene, fmu_common.scene_schema): aero.model (strip | uvlm-flat |
+uvlm-prescribed | uvlm-free), aero.chordwise_panels, aero.spanwise_panels, aero.wake_length (chords; inf
+allowed), aero.step (s, or None), aero.span_correction, flow.speed, flow.density, flow.direction; the structure
+table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters: flow.speed
+(m/s), flow.density (kg/m^3), flow.direction_x/_y/_z (their defaults flow.direction, normalized).
 
 Multi-rate (aero.step): `advance(t_end, e, de)` takes k = ceil((t_end - t) / aero.step) equal model steps
 over [t, t_end] when t_end - t exceeds aero.step (1e-9 relative slack, so a communication step equal to
@@ -25,12 +25,10 @@ import numpy as np
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
 from fmu_common.topology import Topology
 
-from .strip import SPAN_CORRECTIONS, StripTheory
+from .strip import StripTheory
 from .uvlm import UVLM
 from .wake import MAX_WAKE_ROWS
 
-MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
-_DEFAULTS = {"chordwise_panels": 2, "spanwise_panels": 7, "wake_length": 5.0, "span_correction": "helmbold"}
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
 _STEP_SLACK = 1e-9      # relative: an interval within rounding of aero.step (or of k aero.steps) is not split
 
@@ -81,29 +79,13 @@ class AeroSolver:
 
     def __init__(self, scene: dict, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
         self.topology = Topology.from_scene(scene)
-        aero = scene.get("aero") or {}
-        model = aero.get("model", "none")
-        if model not in MODELS:
-            raise SceneError("aero.model", model, f"one of {', '.join(MODELS)} (\"none\" builds no aero unit)")
-        settings = {key: aero.get(key, default) for key, default in _DEFAULTS.items()}
-        for key in ("chordwise_panels", "spanwise_panels"):
-            value = settings[key]
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise SceneError(f"aero.{key}", value, "an integer >= 1")
-        wake_length = settings["wake_length"]
-        if isinstance(wake_length, bool) or not isinstance(wake_length, (int, float)) or not wake_length > 0:
-            raise SceneError("aero.wake_length", wake_length, "a wake length > 0 (chords; inf for no truncation)")
-        if settings["span_correction"] not in SPAN_CORRECTIONS:
-            raise SceneError("aero.span_correction", settings["span_correction"],
-                             f"one of {', '.join(SPAN_CORRECTIONS)} (strip theory's finite-span lift slope)")
-        step = aero.get("step")
-        if step is not None and (isinstance(step, bool) or not isinstance(step, (int, float))
-                                 or not (np.isfinite(step) and step > 0)):
-            raise SceneError("aero.step", step, "a finite number > 0 (internal aero step, s; absent: one aero "
-                                                "step per communication step)")
-        self.step = None if step is None else float(step)
+        aero = scene["aero"]
+        model = aero["model"]
+        if model == "none":
+            raise SceneError("aero.model", model, "an aero model: \"none\" builds no aero unit")
+        self.step = aero["step"]
         self.model_name = model
-        values = {name: spec[0] for name, spec in self.tunable_parameters(scene, self.topology).items()}
+        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
                 raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
@@ -122,25 +104,22 @@ class AeroSolver:
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
         if model == "strip":
-            self.model = StripTheory(self.topology, settings["spanwise_panels"], settings["span_correction"])
+            self.model = StripTheory(self.topology, aero["spanwise_panels"], aero["span_correction"])
         else:
-            self.model = UVLM(self.topology, settings["chordwise_panels"], settings["spanwise_panels"],
-                              wake=model.removeprefix("uvlm-"), wake_length=float(wake_length),
+            self.model = UVLM(self.topology, aero["chordwise_panels"], aero["spanwise_panels"],
+                              wake=model.removeprefix("uvlm-"), wake_length=aero["wake_length"],
                               max_wake_rows=max_wake_rows)
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
 
     @staticmethod
-    def tunable_parameters(scene: dict, topology=None) -> dict:
+    def tunable_parameters(scene: dict) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run."""
-        topology = topology or Topology.from_scene(scene)
-        flow = scene.get("flow") or {}
-        first = next(iter(topology.bodies.values()))
-        chord_axis = topology.node_initial[first.nodes[0]][2]
-        chord_axis = chord_axis / np.linalg.norm(chord_axis)
-        out = {"flow.speed": (float(flow.get("speed", 0.0)), "m/s", "free-stream speed"),
-               "flow.density": (float(flow.get("density", 1.2)), "kg/m3", "air density")}
-        for c, value in zip("xyz", chord_axis):
+        flow = scene["flow"]
+        direction = np.asarray(flow["direction"], dtype=float)
+        out = {"flow.speed": (flow["speed"], "m/s", "free-stream speed"),
+               "flow.density": (flow["density"], "kg/m3", "air density")}
+        for c, value in zip("xyz", direction / np.linalg.norm(direction)):
             out[f"flow.direction_{c}"] = (float(value), "1", f"free-stream direction, {c} component (normalized)")
         return out
 

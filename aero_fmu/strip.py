@@ -4,19 +4,19 @@ Each body is cut into N spanwise strips (aero.spanwise_panels; the chordwise pan
 Strip j uses the one-panel lattice (`Lattice(topology, 1, N)`): its "collocation" point at 3/4 chord and
 mid-strip span, where the relative flow is taken, and its "application" point at 1/4 chord, where the
 force acts. With V_rel = U - r'(3/4 chord) (the flow relative to the section, docs/aero_api.md), n the
-section normal (000 Eq. 21), t_x = r_x / |r_x| the span direction and V_perp = V_rel - (V_rel . t_x) t_x
+section normal (Otsuka et al. 2019, Eq. 21), t_x = r_x / |r_x| the span direction and V_perp = V_rel - (V_rel . t_x) t_x
 the flow in the section plane (|V_perp| = |t_x x V_rel|), thin-airfoil theory per strip gives
 
     sin(alpha_eff) = (V_rel . n) / |V_perp|
     f = 1/2 rho |V_perp|^2 c 2 pi sin(alpha_eff) = pi rho c |V_perp| (V_rel . n)       (N per m of span)
 
 for small alpha_eff the lift per unit span 1/2 rho V^2 c 2 pi alpha_eff. The force is applied along the
-section normal n, like the UVLM's panel forces (000 Eq. 25), so the strip force (N) is
+section normal n, like the UVLM's panel forces (Otsuka et al. 2019, Eq. 25), so the strip force (N) is
 
     F_j = pi rho c_j |V_perp| (V_rel . n) Delta s_j n,   c_j = |r_y| c,   Delta s_j = |r_x| L / N
         = pi rho |r_y| c (V_rel . n) |r_x x V_rel| (L / N) n
 
-at the quarter chord; Q by 000 Eq. (12). No division: zero in still air, and a wing moving normal to
+at the quarter chord; Q by Otsuka et al. 2019, Eq. (12). No division: zero in still air, and a wing moving normal to
 itself in still air (alpha_eff = 90 deg, e.g. deployment at 0 m/s) gets a normal force resisting the
 motion (2 pi instead of a flat plate's drag coefficient of about 2: the linear theory is outside its
 range there), not a chordwise one. The 3/4-chord point carries the pitch-rate effect of quasi-steady
@@ -41,9 +41,6 @@ import numpy as np
 
 from .lattice import Lattice
 from .loads import Loads, resultants, zero_loads
-
-
-SPAN_CORRECTIONS = ("helmbold", "none")
 
 
 def aspect_ratio(topology) -> float:

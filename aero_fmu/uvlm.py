@@ -1,24 +1,24 @@
-"""Unsteady vortex-lattice method (000 Sec. V; Katz & Plotkin, Low-Speed Aerodynamics, Sec. 13.8).
+"""Unsteady vortex-lattice method (Otsuka et al. 2019, Sec. V; Katz & Plotkin, Low-Speed Aerodynamics, Sec. 13.8).
 
 One call `UVLM.advance(state, t_end, E, dE, U, rho, d)` gives the aero state at t_end for the structure's
 coordinates E and rates dE at t_end (one aero time step from state.time):
 
-  1. geometry of the rings from the fixed shape matrices: one matrix product (000 Eqs. 20, 21, 24);
+  1. geometry of the rings from the fixed shape matrices: one matrix product (Otsuka et al. 2019, Eqs. 20, 21, 24);
      body velocities at the collocation points r' = S(x_CP, y_CP) dE (the same matrix);
   2. wake: shed and convected (`wake.py`) or flat horseshoes (no state);
-  3. no penetration (000 Eq. 22 with the relative flow, docs/aero_api.md):
+  3. no penetration (Otsuka et al. 2019, Eq. 22 with the relative flow, docs/aero_api.md):
         A Gamma = -(U + w_wake - r') . n
      w_wake from the shed wake's segments with the vortex core wake.WAKE_CORE_FRACTION x the smallest
      panel dimension (its head row, lying on the bound trailing segments, with the bound core);
      A holds the bound rings (and, for the flat wake, the horseshoes); it and its LU are reused while
      the lattice moves rigidly (`factorization.BoundSystem`);
-  4. pressure jump (000 Eq. 23) with V = U + w - r' at the collocation point (w induced by bound rings
+  4. pressure jump (Otsuka et al. 2019, Eq. 23) with V = U + w - r' at the collocation point (w induced by bound rings
      and wake), dGamma/dt by the second-order backward difference of Gamma(t_n), Gamma(t_{n-1}),
      Gamma(t_{n-2}) (`circulation_rate`; first order on the step after the start), panel forces
      (Eq. 25) at the rings' bound-segment midpoints, Q by Eq. (12) (`loads.py`).
 
 Why second order: the dGamma/dt term is not small in Eq. (23) (for a heaving plate about 0.75 x 2k of
-the rho V Gamma term), and the first-order difference lags it by omega dt / 2. Measured on the 000
+the rho V Gamma term), and the first-order difference lags it by omega dt / 2. Measured on the Otsuka et al. 2019
 VI.D heaving wing (M = 10, dt = c/(MV)), C_L amplitude error against Theodorsen: k = 0.25: 1.75% first
 order, 0.85% second order; k = 0.5: 6.1% and 3.1%; Wagner at s = 1: +6.1% and +4.1%.
 
@@ -31,7 +31,7 @@ its head row follows the trailing edge, dGamma/dt uses the same earlier circulat
 Wake models (`wake` argument; aero.model = uvlm-<wake>):
   "prescribed": shed rings convected with U;  "free": convected with U + w;  "flat": no shed vorticity.
 
-The flat wake (000 Sec. V) and its closed form. Each trailing-edge ring carries a horseshoe along the
+The flat wake (Otsuka et al. 2019, Sec. V) and its closed form. Each trailing-edge ring carries a horseshoe along the
 free-stream direction, L_w chords long (closed by a segment there) or semi-infinite. The bound
 circulation is quasi-steady: the steady solution for the instantaneous relative normal flow, with no
 memory of earlier circulation; the unsteadiness enters only through dGamma/dt in Eq. (23). For a 2D
@@ -177,7 +177,7 @@ class UVLM:
         return influence(points, starts, ends, circulation[live, None], self.convection_core)[:, :, 0]
 
     def _solve(self, geometry, dE, U, density, direction, wake, history, steps):
-        """Gamma (000 Eq. 22) and the panel forces (Eqs. 23, 25)."""
+        """Gamma (Otsuka et al. 2019, Eq. 22) and the panel forces (Eqs. 23, 25)."""
         lat = self.lattice
         A_x, A_y, lu = self.system.matrices(geometry, direction)
         relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)   # U - r'

@@ -1,4 +1,4 @@
-"""Steady vortex-lattice method: bound vortex rings and a flat horseshoe wake (000 Sec. V).
+"""Steady vortex-lattice method: bound vortex rings and a flat horseshoe wake (Otsuka et al. 2019, Sec. V).
 
 Unknowns are the ring circulations Gamma (n_panels,) m^2/s. Every vortex system is a set of straight
 segments whose circulations are linear in Gamma through a sparse +-1 "weights" matrix (segment
@@ -8,14 +8,14 @@ circulation = weights @ Gamma); a segment shared by two rings is evaluated once.
     only, built once.
   * `bound_segments`, `horseshoe_wake`: the segments at one geometry.
   * `influence_matrix`: A[p, q] = n_p . v_q(r_CP,p), the normal wash at collocation point p of ring q
-    with unit circulation (000 Eqs. 19-22). The bound part depends on E only, so a solver keeps it (and,
+    with unit circulation (Otsuka et al. 2019, Eqs. 19-22). The bound part depends on E only, so a solver keeps it (and,
     with a flat wake, the LU of A) while the geometry does not change; `SteadyVLM` does so.
-  * solve A Gamma = -(U . n) (000 Eq. 22 with zero body velocity);
-  * `pressure_forces`: 000 Eq. (23) (its steady part unless dGamma/dt is given) and Eq. (25);
+  * solve A Gamma = -(U . n) (Otsuka et al. 2019, Eq. 22 with zero body velocity);
+  * `pressure_forces`: Otsuka et al. 2019, Eq. (23) (its steady part unless dGamma/dt is given) and Eq. (25);
   * `kutta_joukowski_forces`: rho Gamma V x dl on the bound segments, the independent check.
 
 Sign convention: a positive Gamma, with the flow going from the leading to the trailing edge, gives a
-force along +n = r_x x r_y (000 Eq. 25 with Delta p > 0), see `Lattice`.
+force along +n = r_x x r_y (Otsuka et al. 2019, Eq. 25 with Delta p > 0), see `Lattice`.
 """
 from dataclasses import dataclass
 
@@ -103,7 +103,7 @@ def leg_ends(lattice: Lattice, heads, direction, wake_length):
 
 
 def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> list:
-    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (000 Sec. V).
+    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (Otsuka et al. 2019, Sec. V).
 
     The legs start at the last rings' trailing corners (a quarter panel behind the trailing edge) and run
     along the unit `direction` (the free stream) for wake_length chords of their body, closed there by a
@@ -128,7 +128,7 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> 
 
 def influence_matrix(points, normals, systems, core) -> np.ndarray:
     """A (P, n_panels): normal wash n_p . v at `points` per unit ring circulation, summed over the vortex
-    systems (000 Eqs. 19, 22). core: vortex core radius (m), see biot_savart.py."""
+    systems (Otsuka et al. 2019, Eqs. 19, 22). core: vortex core radius (m), see biot_savart.py."""
     return sum(influence(points, s.starts, s.ends, s.weights, core, s.semi_infinite, normals) for s in systems)
 
 
@@ -139,7 +139,7 @@ def induced_velocity(points, systems, gamma, core) -> np.ndarray:
 
 
 def pressure_forces(lattice: Lattice, geometry, gamma, velocity, density, dgamma_dt=None) -> np.ndarray:
-    """Panel forces a (n_panels, 3) N by 000 Eqs. (23) and (25), with V (n_panels, 3) the fluid velocity
+    """Panel forces a (n_panels, 3) N by Otsuka et al. 2019, Eqs. (23) and (25), with V (n_panels, 3) the fluid velocity
     relative to the panel at its collocation point (m/s). See `pressure_jump_forces`."""
     v_x = np.sum(velocity * geometry.r_x, axis=1)
     v_y = np.sum(velocity * geometry.r_y, axis=1)
@@ -147,7 +147,7 @@ def pressure_forces(lattice: Lattice, geometry, gamma, velocity, density, dgamma
 
 
 def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, dgamma_dt=None) -> np.ndarray:
-    """Panel forces a (n_panels, 3) N by 000 Eqs. (23) and (25) from the tangential velocity products.
+    """Panel forces a (n_panels, 3) N by Otsuka et al. 2019, Eqs. (23) and (25) from the tangential velocity products.
 
     Delta p_ij = rho [V . (tau_x (G_ij - G_i,j-1) / Delta x + tau_y (G_ij - G_i-1,j) / Delta y) + dG_ij/dt]
     with V the fluid velocity relative to the panel at its collocation point, tau the unit tangents
@@ -237,7 +237,7 @@ class SteadyVLM:
         return self._full[1]
 
     def solve(self, E, flow_velocity, density, lift_direction=None) -> SteadySolution:
-        """Circulations, panel forces (000 Eqs. 22, 23 steady part, 25) and C_L = lift / (q S) with S the
+        """Circulations, panel forces (Otsuka et al. 2019, Eqs. 22, 23 steady part, 25) and C_L = lift / (q S) with S the
         reference area; C_L = 0 at zero dynamic pressure. flow_velocity (3,) m/s, density kg/m^3;
         lift_direction (3,) or None for `lift_axis`."""
         U = np.asarray(flow_velocity, dtype=float)

@@ -1,4 +1,4 @@
-"""Shed vortex-ring wakes (000 Sec. V; Katz & Plotkin, Low-Speed Aerodynamics, Sec. 13.8): state and
+"""Shed vortex-ring wakes (Otsuka et al. 2019, Sec. V; Katz & Plotkin, Low-Speed Aerodynamics, Sec. 13.8): state and
 vectorized kernels. The flat (horseshoe) wake has no state: see `factorization.BoundSystem`.
 
 Layout. Each of the B bodies sheds N columns of rings from its trailing edge. `ShedWake.corners`
@@ -31,17 +31,18 @@ force is 15 N): the wing re-sheds the spikes and the free wake goes chaotic.
 Truncation: ring r is kept while its back row is within `wake_length` chords of the head row (largest
 Euclidean distance over span stations smaller than the body's L_w c, for any body), at least the newest
 ring, at most `max_rows` rings; older rings are dropped (their vorticity leaves the model: the last kept
-ring's back segment carries its circulation, as in 000 Sec. VII.A).
+ring's back segment carries its circulation, as in Otsuka et al. 2019, Sec. VII.A).
 """
 from dataclasses import dataclass
 
 import numpy as np
 
+from fmu_common.scene_bounds import MAX_WAKE_ROWS
+
 from .biot_savart import influence
 
 CONVECTION_CORE_FRACTION = 0.1   # core for free-wake convection, x the smallest reference panel dimension
 WAKE_CORE_FRACTION = 0.1         # core of the wake's segments at the collocation points (head row excepted)
-MAX_WAKE_ROWS = 1000             # default cap of wake rows (bounds the cost when the flow speed is ~0)
 
 
 @dataclass
@@ -92,7 +93,7 @@ def segments(wake: ShedWake):
 
 
 def velocity(points, wake: ShedWake, core, head_core=None):
-    """Velocity (P, 3) m/s induced by the wake at points (P, 3), 000 Eq. (19) with a Scully core (m);
+    """Velocity (P, 3) m/s induced by the wake at points (P, 3), Otsuka et al. 2019, Eq. (19) with a Scully core (m);
     the head row's spanwise segments with `head_core` if given (the bound core, so that they cancel the
     bound trailing segments they lie on exactly in steady flow)."""
     if wake.n_rows == 0:

@@ -1,6 +1,9 @@
 """What the structure and aero units share, and nothing else: no structural or aerodynamic physics.
 
   errors.py           SceneError, InputError, SolverDiverged; unknown-key and input checks
+  schema.py           the vocabulary of the scene schema: typed keys, tables, arrays of tables, variants
+  scene_schema.py     every scene key declared once, and resolve_scene (docs/scenes.md is generated from it)
+  scene_bounds.py     the size bounds of a scene and the rough memory estimate of a run
   topology.py         the structural topology both units build from a scene: bodies, nodes, elements,
                       reference lines, chords, hinges, initial coordinates and the topology hash
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero

@@ -1,4 +1,5 @@
-"""Errors both units raise, each naming what was wrong, and the checks of scene values and inputs that raise them."""
+"""Errors both units raise, each naming what was wrong, and the checks of unknown scene keys and of inputs that
+raise them (the scene's values are checked by fmu_common.scene_schema)."""
 import numpy as np
 
 
@@ -37,28 +38,6 @@ def reject_unknown_keys(table: dict, prefix: str, allowed) -> None:
             where = f"in [{prefix}]" if prefix else "at the top level"
             raise SceneError(f"{prefix}.{key}" if prefix else key, value,
                              f"unknown key; allowed {where}: {', '.join(allowed)}")
-
-
-def checked_number(key: str, value, condition: str = "a number", check=lambda v: True) -> float:
-    """`value` as a float: SceneError naming `key` unless it is a finite int or float (not a bool) that passes
-    `check`; `condition` says what is allowed."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or not check(value):
-        raise SceneError(key, value, condition)
-    return float(value)
-
-
-def checked_vector(key: str, value, unit: bool = False):
-    """`value` (a list of three numbers) as a float array (3,), normalized if `unit`; SceneError naming `key`
-    otherwise, or for a zero direction."""
-    if (not isinstance(value, (list, tuple)) or len(value) != 3
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
-        raise SceneError(key, value, "a list of three numbers")
-    v = np.asarray(value, dtype=float)
-    if unit:
-        if np.linalg.norm(v) == 0:
-            raise SceneError(key, value, "a non-zero direction")
-        v = v / np.linalg.norm(v)
-    return v
 
 
 def checked_input(name: str, value, n: int, time: float):

@@ -17,20 +17,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import SceneError, checked_number, checked_vector, reject_unknown_keys
+from .errors import SceneError
+from .schema import item_label
 from .shape_functions import hermite, shape_row
 from .vectors import rotation_about
-
-BODY_KEYS = {"name", "length", "root", "span_axis", "chord_axis", "damping", "section", "angular_velocity"}
-JOINT_KEYS = {
-    "clamp": {"type", "body"},
-    "pin": {"type", "body", "axis"},
-    "driven": {"type", "body", "law", "omega", "ramp_time"},
-    "hinge": {"type", "name", "parent", "child", "initial_angle_deg", "stiffness", "damping", "torque",
-              "stop_angle_deg", "latch_factor"},
-}
-SECTION_TABLE = "a table with chord, torsional_rigidity and plate or explicit properties"
-
 
 @dataclass
 class Body:
@@ -64,19 +54,6 @@ class HingeLine:
     initial_angle: float
 
 
-def chord_line(key: str, table) -> tuple[float, float]:
-    """(chord c (m), axis_position a) of the section table at dotted key `key` (a defaults to 0.5)."""
-    if not isinstance(table, dict):
-        raise SceneError(key, table, SECTION_TABLE)
-    chord = table.get("chord")
-    if not isinstance(chord, (int, float)) or isinstance(chord, bool) or not chord > 0:
-        raise SceneError(f"{key}.chord", chord, "a number > 0")
-    axis = table.get("axis_position", 0.5)
-    if not isinstance(axis, (int, float)) or not 0.0 <= axis <= 1.0:
-        raise SceneError(f"{key}.axis_position", axis, "a fraction of chord in [0, 1]")
-    return float(chord), float(axis)
-
-
 class Topology:
     """Nodes, elements, bodies and hinges of a scene's `structure` table, with their initial geometry: what
     the aero unit needs of the structure, and what `topology_hash` digests."""
@@ -94,57 +71,37 @@ class Topology:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_scene(cls, scene: dict):
-        """The topology of `scene["structure"]`; raises SceneError naming the key."""
+        """The topology of the resolved scene's `structure` (fmu_common.scene_schema); raises SceneError naming
+        the key for a relation between tables the schema does not check (joints' bodies, hinge tree)."""
         top = cls()
-        structure = scene.get("structure")
-        if not isinstance(structure, dict):
-            raise SceneError("structure", structure, "a table describing bodies and joints")
-        top.fidelity = structure.get("fidelity", "flexible")
-        if top.fidelity not in ("prescribed", "rigid", "flexible"):
-            raise SceneError("structure.fidelity", top.fidelity, "one of prescribed, rigid, flexible")
-        n_el = structure.get("elements_per_body", 4)
-        if isinstance(n_el, bool) or not isinstance(n_el, int) or n_el < 1:
-            raise SceneError("structure.elements_per_body", n_el, "an integer >= 1")
-        if top.fidelity != "flexible":
-            n_el = 1   # Otsuka et al. 2019, Sec. IV: one element per rigid body
-        bodies = structure.get("bodies")
-        if not isinstance(bodies, list) or not bodies:
-            raise SceneError("structure.bodies", bodies, "a non-empty array of body tables")
-        specs = {}
-        for i, spec in enumerate(bodies):
-            key = f"structure.bodies[{i}]"
-            if not isinstance(spec, dict):
-                raise SceneError(key, spec, "a table")
-            reject_unknown_keys(spec, key, BODY_KEYS)
-            name = spec.get("name")
-            if not isinstance(name, str) or not name or name in specs:
-                raise SceneError(f"{key}.name", name, "a unique non-empty body name")
-            specs[name] = (key, spec)
-        parent_of = top._parse_joints(structure.get("joints", []), specs)
+        structure = scene["structure"]
+        top.fidelity = structure["fidelity"]
+        # Otsuka et al. 2019, Sec. IV: one element per rigid body
+        n_el = structure["elements_per_body"] if top.fidelity == "flexible" else 1
+        specs = {spec["name"]: (body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
+        parent_of = top._parse_joints(structure["joints"], specs)
         for name in _body_order(specs, parent_of):
             top._add_body(name, specs[name], n_el)
         return top
 
     def _parse_joints(self, joints, specs) -> dict:
         """Fill `root_joints`; return child body -> parent body of every hinge."""
-        if not isinstance(joints, list):
-            raise SceneError("structure.joints", joints, "an array of joint tables")
         parent_of = {}
         for i, spec in enumerate(joints):
-            key = f"structure.joints[{i}]"
-            kind = spec.get("type") if isinstance(spec, dict) else None
-            if kind not in JOINT_KEYS:
-                raise SceneError(f"{key}.type", kind, f"one of {sorted(JOINT_KEYS)}")
-            reject_unknown_keys(spec, key, JOINT_KEYS[kind])
-            bodies = [spec.get("parent"), spec.get("child")] if kind == "hinge" else [spec.get("body")]
-            for field_name, body in zip(("parent", "child") if kind == "hinge" else ("body",), bodies):
-                if body not in specs:
-                    raise SceneError(f"{key}.{field_name}", body, f"one of the bodies {sorted(specs)}")
+            key = f"structure.joints.{item_label(i, spec)}"
+            kind = spec["type"]
+            fields = ("parent", "child") if kind == "hinge" else ("body",)
+            for field_name in fields:
+                if spec[field_name] not in specs:
+                    raise SceneError(f"{key}.{field_name}", spec[field_name], f"one of the bodies {sorted(specs)}")
             target = spec["child"] if kind == "hinge" else spec["body"]
             if target in self.root_joints:
                 raise SceneError(key, target, "a body root can carry only one clamp, pin, driven or hinge joint")
             self.root_joints[target] = (key, spec)
             if kind == "hinge":
+                if spec["name"] in specs:     # <name>.damping would be the parameter of both
+                    raise SceneError(f"{key}.name", spec["name"], "a hinge name that is not a body's: both name "
+                                     "parameters of the structure unit (<name>.damping)")
                 if spec["parent"] == spec["child"]:
                     raise SceneError(f"{key}.child", spec["child"], "a body other than the parent")
                 parent_of[spec["child"]] = spec["parent"]
@@ -152,11 +109,11 @@ class Topology:
 
     def _new_body(self, key: str, spec: dict, name: str, length: float) -> Body:
         """The Body of the table `spec` at dotted key `key` (its section read for the chord line)."""
-        return Body(name, length, *chord_line(f"{key}.section", spec.get("section")))
+        return Body(name, length, spec["section"]["chord"], spec["section"]["axis_position"])
 
     def _add_body(self, name, key_spec, n_el):
         key, spec = key_spec
-        length = checked_number(f"{key}.length", spec.get("length"), "a length > 0 (m)", lambda v: v > 0)
+        length = spec["length"]
         body = self._new_body(key, spec, name, length)
         joint_key, joint = self.root_joints.get(name, (None, None))
         if joint is not None and joint["type"] == "hinge":
@@ -164,16 +121,22 @@ class Topology:
             r0, x_parent, y0 = self.node_initial[tip]
             hinge = self._hinge_line(joint_key, joint)
             x0 = rotation_about(y0 / np.linalg.norm(y0), hinge.initial_angle) @ x_parent
-            if "root" in spec or "span_axis" in spec:
-                raise SceneError(f"{key}.root", spec.get("root", spec.get("span_axis")),
-                                 "not allowed: a hinged body starts at its parent's tip")
+            for field_name in ("root", "span_axis"):
+                if spec[field_name] is not None:
+                    raise SceneError(f"{key}.{field_name}", spec[field_name],
+                                     "not allowed: a hinged body starts at its parent's tip, along its parent's span "
+                                     "turned by the hinge's initial angle")
+            given, shared = spec["chord_axis"], y0 / np.linalg.norm(y0)
+            if given is not None and np.linalg.norm(_unit(given) - shared) > 1e-9:
+                raise SceneError(f"{key}.chord_axis", given, f"the direction of the parent's chord axis "
+                                 f"{[round(float(v), 12) for v in shared]}: the hinge shares it")
             self.hinge_lines.append(hinge)
         else:
-            r0 = checked_vector(f"{key}.root", spec.get("root", [0.0, 0.0, 0.0]))
-            x0 = checked_vector(f"{key}.span_axis", spec.get("span_axis", [1.0, 0.0, 0.0]), unit=True)
-            y0 = checked_vector(f"{key}.chord_axis", spec.get("chord_axis", [0.0, 1.0, 0.0]), unit=True)
+            r0 = np.array(spec["root"], dtype=float)
+            x0 = _unit(spec["span_axis"])
+            y0 = _unit(spec["chord_axis"])
             if abs(x0 @ y0) > 1e-9:
-                raise SceneError(f"{key}.chord_axis", spec.get("chord_axis"), "a direction perpendicular to span_axis")
+                raise SceneError(f"{key}.chord_axis", spec["chord_axis"], "a direction perpendicular to span_axis")
         x0 = x0 / np.linalg.norm(x0)
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
         first_node = len(self.node_names)
@@ -188,13 +151,7 @@ class Topology:
         self.bodies[name] = body
 
     def _hinge_line(self, key, spec) -> HingeLine:
-        name = spec.get("name")
-        if not isinstance(name, str) or not name or any(h.name == name for h in self.hinge_lines):
-            raise SceneError(f"{key}.name", name, "a unique non-empty hinge name")
-        # in (-180, 180) deg like the fold angle itself, which wraps at +-180
-        initial = np.radians(checked_number(f"{key}.initial_angle_deg", spec.get("initial_angle_deg", 0.0),
-                                            "an angle in (-180, 180) deg", lambda v: -180 < v < 180))
-        return HingeLine(name, spec["parent"], spec["child"], initial)
+        return HingeLine(spec["name"], spec["parent"], spec["child"], np.radians(spec["initial_angle_deg"]))
 
     # ------------------------------------------------------------------ queries
     @property
@@ -262,6 +219,16 @@ class Topology:
             "hinges": self.hinge_names,
         }
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def body_key(index: int, spec: dict) -> str:
+    """The dotted key of the body table `spec`, item `index` of structure.bodies."""
+    return f"structure.bodies.{item_label(index, spec)}"
+
+
+def _unit(vector) -> np.ndarray:
+    v = np.asarray(vector, dtype=float)
+    return v / np.linalg.norm(v)
 
 
 def _body_order(specs, parent_of):

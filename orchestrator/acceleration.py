@@ -85,11 +85,11 @@ ACCELERATIONS = {"aitken": Aitken, "iqn-ils": IQNILS}
 
 
 def make_acceleration(coupling: dict):
-    """The implicit coupling's acceleration from the scene's ``coupling`` table."""
-    name = coupling.get("acceleration", "aitken")
+    """The implicit coupling's acceleration from the resolved scene's ``coupling`` table."""
+    name = coupling["acceleration"]
     if name not in ACCELERATIONS:
         raise ValueError(f"coupling.acceleration = {name!r} is not implemented; use one of {', '.join(ACCELERATIONS)}")
-    return ACCELERATIONS[name](coupling.get("relaxation", 0.5))
+    return ACCELERATIONS[name](coupling["relaxation"])
 
 
 def interface_residual(q_new: np.ndarray, q_used: np.ndarray) -> float:

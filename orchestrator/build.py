@@ -42,7 +42,7 @@ class BuildError(RuntimeError):
 
 def units_needed(scene: dict) -> list[str]:
     """Unit kinds the scene needs: always the structure, the aero unit unless `aero.model` is "none"."""
-    model = scene.get("aero", {}).get("model", "none")
+    model = scene["aero"]["model"]
     return ["structure"] if model == "none" else ["structure", "aero"]
 
 

@@ -1,4 +1,4 @@
-"""The ``wingsim`` command line (DESIGN §7); ``python -m orchestrator`` is the same.
+"""The ``wingsim`` command line (docs/architecture.md); ``python -m orchestrator`` is the same.
 
 - ``wingsim build SCENE [--out DIR]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,

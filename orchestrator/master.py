@@ -92,12 +92,12 @@ def communication_times(stop: float, step: float) -> np.ndarray:
 
 def has_aero(scene: dict) -> bool:
     """True when the scene couples an aero unit (``aero.model`` is not "none")."""
-    return scene.get("aero", {}).get("model", "none") != "none"
+    return scene["aero"]["model"] != "none"
 
 
 def is_implicit(scene: dict) -> bool:
     """True when the scene couples an aero unit implicitly (``coupling.algorithm = "implicit"``)."""
-    return has_aero(scene) and scene.get("coupling", {}).get("algorithm") == "implicit"
+    return has_aero(scene) and scene["coupling"]["algorithm"] == "implicit"
 
 
 def new_series(scene: dict) -> TimeSeries:
@@ -105,7 +105,7 @@ def new_series(scene: dict) -> TimeSeries:
     scene, and coupling_iterations, coupling_residual for an implicit one)."""
     return TimeSeries([p["name"] for p in scene["probes"]], [j["name"] for j in hinge_joints(scene)],
                       aero=has_aero(scene), coupling=is_implicit(scene),
-                      strain_names=[g["name"] for g in scene.get("strain_gauges", [])])
+                      strain_names=[g["name"] for g in scene["strain_gauges"]])
 
 
 def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
@@ -190,7 +190,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     phase = "starting the structure unit"
     try:
-        algorithm = scene["coupling"].get("algorithm")
+        algorithm = scene["coupling"]["algorithm"]
         if has_aero(scene) and algorithm not in ALGORITHMS:
             raise CouplingError(f"coupling.algorithm = {algorithm!r} is not implemented; use one of "
                                 f"{', '.join(ALGORITHMS)}")

@@ -41,7 +41,7 @@ def fold_angles_figure(result: RunResult) -> Figure | None:
     series = result.series
     if not series.hinge_names:
         return None
-    stops = {j["name"]: j.get("stop_angle_deg") for j in hinge_joints(result.scene)}
+    stops = {j["name"]: j["stop_angle_deg"] for j in hinge_joints(result.scene)}
     fig = Figure(figsize=(7, 4))
     ax = fig.add_subplot()
     for i, hinge in enumerate(series.hinge_names):
@@ -81,7 +81,7 @@ def strain_figure(result: RunResult) -> Figure | None:
     series = result.series
     if not series.strain_names:
         return None
-    gauges = {g["name"]: g for g in result.scene.get("strain_gauges", [])}
+    gauges = {g["name"]: g for g in result.scene["strain_gauges"]}
     fig = Figure(figsize=(7, 4))
     ax = fig.add_subplot()
     for i, name in enumerate(series.strain_names):
@@ -118,7 +118,7 @@ def lift_figure(result: RunResult) -> Figure | None:
     fig = Figure(figsize=(7, 6))
     cl_ax, lift_ax = fig.subplots(2, 1, sharex=True)
     cl_ax.plot(series.time, series.CL)
-    model = result.scene.get("aero", {}).get("model", "")
+    model = result.scene["aero"]["model"]
     cl_ax.set(title=_title(result, f"lift coefficient ({model})"), ylabel="CL (-)")
     lift_ax.plot(series.time, series.lift)
     lift_ax.set(xlabel="time (s)", ylabel="lift (N)")

@@ -1,4 +1,4 @@
-"""Write a run's ``summary.json`` and ``timeseries.csv`` (DESIGN §7), also for a failed run.
+"""Write a run's ``summary.json`` and ``timeseries.csv``, also for a failed run.
 
 Write order, so that a full disk or a killed process loses at most the big files and always leaves a
 summary (at worst the one written before the run):

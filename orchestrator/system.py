@@ -47,7 +47,7 @@ class Component:
 
     @property
     def parameters(self) -> list:
-        """The Real parameters (tunable scalars, DESIGN §3), their start values as built."""
+        """The Real parameters (tunable scalars, docs/fmu.md), their start values as built."""
         return self.variables("parameter")
 
     @property
@@ -130,7 +130,7 @@ def coupled_system(scene: dict, fmu_dir: Path) -> System:
     for kind in units_needed(scene):
         path = Path(fmu_dir) / UNITS[kind][0]
         components.append(Component(kind, path, read_model_description(str(path))))
-    system = System(scene["name"], scene.get("description", ""), components, start_time=0.0,
+    system = System(scene["name"], scene["description"], components, start_time=0.0,
                     stop_time=float(scene["time"]["stop"]), step=float(scene["coupling"]["step"]))
     if len(components) == 2:
         system.connections = _connections(*components)

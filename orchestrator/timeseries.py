@@ -6,7 +6,7 @@ with an aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, fo
 iterations ``coupling_iterations`` the master took in the communication step ending at that sample and
 the relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column
 names are those of
-``timeseries.csv`` (DESIGN §7); columns are only ever added, never renamed, and are read back by name
+``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
 

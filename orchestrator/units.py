@@ -161,8 +161,8 @@ class Unit:
         if missing:
             raise UnitError(f"{port.label}: no output {missing[0]}; the unit does not match the scene (rebuild "
                             "the FMU)")
-        self.probes = [p["name"] for p in scene.get("probes", [])] if spec.sensor_monitors else []
-        self.gauges = [g["name"] for g in scene.get("strain_gauges", [])] if spec.sensor_monitors else []
+        self.probes = [p["name"] for p in scene["probes"]] if spec.sensor_monitors else []
+        self.gauges = [g["name"] for g in scene["strain_gauges"]] if spec.sensor_monitors else []
         sensor_names = sensor_output_names(self.probes, self.gauges)
         absent = [m for m in (*spec.monitors, *sensor_names) if fmi_name(m) not in vr]
         if absent:

@@ -1,4 +1,4 @@
-"""`wingsim validate [FMU ...]`: check built FMUs as another FMI 2.0 tool would (DESIGN §7).
+"""`wingsim validate [FMU ...]`: check built FMUs as another FMI 2.0 tool would.
 
 For each FMU: fmpy's model-description validation; the declared variables against the layout the unit's
 code registers (names, value references, causality, variability, type, unit: `orchestrator.layout`), so a
@@ -52,7 +52,7 @@ def _simulate(path: Path, kind: str) -> list[str]:
     from fmu_common.topology import Topology
 
     scene = embedded_scene(path)
-    step = float(scene.get("coupling", {}).get("step", 1e-3))
+    step = scene["coupling"]["step"]
     with tempfile.TemporaryDirectory(prefix="wingsim_validate_") as folder:
         shutil.copy(path, Path(folder) / FMU_FILES[kind])   # the units find an FMU by its kind's file name
         try:

@@ -58,10 +58,10 @@ class Snapshot:
 
 
 def aero_parameters(scene: dict) -> dict:
-    """The tunable parameters the aero unit starts with (``AeroSlave``: the scene's flow direction)."""
-    from aero_fmu.aero_slave import tunable_defaults
+    """The tunable parameters the aero unit starts with (``AeroSlave``: their defaults)."""
+    from aero_fmu.solver import AeroSolver
 
-    return {name: float(spec[0]) for name, spec in tunable_defaults(scene).items()}
+    return {name: float(spec[0]) for name, spec in AeroSolver.tunable_parameters(scene).items()}
 
 
 def replay(scene: dict, inputs, at_steps, budget_s: float | None = None):
@@ -218,11 +218,11 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
     cols = 2 if n > 1 else 1
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(5.2 * cols, 4.2 * rows))
-    aero = scene.get("aero", {})
-    model = aero.get("model", "")
-    mesh = (f"{aero.get('spanwise_panels', '?')} strips per body" if model == "strip" else
-            f"M x N = {aero.get('chordwise_panels', '?')} x {aero.get('spanwise_panels', '?')} per body")
-    title = f"{scene.get('name', '')}: wing and wake ({model}, {mesh})"
+    aero = scene["aero"]
+    model = aero["model"]
+    mesh = (f"{aero['spanwise_panels']} strips per body" if model == "strip" else
+            f"M x N = {aero['chordwise_panels']} x {aero['spanwise_panels']} per body")
+    title = f"{scene['name']}: wing and wake ({model}, {mesh})"
     if window is not None:
         axis, lo, hi = window
         title += f"\nspanwise window {'xyz'[axis]} in [{lo:.4g}, {hi:.4g}] m of [{points[:, axis].min():.4g}, " \

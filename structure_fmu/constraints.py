@@ -1,12 +1,12 @@
-"""Internal constraint equations on the exchanged coordinates E (000 Eqs. 6 and 17).
+"""Internal constraint equations on the exchanged coordinates E (Otsuka et al. 2019, Eqs. 6 and 17).
 
 All remaining constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c_i:
-  unit length   (|v|^2 - 1) / 2 = 0        (000 Eq. 6 row 1 for r_y; Eq. 17 rows 1-2)
-  orthogonality a . b = 0                  (000 Eq. 6 row 2; Eq. 17 row 3)
+  unit length   (|v|^2 - 1) / 2 = 0        (Otsuka et al. 2019, Eq. 6 row 1 for r_y; Eq. 17 rows 1-2)
+  orthogonality a . b = 0                  (Otsuka et al. 2019, Eq. 6 row 2; Eq. 17 row 3)
   fixed plane   v . n = 0                  (a pin about the section normal)
 so the constraint Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap.
 The linear rows of Eq. (17) are eliminated by the coordinate map E = T q + P p (topology.py); the
-integrators need the Jacobian on the free coordinates q, G_q = G T (000 Eq. 4's Phi_q).
+integrators need the Jacobian on the free coordinates q, G_q = G T (Otsuka et al. 2019, Eq. 4's Phi_q).
 """
 import numpy as np
 

@@ -1,15 +1,15 @@
-"""The 18-DoF asymmetrically gradient-deficient ANCF beam element (000 Sec. II).
+"""The 18-DoF asymmetrically gradient-deficient ANCF beam element (Otsuka et al. 2019, Sec. II).
 
-Element coordinates (000 Eq. 3): e = [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B], 18 numbers, metres for r and
+Element coordinates (Otsuka et al. 2019, Eq. 3): e = [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B], 18 numbers, metres for r and
 dimensionless for the gradients. Every kernel here is a pure function vectorized over elements: arrays
 of element coordinates have shape (n_elements, 18), element lengths shape (n_elements,).
 
-Position of a material point (000 Eq. 2): r(x, y) = S(x, y) e, the shape functions of
+Position of a material point (Otsuka et al. 2019, Eq. 2): r(x, y) = S(x, y) e, the shape functions of
 fmu_common.shape_functions (shared with the aero unit).
 
-Elastic energy (000 Eq. 7) and its definitions, written down here because the paper leaves freedom:
+Elastic energy (Otsuka et al. 2019, Eq. 7) and its definitions, written down here because the paper leaves freedom:
   * axial strain   an assumed quadratic field eps(x) with the nodal stretches |r_x^A| - 1, |r_x^B| - 1 at
-    the ends and the element's arc-length stretch (1/l) int |r'| dx - 1 as its mean. 000's pointwise
+    the ends and the element's arc-length stretch (1/l) int |r'| dx - 1 as its mean. Otsuka et al. 2019's pointwise
     u' = i . r' - 1 (Eq. 8, i along the chord) locks in membrane for slender beams: a nodal gradient shared
     by two elements cannot make it vanish in both under inextensible bending (measured: tip deflection 4%
     short of the elastica at P L^2/EI = 1 with 10 elements and EA L^2/EI = 1e6). Our field is zero for any
@@ -18,8 +18,8 @@ Elastic energy (000 Eq. 7) and its definitions, written down here because the pa
   * flap curvature kappa_y(x) = r''(x) . (r'(x) x r_y(x))  (bending out of the wing plane, EI_yy);
   * chord curvature kappa_z(x) = r''(x) . r_y(x)           (bending in the wing plane, EI_zz);
   * torsion        kappa_x = tau / l with tau = 1/2 [(r_x^A x r_y^A) . r_y^B - (r_x^B x r_y^B) . r_y^A],
-    the symmetric form of 000 Eq. (11) with |r_x| ~ 1 and the internal constraint |r_y| = 1.
-  The local section axes n(x) = r' x r_y and r_y(x) replace the element frame j, k of 000 Eqs. (9)-(10):
+    the symmetric form of Otsuka et al. 2019, Eq. (11) with |r_x| ~ 1 and the internal constraint |r_y| = 1.
+  The local section axes n(x) = r' x r_y and r_y(x) replace the element frame j, k of Otsuka et al. 2019, Eqs. (9)-(10):
   on the constraint manifold they coincide to first order, and they make every measure a polynomial of e,
   so the energy is integrated exactly by 5-point Gauss quadrature and its gradient is exact.
   Every measure vanishes for any rigid motion, so a rigid motion gives zero elastic force.
@@ -75,7 +75,7 @@ def flap_curvature(derivatives):
     n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
     curvature itself, also where the line stretches. Positive when the line bends toward +n. On a plate of
     thickness h, h/2 kappa_y is the extensional strain of the -n face (the +n face has its opposite):
-    003 Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
+    Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
     |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2 (one determinant and one Gram product: on the few
     points of a sample this is half the cost of the cross and dot products).
     """
@@ -85,7 +85,7 @@ def flap_curvature(derivatives):
 
 
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia):
-    """Constant element mass matrix (000 Eq. 5) by exact quadrature of rho * int S^T S dA dx.
+    """Constant element mass matrix (Otsuka et al. 2019, Eq. 5) by exact quadrature of rho * int S^T S dA dx.
 
     length l (m), mass_per_length rho A (kg/m), first_moment rho Q_z (kg), chord_inertia rho I_zz (kg m),
     all shape (n,), the section moments taken about the reference line (y = 0).
@@ -105,7 +105,7 @@ def mass_matrix(length, mass_per_length, first_moment, chord_inertia):
 
 
 def distributed_force(length, mass_per_length, first_moment, acceleration):
-    """Generalized force of a uniform body force field: int rho S^T g dA dx (000 Sec. II.C), (n, 18).
+    """Generalized force of a uniform body force field: int rho S^T g dA dx (Otsuka et al. 2019, Sec. II.C), (n, 18).
 
     acceleration: (3,) m/s^2 (gravity). Exact (polynomial integrand).
     """
@@ -166,7 +166,7 @@ def _measures(e, length):
 
 
 def elastic_energy(e, length, stiffness):
-    """Elastic energy U of 000 Eq. (7) per element, J, shape (n,).
+    """Elastic energy U of Otsuka et al. 2019, Eq. (7) per element, J, shape (n,).
 
     stiffness: (n, 4) columns EA (N), EI_yy (flap, N m^2), EI_zz (chord, N m^2), GJ (N m^2).
     """
@@ -179,7 +179,7 @@ def elastic_energy(e, length, stiffness):
 
 
 def elastic_force(e, length, stiffness):
-    """Generalized elastic force -dU/de per element, shape (n, 18) (000 Eq. 4).
+    """Generalized elastic force -dU/de per element, shape (n, 18) (Otsuka et al. 2019, Eq. 4).
 
     Exact gradient of `elastic_energy`; complex-safe, so that a complex step differentiates it exactly (the
     tests' reference for `elastic_jacobian`).
@@ -237,7 +237,7 @@ def _field_basis(length):
 
 def elastic_jacobian(e, length, stiffness):
     """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18): the exact second derivative of
-    `elastic_energy` (000 Eqs. 7-11 with the definitions of the module docstring).
+    `elastic_energy` (Otsuka et al. 2019, Eqs. 7-11 with the definitions of the module docstring).
 
     Per Gauss point, the bending and arc-stretch terms are functions of the fields (r', r'', r_y): their
     Hessian there is c (grad m grad m^T + m Hess m) for each squared measure m (flap = (r' x r_y) . r'' has

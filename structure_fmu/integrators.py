@@ -1,11 +1,11 @@
 """Time integrators for M q'' + Phi_q^T lambda = F(q, q', t), Phi(q, t) = 0.
 
-* RK4: explicit 4th-order Runge-Kutta on the index-1 (acceleration level) equations, the scheme of 000
+* RK4: explicit 4th-order Runge-Kutta on the index-1 (acceleration level) equations, the scheme of Otsuka et al. 2019
   Sec. VI, with constraint stabilization by mass-weighted projection of q and q' onto the constraint
   manifold after each step.
-* GeneralizedAlpha: the generalized-alpha method of 004 Eqs. (23)-(25) with spectral radius rho_inf, in
+* GeneralizedAlpha: the generalized-alpha method of Peng et al. 2019, Eqs. (23)-(25) with spectral radius rho_inf, in
   the index-3 form of Arnold & Bruls (2007) for constrained systems: Newton iterations on q_{n+1} and
-  lambda_{n+1} with the iteration matrix beta' M + gamma' C_t + K_t (004 Fig. 3), constraint rows scaled
+  lambda_{n+1} with the iteration matrix beta' M + gamma' C_t + K_t (Peng et al. 2019, Fig. 3), constraint rows scaled
   by beta' for conditioning. The factorized iteration matrix is reused across steps (modified Newton)
   and refreshed when convergence slows.
 """
@@ -26,7 +26,7 @@ class State:
     q: np.ndarray
     dq: np.ndarray
     ddq: np.ndarray
-    accel: np.ndarray            # generalized-alpha auxiliary acceleration a (004 Eq. 24)
+    accel: np.ndarray            # generalized-alpha auxiliary acceleration a (Peng et al. 2019, Eq. 24)
     multipliers: np.ndarray
     latched: dict = field(default_factory=dict)
     latch_times: dict = field(default_factory=dict)
@@ -84,7 +84,7 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
 
 
 class RK4:
-    """Explicit RK4 with post-step constraint projection (000 Sec. VI)."""
+    """Explicit RK4 with post-step constraint projection (Otsuka et al. 2019, Sec. VI)."""
 
     name = "rk4"
 
@@ -121,13 +121,13 @@ class _NewtonDiverging(Exception):
 
 
 class GeneralizedAlpha:
-    """Generalized-alpha (004 Eqs. 23-25) for index-3 constrained systems (Arnold & Bruls)."""
+    """Generalized-alpha (Peng et al. 2019, Eqs. 23-25) for index-3 constrained systems (Arnold & Bruls)."""
 
     name = "generalized-alpha"
 
     def __init__(self, rho_inf=0.8, tol=1e-9, max_iterations=30):
         r = float(rho_inf)
-        self.alpha_m = (2 * r - 1) / (r + 1)        # 004 Eq. (25), with alpha = rho_inf
+        self.alpha_m = (2 * r - 1) / (r + 1)        # Peng et al. 2019, Eq. (25), with alpha = rho_inf
         self.alpha_f = r / (r + 1)
         self.gamma = 0.5 - self.alpha_m + self.alpha_f
         self.beta = 0.25 * (1 - self.alpha_m + self.alpha_f) ** 2
@@ -178,7 +178,7 @@ class GeneralizedAlpha:
 
     def _predictor(self, state, h, kind):
         """(q, dq, ddq, a_known) at the start of Newton: q''_{n+1} = q''_n ("acceleration") or
-        q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are 004 Eqs. (23)-(24)."""
+        q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are Peng et al. 2019, Eqs. (23)-(24)."""
         am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
         a_known = (af * state.ddq - am * state.accel) / (1 - am)
         if kind == "acceleration":
@@ -187,7 +187,7 @@ class GeneralizedAlpha:
         else:   # the a_{n+1} that cancels the acceleration terms of Eq. (23) for q
             a_new = -(0.5 - b) / b * state.accel
             ddq = (a_new - a_known) * (1 - am) / (1 - af)
-        dq = state.dq + h * (1 - g) * state.accel + h * g * a_new          # 004 Eq. (23)
+        dq = state.dq + h * (1 - g) * state.accel + h * g * a_new          # Peng et al. 2019, Eq. (23)
         q = state.q + h * state.dq + h * h * (0.5 - b) * state.accel + h * h * b * a_new
         return q, dq, ddq, a_known
 

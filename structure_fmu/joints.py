@@ -1,4 +1,4 @@
-"""Revolute hinge with its axis along the chord: fold angle, spring actuator and latch (000 Sec. II.C; 003 Sec. 5).
+"""Revolute hinge with its axis along the chord: fold angle, spring actuator and latch (Otsuka et al. 2019, Sec. II.C; Otsuka et al. 2022, Sec. 5).
 
 The fold angle theta is the angle from the parent's tip gradient a = r_x (parent) to the child's root
 gradient b = r_x (child), positive about the shared chord vector n = r_y:
@@ -39,7 +39,7 @@ def fold_angle_gradient(x):
 def actuator_torque(hinge, theta, dtheta, latched):
     """Spring actuator torque K theta + C dtheta/dt + T_const (N m), acting to decrease theta.
 
-    Once latched (003 Sec. 5) the spring stiffness is K times latch_factor about the stop angle.
+    Once latched (Otsuka et al. 2022, Sec. 5) the spring stiffness is K times latch_factor about the stop angle.
     """
     if latched:
         spring = hinge.latch_factor * hinge.stiffness * (theta - hinge.stop_angle)
@@ -50,7 +50,7 @@ def actuator_torque(hinge, theta, dtheta, latched):
 
 
 def actuator_terms(hinges, E, dE, latched):
-    """Per hinge, what the generalized actuator force on E is made of (000 Sec. II.C, virtual work
+    """Per hinge, what the generalized actuator force on E is made of (Otsuka et al. 2019, Sec. II.C, virtual work
     -torque * delta theta: the force is -torque * grad on the coordinates idx):
 
     (idx (9,) into E, torque N m, its stiffness d torque / d theta N m/rad, its damping

@@ -1,7 +1,7 @@
-"""The structural model in reduced coordinates: M q'' + Phi_q^T lambda = F (000 Eq. 4).
+"""The structural model in reduced coordinates: M q'' + Phi_q^T lambda = F (Otsuka et al. 2019, Eq. 4).
 
 E = T q + P p(t) (topology.py). Since T is constant, the reduced mass matrix M_q = T^T M_E T is constant
-(000 Eq. 5) and is factorized once. Forces are computed on E and mapped by T^T; a prescribed motion
+(Otsuka et al. 2019, Eq. 5) and is factorized once. Forces are computed on E and mapped by T^T; a prescribed motion
 p(t) adds -T^T M_E P p''(t).
 """
 from dataclasses import replace
@@ -35,7 +35,7 @@ class StructureModel:
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
         self.flexible = topology.fidelity == "flexible"
-        # constant mass matrix on E (000 Eq. 5) plus lumped masses on r
+        # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
         element_mass = element.mass_matrix(self.lengths, mu, mu1, mu2)
         for dofs, m in zip(self.dofs, element_mass):
@@ -56,7 +56,7 @@ class StructureModel:
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
-        # literal 000 Sec. II.C / 003 Sec. 5 force, which also damps the bodies' rigid motion (a constant
+        # literal Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 force, which also damps the bodies' rigid motion (a constant
         # matrix, `mass_damping`)
         self.mass_damping = None
         if self.flexible:
@@ -112,7 +112,7 @@ class StructureModel:
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
-        if load["law"] == "cosine_ramp":   # 000 Eq. (26)
+        if load["law"] == "cosine_ramp":   # Otsuka et al. 2019, Eq. (26)
             ts = load["ramp_time"]
             return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
         return 1.0

@@ -1,4 +1,4 @@
-"""Prescribed rigid motions: clamps, driven hinges (000 Eq. 27), heave/pitch laws.
+"""Prescribed rigid motions: clamps, driven hinges (Otsuka et al. 2019, Eq. 27), heave/pitch laws.
 
 A law gives, at time t, the rotation R about a pivot and a translation h, with their rates:
 x(t) = pivot + R(t) (x0 - pivot) + h(t) for a material point, g(t) = R(t) g0 for a gradient vector.
@@ -32,7 +32,7 @@ class Fixed:
 
 
 class SpinUp:
-    """Rotation about `axis` through `pivot` by the spin-up law of 000 Eq. (27).
+    """Rotation about `axis` through `pivot` by the spin-up law of Otsuka et al. 2019, Eq. (27).
 
     theta = omega_s / T_s [t^2/2 + (T_s / 2 pi)^2 (cos(2 pi t / T_s) - 1)] for t < T_s,
     theta = omega_s (t - T_s / 2) afterwards.

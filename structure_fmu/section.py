@@ -1,8 +1,9 @@
 """Cross-section properties of a wing body, from a rectangular plate or given explicitly."""
+import math
 from dataclasses import dataclass
 
-from fmu_common.errors import SceneError, reject_unknown_keys
-from fmu_common.topology import SECTION_TABLE, chord_line
+from fmu_common.errors import SceneError
+from fmu_common.scene_schema import EXPLICIT, PLATE
 
 
 @dataclass(frozen=True)
@@ -31,48 +32,30 @@ class Section:
         return (self.axial, self.flap, self.chordwise, self.torsion)
 
 
-_PLATE = ("thickness", "density", "youngs_modulus")
-_EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
-_ALLOWED = ("chord", "axis_position", "torsional_rigidity", *_PLATE, *_EXPLICIT)
-
-
-def _positive(key, table, name):
-    value = table.get(name)
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
-        raise SceneError(f"{key}.{name}", value, "a number > 0")
-    return float(value)
-
-
 def section_from_scene(key: str, table: dict) -> Section:
-    """Build a Section from a scene table; `key` is its dotted scene key for error messages.
+    """Build a Section from a resolved scene section table (fmu_common.scene_schema.SECTION); `key` is its
+    dotted scene key for error messages.
 
     A rectangular plate (chord c, thickness h, density rho, Young's modulus E) gives EA = E c h,
     EI_yy = E c h^3 / 12, EI_zz = E h c^3 / 12, rho A = rho c h; explicit values override these.
-    The mass is spread uniformly over the chord.
+    The mass is spread uniformly over the chord. SceneError if a derived property is not a finite number > 0
+    (a product of finite values may overflow or underflow).
     """
-    if not isinstance(table, dict):
-        raise SceneError(key, table, SECTION_TABLE)
-    reject_unknown_keys(table, key, _ALLOWED)
-    chord, axis = chord_line(key, table)
-    torsion = _positive(key, table, "torsional_rigidity")
-    derived, h = {}, None
-    if any(name in table for name in _PLATE):
-        h, rho, E = (_positive(key, table, name) for name in _PLATE)
+    chord, axis, h = table["chord"], table["axis_position"], table["thickness"]
+    derived = {}
+    if h is not None:
+        E, rho = table["youngs_modulus"], table["density"]
         derived = {"axial_stiffness": E * chord * h, "bending_stiffness_flap": E * chord * h**3 / 12,
                    "bending_stiffness_chord": E * h * chord**3 / 12, "mass_per_length": rho * chord * h}
-    values = {}
-    for name in _EXPLICIT:
-        if name in table:
-            values[name] = _positive(key, table, name)
-        elif name in derived:
-            values[name] = derived[name]
-        else:
-            raise SceneError(f"{key}.{name}", None,
-                             "required unless thickness, density and youngs_modulus describe a plate")
+    values = {name: table[name] if table[name] is not None else derived[name] for name in EXPLICIT}
+    for name, value in values.items():
+        if not (math.isfinite(value) and value > 0):
+            raise SceneError(key, {k: table[k] for k in ("chord", *PLATE) if table[k] is not None},
+                             f"a section whose {name} (derived from the plate: {value:g}) is a finite number > 0")
     mu = values["mass_per_length"]
     lead, trail = -axis * chord, (1.0 - axis) * chord
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
-                   chordwise=values["bending_stiffness_chord"], torsion=torsion, mass_per_length=mu,
-                   first_moment=mu * (trail**2 - lead**2) / (2 * chord),
+                   chordwise=values["bending_stiffness_chord"], torsion=table["torsional_rigidity"],
+                   mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
                    thickness=h)

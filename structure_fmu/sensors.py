@@ -53,8 +53,8 @@ class Sensors:
 
     @classmethod
     def from_scene(cls, scene: dict, topology) -> "Sensors":
-        """The sensors of a resolved scene (its ``probes`` and ``strain_gauges``, each possibly absent)."""
-        return cls(scene.get("probes", []), scene.get("strain_gauges", []), topology)
+        """The sensors of a resolved scene (its ``probes`` and ``strain_gauges``)."""
+        return cls(scene["probes"], scene["strain_gauges"], topology)
 
     def positions(self, e: np.ndarray) -> np.ndarray:
         """Probe global positions (n_probes, 3), m, from the coordinates e (n,)."""

@@ -22,12 +22,9 @@ _DIVERGENCE_HINT = {
 }
 
 
-DAMPING_MODELS = ("deformation", "mass-proportional")
-"""structure.damping_model: what the bodies' alpha damps (structure_fmu.model.StructureModel)."""
-
-
 class StructureSolver:
-    """The structural solver of one scene. See docs/solver_api.md."""
+    """The structural solver of one resolved scene (fmu_common.scene_schema.resolve_scene). See
+    docs/solver_api.md."""
 
     def __init__(self, scene: dict, parameters: dict | None = None):
         self.topology = StructureTopology.from_scene(scene)
@@ -50,21 +47,9 @@ class StructureSolver:
                 raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
         body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
         gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
-        damping_model = structure.get("damping_model", "deformation")
-        if damping_model not in DAMPING_MODELS:
-            raise SceneError("structure.damping_model", damping_model, f"one of {', '.join(DAMPING_MODELS)}")
-        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping, damping_model)
+        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
         self.step_size = values["structure.step"]
-        integrator = structure.get("integrator", "generalized-alpha")
-        if integrator == "rk4":
-            self.integrator = RK4()
-        elif integrator == "generalized-alpha":
-            rho = structure.get("rho_inf", 0.8)
-            if not isinstance(rho, (int, float)) or not 0.0 <= rho <= 1.0:
-                raise SceneError("structure.rho_inf", rho, "a spectral radius in [0, 1]")
-            self.integrator = GeneralizedAlpha(rho)
-        else:
-            raise SceneError("structure.integrator", integrator, "rk4 or generalized-alpha")
+        self.integrator = RK4() if structure["integrator"] == "rk4" else GeneralizedAlpha(structure["rho_inf"])
         q0 = self.topology.initial_free()
         n_q = len(q0)
         n_c = self.model.constraints.count
@@ -96,21 +81,21 @@ class StructureSolver:
     def tunable_parameters(scene: dict) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run."""
         structure = scene["structure"]
-        gravity = structure.get("gravity", [0.0, 0.0, 0.0])
-        out = {"structure.step": (float(structure.get("step", 1e-4)), "s", "internal time step"),
+        gravity = structure["gravity"]
+        out = {"structure.step": (structure["step"], "s", "internal time step"),
                "gravity_x": (float(gravity[0]), "m/s2", "gravity, x component"),
                "gravity_y": (float(gravity[1]), "m/s2", "gravity, y component"),
                "gravity_z": (float(gravity[2]), "m/s2", "gravity, z component")}
-        for body in structure.get("bodies", []):
-            out[f"{body['name']}.damping"] = (float(body.get("damping", 0.0)), "1/s",
+        for body in structure["bodies"]:
+            out[f"{body['name']}.damping"] = (body["damping"], "1/s",
                                               "mass-proportional damping alpha (of deformation, or of all motion: "
                                               "structure.damping_model)")
-        for joint in structure.get("joints", []):
-            if joint.get("type") == "hinge":
+        for joint in structure["joints"]:
+            if joint["type"] == "hinge":
                 name = joint["name"]
-                out[f"{name}.stiffness"] = (float(joint.get("stiffness", 0.0)), "N.m/rad", "actuator stiffness K")
-                out[f"{name}.damping"] = (float(joint.get("damping", 0.0)), "N.m.s/rad", "actuator damping C")
-                out[f"{name}.torque"] = (float(joint.get("torque", 0.0)), "N.m", "actuator constant torque T_const")
+                out[f"{name}.stiffness"] = (joint["stiffness"], "N.m/rad", "actuator stiffness K")
+                out[f"{name}.damping"] = (joint["damping"], "N.m.s/rad", "actuator damping C")
+                out[f"{name}.torque"] = (joint["torque"], "N.m", "actuator constant torque T_const")
         return out
 
     def _check_initial_constraints(self):

@@ -97,8 +97,7 @@ class StructureSlave(SolverSlave):
         self._publish()
         self._register(n)
 
-        stop = self.scene.get("time", {}).get("stop")
-        step = self.scene.get("coupling", {}).get("step")
+        stop, step = self.scene["time"]["stop"], self.scene["coupling"]["step"]
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=stop, step_size=step)
 
     def _register(self, n):

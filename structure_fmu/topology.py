@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fmu_common import topology
-from fmu_common.errors import SceneError, checked_number, checked_vector, reject_unknown_keys
+from fmu_common.errors import SceneError
 
 from .joints import fold_angle, hinge_coordinates
 from .motion import Fixed, HeavePitch, SpinUp
@@ -64,11 +64,6 @@ class _Slot:
                 tuple(sorted((j, round(c, 12)) for j, c in self.prescribed.items())))
 
 
-_LOAD_KEYS = {"parameter", "body", "span", "chord", "direction", "law", "ramp_time"}
-_MOTION_KEYS = {"heave_amplitude", "pitch_amplitude_deg", "frequency", "phase_deg", "pitch_axis_position",
-                "heave_axis", "alpha_deg"}
-
-
 class StructureTopology(topology.Topology):
     """The shared topology plus joints, sections, motions, masses and loads, and the affine map
     q, p(t) -> E."""
@@ -92,13 +87,15 @@ class StructureTopology(topology.Topology):
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_scene(cls, scene: dict) -> "StructureTopology":
-        """Build the topology of `scene["structure"]`; raises SceneError naming the key."""
+        """Build the topology of the resolved scene's `structure`; raises SceneError naming the key."""
         top = super().from_scene(scene)
         structure = scene["structure"]
-        checked_vector("structure.gravity", structure.get("gravity", [0.0, 0.0, 0.0]))
-        motion_spec = structure.get("motion")
-        if top.fidelity == "prescribed" and not isinstance(motion_spec, dict):
-            raise SceneError("structure.motion", motion_spec, "a table with the prescribed heave/pitch law")
+        motion_spec = structure.get("motion")        # an optional table: absent unless given
+        if top.fidelity == "prescribed" and motion_spec is None:
+            raise SceneError("structure.motion", None, "a table with the prescribed heave/pitch law")
+        if top.fidelity != "prescribed" and motion_spec is not None:
+            raise SceneError("structure.motion", motion_spec, "only with structure.fidelity = 'prescribed' (the "
+                                                              f"{top.fidelity} structure moves by its dynamics)")
         for key, spec in top._body_specs(structure):
             top._add_coordinates(top.bodies[spec["name"]], key, spec, motion_spec)
         top._add_constraints()
@@ -108,14 +105,13 @@ class StructureTopology(topology.Topology):
         return top
 
     def _new_body(self, key, spec, name, length):
-        section = section_from_scene(f"{key}.section", spec.get("section"))
-        damping = checked_number(f"{key}.damping", spec.get("damping", 0.0), "a damping alpha >= 0 (1/s)",
-                                 lambda v: v >= 0)
-        return StructureBody(name, length, section.chord, section.axis_position, section=section, damping=damping)
+        section = section_from_scene(f"{key}.section", spec["section"])
+        return StructureBody(name, length, section.chord, section.axis_position, section=section,
+                             damping=spec["damping"])
 
     def _body_specs(self, structure):
         """(dotted key, table) of every body, in the order of `bodies` (parents before children)."""
-        keyed = {spec["name"]: (f"structure.bodies[{i}]", spec) for i, spec in enumerate(structure["bodies"])}
+        keyed = {spec["name"]: (topology.body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
         return [keyed[name] for name in self.bodies]
 
     def _new_free(self, value):
@@ -132,8 +128,8 @@ class StructureTopology(topology.Topology):
         """The slots of the body's nodes: its root joint decides whether the root is free, shared or
         prescribed; the other nodes are free (flexible) or follow the root (rigid, prescribed)."""
         r0, x0, y0 = body.root, body.span_axis, body.chord_axis
-        if "angular_velocity" in spec:
-            self.angular_velocity[body.name] = checked_vector(f"{key}.angular_velocity", spec["angular_velocity"])
+        if spec["angular_velocity"] is not None:
+            self.angular_velocity[body.name] = np.array(spec["angular_velocity"], dtype=float)
         joint_key, joint = self.root_joints.get(body.name, (None, None))
         kind = joint["type"] if joint else None
         first_node = body.nodes[0]
@@ -144,12 +140,8 @@ class StructureTopology(topology.Topology):
             motion = len(self.motions)
             self.motions.append(Fixed())
         elif kind == "driven":
-            if joint.get("law", "spin_up") != "spin_up":
-                raise SceneError(f"{joint_key}.law", joint.get("law"), "spin_up (000 Eq. 27)")
-            omega = checked_number(f"{joint_key}.omega", joint.get("omega"), "an angular speed (rad/s)")
-            ramp = checked_number(f"{joint_key}.ramp_time", joint.get("ramp_time"), "a time > 0 (s)", lambda v: v > 0)
-            motion = len(self.motions)
-            self.motions.append(SpinUp(y0, r0, omega, ramp))
+            motion = len(self.motions)       # law "spin_up", the only one (Otsuka et al. 2019, Eq. 27)
+            self.motions.append(SpinUp(y0, r0, joint["omega"], joint["ramp_time"]))
         if motion is not None:
             root = [self._new_prescribed(r0, True, motion), self._new_prescribed(x0, False, motion),
                     self._new_prescribed(y0, False, motion)]
@@ -159,9 +151,7 @@ class StructureTopology(topology.Topology):
             root = [self.slots[tip_slot + R], self._new_free(x0), self.slots[tip_slot + RY]]
             self._add_hinge(joint_key, joint, tip, first_node)
         elif kind == "pin":
-            axis = joint.get("axis", "chord")
-            if axis not in ("chord", "normal"):
-                raise SceneError(f"{joint_key}.axis", axis, "chord (rotation about r_y) or normal (about r_x x r_y)")
+            axis = joint["axis"]
             fixed = len(self.motions)
             self.motions.append(Fixed())
             if axis == "chord":
@@ -181,38 +171,26 @@ class StructureTopology(topology.Topology):
                 self.slots += [root[R].plus(root[RX], body.length), root[RX], root[RY]]
 
     def _prescribed_motion(self, spec, r0, x0, y0, body):
-        reject_unknown_keys(spec, "structure.motion", _MOTION_KEYS)
-        key = "structure.motion"
-        get = lambda name, default: checked_number(f"{key}.{name}", spec.get(name, default))
-        heave_axis = checked_vector(f"{key}.heave_axis", spec.get("heave_axis", list(np.cross(x0, y0))), unit=True)
-        pivot_fraction = get("pitch_axis_position", body.axis_position)
+        """The HeavePitch law of `structure.motion` for `body` (its own section normal and reference line where
+        the table leaves heave_axis and pitch_axis_position out)."""
+        heave_axis = np.cross(x0, y0) if spec["heave_axis"] is None else np.asarray(spec["heave_axis"], float)
+        pivot_fraction = body.axis_position if spec["pitch_axis_position"] is None else spec["pitch_axis_position"]
         pivot = r0 + y0 * body.chord_offset(pivot_fraction)
         # the static angle of attack is applied to the initial geometry by the caller's chord_axis;
         # alpha_deg adds a constant nose-up pitch (rotation about -x0 lifts the leading edge toward +n)
-        alpha = np.radians(get("alpha_deg", 0.0))
-        amplitude = np.radians(get("pitch_amplitude_deg", 0.0))
-        if alpha != 0.0 and amplitude != 0.0:
-            raise SceneError(f"{key}.alpha_deg", spec.get("alpha_deg"), "0 when pitch_amplitude_deg is given")
-        frequency = get("frequency", 0.0)
-        phase = np.radians(get("phase_deg", 0.0))
-        if alpha != 0.0:
+        alpha = np.radians(spec["alpha_deg"])
+        amplitude, phase = np.radians(spec["pitch_amplitude_deg"]), np.radians(spec["phase_deg"])
+        frequency = spec["frequency"]
+        if alpha != 0.0:     # the schema refuses alpha_deg with an oscillating pitch or a heave
             amplitude, frequency, phase = alpha, 0.0, np.pi / 2
-        self.motions.append(HeavePitch(heave_axis, -x0, pivot, get("heave_amplitude", 0.0), amplitude,
-                                       frequency, phase))
+        self.motions.append(HeavePitch(heave_axis / np.linalg.norm(heave_axis), -x0, pivot, spec["heave_amplitude"],
+                                       amplitude, frequency, phase))
         return len(self.motions) - 1
 
     def _add_hinge(self, key, spec, tip_node, root_node):
         line = next(h for h in self.hinge_lines if h.child == spec["child"])   # name and initial angle checked
-        stiffness = checked_number(f"{key}.stiffness", spec.get("stiffness", 0.0), "K >= 0 (N m/rad)",
-                                   lambda v: v >= 0)
-        damping = checked_number(f"{key}.damping", spec.get("damping", 0.0), "C >= 0 (N m s/rad)", lambda v: v >= 0)
-        torque = checked_number(f"{key}.torque", spec.get("torque", 0.0), "T_const (N m)")
-        stop = spec.get("stop_angle_deg")
-        # in (-180, 180) deg like the fold angle itself, which wraps at +-180 (a stop outside is never reached)
-        stop = None if stop is None else np.radians(checked_number(f"{key}.stop_angle_deg", stop,
-                                                                   "an angle in (-180, 180) deg",
-                                                                   lambda v: -180 < v < 180))
-        latch = checked_number(f"{key}.latch_factor", spec.get("latch_factor", 1e4), "a factor >= 1", lambda v: v >= 1)
+        stop = None if spec["stop_angle_deg"] is None else np.radians(spec["stop_angle_deg"])
+        stiffness, damping, torque, latch = (spec[k] for k in ("stiffness", "damping", "torque", "latch_factor"))
         self.hinges.append(Hinge(line.name, 3 * tip_node + RX, 3 * root_node + RX, 3 * tip_node + RY,
                                  line.initial_angle, stiffness, damping, torque, stop, latch))
 
@@ -252,45 +230,35 @@ class StructureTopology(topology.Topology):
         return body.nodes[index]
 
     def _add_masses_and_loads(self, structure, key=None):
-        for i, spec in enumerate(structure.get("masses", [])):
-            item = f"structure.masses[{i}]"
-            if spec.get("body") not in self.bodies:
-                raise SceneError(f"{item}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
-            mass = checked_number(f"{item}.mass", spec.get("mass"), "a mass > 0 (kg)", lambda v: v > 0)
-            self.masses.append((self._node_at(f"{item}.span", spec["body"], spec.get("span", 0.0)), mass))
-        for i, spec in enumerate(structure.get("loads", [])):
-            item = key or f"structure.loads[{i}]"
-            if spec.get("body") not in self.bodies:
-                raise SceneError(f"{item}.body", spec.get("body"), f"one of the bodies {sorted(self.bodies)}")
-            body = self.bodies[spec["body"]]
-            span = checked_number(f"{item}.span", spec.get("span"), f"0 <= span <= {body.length} (m)",
-                                  lambda v: 0 <= v <= body.length)
-            chord = spec.get("chord", body.axis_position)
-            law = spec.get("law", "constant")
-            if law not in ("constant", "cosine_ramp"):
-                raise SceneError(f"{item}.law", law, "constant or cosine_ramp (000 Eq. 26)")
-            ramp = checked_number(f"{item}.ramp_time", spec.get("ramp_time", 1.0), "a time > 0 (s)", lambda v: v > 0)
-            index, x, y = self.locate(spec["body"], span, checked_number(f"{item}.chord", chord))
-            self.loads.append({"element": index, "x": x, "y": y, "law": law, "ramp_time": ramp,
-                               "force": checked_vector(f"{item}.force", spec.get("force"))})
+        for i, spec in enumerate(structure["masses"]):
+            item = f"structure.masses.{i}"
+            self._check_body(f"{item}.body", spec["body"])
+            self.masses.append((self._node_at(f"{item}.span", spec["body"], spec["span"]), spec["mass"]))
+        for i, spec in enumerate(structure["loads"]):
+            item = key or f"structure.loads.{i}"
+            body = self.bodies[self._check_body(f"{item}.body", spec["body"])]
+            if spec["span"] > body.length:
+                raise SceneError(f"{item}.span", spec["span"], f"0 <= span <= {body.length:g} (m, the length of body "
+                                                               f"'{body.name}')")
+            index, x, y = self.locate(spec["body"], spec["span"], spec["chord"])
+            ramp = spec["ramp_time"] if spec["law"] == "cosine_ramp" else None
+            self.loads.append({"element": index, "x": x, "y": y, "law": spec["law"], "ramp_time": ramp,
+                               "force": np.array(spec["force"], dtype=float)})
+
+    def _check_body(self, key, name):
+        """`name` if it is a body's, else SceneError naming `key`."""
+        if name not in self.bodies:
+            raise SceneError(key, name, f"one of the bodies {sorted(self.bodies)}")
+        return name
 
     def _add_load_case(self, spec):
-        """`[load]`: a point load given by the non-dimensional parameter P L^2 / (EI_yy) of its body."""
-        if not isinstance(spec, dict):
-            raise SceneError("load", spec, "a table with parameter, direction and optionally body, span, law")
-        reject_unknown_keys(spec, "load", _LOAD_KEYS)
-        body_name = spec.get("body", list(self.bodies)[-1])
-        if body_name not in self.bodies:
-            raise SceneError("load.body", body_name, f"one of the bodies {sorted(self.bodies)}")
-        body = self.bodies[body_name]
-        parameter = checked_number("load.parameter", spec.get("parameter"), "P L^2 / (E I) >= 0", lambda v: v >= 0)
-        direction = checked_vector("load.direction", spec.get("direction"), unit=True)
-        magnitude = parameter * body.section.flap / body.length**2
-        load = {"body": body_name, "span": spec.get("span", body.length), "force": list(magnitude * direction),
-                "law": spec.get("law", "constant"), "ramp_time": spec.get("ramp_time", 1.0)}
-        if "chord" in spec:
-            load["chord"] = spec["chord"]
-        self._add_masses_and_loads({"loads": [load]}, key="load")
+        """`[load]`: a point load given by the non-dimensional parameter P L^2 / (EI_yy) of its body (the
+        resolved scene names the body, span and chord)."""
+        body = self.bodies[self._check_body("load.body", spec["body"])]
+        direction = np.asarray(spec["direction"], dtype=float)
+        magnitude = spec["parameter"] * body.section.flap / body.length**2
+        load = {**spec, "force": list(magnitude * direction / np.linalg.norm(direction))}
+        self._add_masses_and_loads({"masses": [], "loads": [load]}, key="load")
 
     # ------------------------------------------------------------------ queries
     @property

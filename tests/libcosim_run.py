@@ -6,7 +6,7 @@ Connects e[i], de[i] (structure -> aero) and Q[i] (aero -> structure) for every 
 fixed-step algorithm (all units step, then values are exchanged: Jacobi), and prints the structure unit's
 output `latch_time_fold` (the time the `fold` hinge latched; -1 until then) at the end as
 `deployment_time_s=<value>`.
-Run as a separate process: libcosim may crash at interpreter exit after a slave failure (DESIGN §10), and
+Run as a separate process: libcosim may crash at interpreter exit after a slave failure (docs/fmu.md, libcosim), and
 once even after a complete run ("corrupted double-linked list", SIGABRT, after the result was printed: 1 of
 the CI runs; 0 of 36 runs here). So the script leaves by os._exit once its answer is printed and flushed,
 skipping the interpreter's teardown of libcosim's objects.

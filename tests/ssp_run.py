@@ -15,7 +15,7 @@ Prints ``deployment_time_s=<value>`` (the structure's output ``latch_time_fold``
 ``time_s=<value>`` (the time reached), with fmpy ``steps=<count>`` (the steps taken); with libcosim also
 ``<PARAMETER>=<value>`` for each named parameter of the structure or aero component as libcosim holds it at
 the end. Exit code 1 with the error on a failure.
-Run as a separate process: libcosim may crash at interpreter exit after a failure (DESIGN §10), so the
+Run as a separate process: libcosim may crash at interpreter exit after a failure (docs/fmu.md, libcosim), so the
 script leaves by os._exit once its answer is printed.
 """
 import os

@@ -1,4 +1,4 @@
-"""Biot-Savart law of straight vortex segments (000 Eq. 19) against closed forms; the vortex core."""
+"""Biot-Savart law of straight vortex segments (Otsuka et al. 2019, Eq. 19) against closed forms; the vortex core."""
 import numpy as np
 import pytest
 import scipy.sparse

@@ -25,7 +25,7 @@ from fmu_common.topology import Topology  # noqa: E402
 from subprocesses import simulate_in_fresh_python, wingsim  # noqa: E402
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
-# 000 Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
+# Otsuka et al. 2019, Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
 HEAVE = ["time.stop=0.5", "aero.wake_length=3"]
 H = 0.1
 
@@ -85,7 +85,7 @@ def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
     for member in ("resources/scene.json", "resources/aero_slave.py", "resources/aero_fmu/solver.py",
                    "resources/fmu_common/topology.py", "binaries/linux64/aero.so"):
         assert member in names
-    assert "resources/structure_slave.py" not in names      # distinct slave module names (DESIGN §10)
+    assert "resources/structure_slave.py" not in names      # distinct slave module names (docs/fmu.md)
     assert fmus_up_to_date(scene, fmu_dir)
     assert not fmus_up_to_date({**scene, "aero": {**scene["aero"], "chordwise_panels": 3}}, fmu_dir)
     md = read_model_description(str(fmu))
@@ -351,7 +351,7 @@ class _Topology:
 def _fake_run(algorithm):
     log = []
     scene = {"name": "fake", "time": {"stop": 0.2}, "coupling": {"step": 0.1, "algorithm": algorithm},
-             "aero": {"model": "uvlm-flat"}, "probes": [], "structure": {"joints": []}}
+             "aero": {"model": "uvlm-flat"}, "probes": [], "strain_gauges": [], "structure": {"joints": []}}
     made = {"structure": _Structure(log), "aero": _Aero(log)}
     fake = types.SimpleNamespace(make_unit=lambda **kw: made[kw["kind"]], UnitError=UnitError)
     result = run_scene(scene, backend="direct", units=fake, topology=_Topology())

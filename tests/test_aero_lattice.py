@@ -1,9 +1,10 @@
-"""The vortex-ring lattice from the structural shape functions (000 Eqs. 12, 20, 21, 24)."""
+"""The vortex-ring lattice from the structural shape functions (Otsuka et al. 2019, Eqs. 12, 20, 21, 24)."""
 import numpy as np
 import pytest
 
 from aero_fmu.lattice import Lattice
 from fmu_common.vectors import rotation_about
+from fmu_common.scene_schema import resolve_scene
 from fmu_common.topology import Topology
 
 RNG = np.random.default_rng(11)
@@ -14,13 +15,14 @@ SECTION = {"chord": 0.3, "axis_position": 0.4, "thickness": 0.01, "density": 100
 def folded_scene(angle_deg=30.0):
     """Two flexible bodies (3 and 2 elements) hinged at `angle_deg`, chords 0.3 m and 0.2 m."""
     outer = dict(SECTION, chord=0.2, axis_position=0.25)
-    return {"structure": {"fidelity": "flexible", "elements_per_body": 3,
-                          "bodies": [{"name": "inner", "length": 1.2, "root": [0.1, -0.2, 0.3], "span_axis": [0, 1, 0],
-                                      "chord_axis": [1, 0, 0], "section": SECTION},
-                                     {"name": "outer", "length": 0.7, "section": outer}],
-                          "joints": [{"type": "clamp", "body": "inner"},
-                                     {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
-                                      "initial_angle_deg": angle_deg}]}}
+    return resolve_scene({"time": {"stop": 1.0}, "structure": {
+        "fidelity": "flexible", "elements_per_body": 3,
+        "bodies": [{"name": "inner", "length": 1.2, "root": [0.1, -0.2, 0.3], "span_axis": [0, 1, 0],
+                    "chord_axis": [1, 0, 0], "section": SECTION},
+                   {"name": "outer", "length": 0.7, "section": outer}],
+        "joints": [{"type": "clamp", "body": "inner"},
+                   {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
+                    "initial_angle_deg": angle_deg}]}}, "folded")
 
 
 def analytic(root, span_axis, chord_axis, length, chord, axis_position, spans, fractions):
@@ -30,7 +32,7 @@ def analytic(root, span_axis, chord_axis, length, chord, axis_position, spans, f
 
 
 def test_undeformed_lattice_points_are_analytic():
-    """Undeformed bodies: r(s, f) = root + s x0 + (f - a) c y0 exactly (000 Eq. 2 with r_y = y0).
+    """Undeformed bodies: r(s, f) = root + s x0 + (f - a) c y0 exactly (Otsuka et al. 2019, Eq. 2 with r_y = y0).
 
     Panel edges at f = i/M (leading edge f = 0, trailing edge f = 1), ring corners at the panels' quarter
     chords f = (i + 1/4)/M (the last a quarter panel behind the trailing edge), collocation points at
@@ -72,7 +74,7 @@ def test_undeformed_lattice_points_are_analytic():
 
 
 def test_matrices_are_the_element_shape_functions_on_any_E():
-    """For an arbitrary (deformed, non-physical) E the lattice matrices reproduce 000 Eq. (20):
+    """For an arbitrary (deformed, non-physical) E the lattice matrices reproduce Otsuka et al. 2019, Eq. (20):
     every point equals r = S(x, y) e of its element (structure_fmu's point_position), kron(Sc, I3) @ E is
     the same product, Sx @ X is dr/dx (central difference of a cubic: error h^2 r'''/6) and Sy @ X is
     dr/dy = r_y(x) (exact: r is linear in y)."""
@@ -96,14 +98,14 @@ def test_matrices_are_the_element_shape_functions_on_any_E():
                 dy = (top.point_position(E, name, s, f + 0.1) - top.point_position(E, name, s, f)) / (0.1 * c)
                 np.testing.assert_allclose(geo.r_y[p], dy, atol=1e-12)
                 cx = np.cross(geo.r_x[p], geo.r_y[p])
-                np.testing.assert_allclose(geo.normal[p], cx / np.linalg.norm(cx), atol=1e-14)   # 000 Eq. (21)
+                np.testing.assert_allclose(geo.normal[p], cx / np.linalg.norm(cx), atol=1e-14)   # Otsuka et al. 2019, Eq. (21)
                 corner = b * (M + 1) * (N + 1) + (i + 1) * (N + 1) + j
                 np.testing.assert_allclose(geo.corners[corner], top.point_position(E, name, L * j / N, (i + 1.25) / M),
                                            atol=1e-13)
 
 
 def test_generalized_force_is_virtual_work():
-    """Q = sum S(x_a, y_a)^T a (000 Eq. 12): Q . dE = sum_panels a . dr_a for any virtual displacement dE,
+    """Q = sum S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12): Q . dE = sum_panels a . dr_a for any virtual displacement dE,
     and for a rigid translation dE (dr = d on r slots, 0 on gradients) Q . dE = (sum a) . d."""
     top = Topology.from_scene(folded_scene())
     lat = Lattice(top, 3, 4)

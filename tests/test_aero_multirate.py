@@ -125,7 +125,7 @@ def test_inner_steps_use_linearly_interpolated_inputs(model):
 
 # ---------------------------------------------------------------------------------------------- 3
 def heave_run(M, H, step, k=0.25, periods=3):
-    """000 Sec. VI.D heaving wing (tests/test_aero_unsteady.heave_response: V = 1 m/s, c = 1 m, span
+    """Otsuka et al. 2019, Sec. VI.D heaving wing (tests/test_aero_unsteady.heave_response: V = 1 m/s, c = 1 m, span
     1000 m, N = 5, h = 0.1 sin(2 k t), wake 20 chords) with communication step H and aero.step `step`;
     the fitted complex C_L amplitude over periods 1..3 of the samples at the communication times."""
     omega = 2 * k
@@ -203,7 +203,7 @@ def test_state_restores_the_previous_inputs_bit_for_bit():
 @pytest.mark.parametrize("value", ["0", "-1", "x", '"x"', "true", "nan"])
 def test_bad_aero_step_is_refused_naming_the_key(value):
     """What a user sees: `--set aero.step=...` on the heaving-wing scene fails to load with a SceneError
-    naming aero.step and what is allowed; the aero solver given an unresolved scene says the same."""
+    naming aero.step and what is allowed; so does resolving a scene given as a dict."""
     with pytest.raises(SceneError, match=r"aero\.step.*> 0") as err:
         load_scene(SCENES / "heaving_wing.toml", [f"aero.step={value}"])
     assert err.value.key == "aero.step"
@@ -214,7 +214,7 @@ def test_bad_aero_step_is_refused_naming_the_key(value):
     for bad in (0, -1.0, "x", True, float("nan"), float("inf")):
         scene["aero"]["step"] = bad
         with pytest.raises(SceneError, match=r"aero\.step.*> 0"):
-            AeroSolver(scene)
+            resolve_scene(scene, default_name="bad")
 
 
 def test_good_aero_step_loads_and_defaults_to_absent():

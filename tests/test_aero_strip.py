@@ -1,7 +1,7 @@
 """Quasi-steady strip theory (aero.model = "strip", aero_fmu/strip.py) against closed forms.
 
 Per strip: relative flow V_rel = U - r' at 3/4 chord, force pi rho c |V_perp| (V_rel . n) per unit span
-along the section normal n at 1/4 chord (1/2 rho V^2 c 2 pi alpha_eff for small alpha_eff), Q by 000
+along the section normal n at 1/4 chord (1/2 rho V^2 c 2 pi alpha_eff for small alpha_eff), Q by Otsuka et al. 2019
 Eq. (12). The wing is the prescribed flat body of tests/test_aero_unsteady.py (span y, chord x,
 n = -z), the stream V along +x.
 """
@@ -11,6 +11,7 @@ import pytest
 from aero_fmu.solver import AeroSolver
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.errors import SceneError
+from fmu_common.scene_schema import resolve_scene
 from structure_fmu.solver import StructureSolver
 
 SECTION = {"chord": 0.8, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
@@ -20,9 +21,11 @@ RHO, V = 1.2, 12.0
 def scene(motion, span=3.0, N=6, speed=V, correction="none"):
     """A one-body wing; strip theory in 2D (span_correction "none") unless told."""
     body = {"name": "wing", "length": span, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0], "section": SECTION}
-    return {"structure": {"fidelity": "prescribed", "bodies": [body], "motion": motion},
-            "aero": {"model": "strip", "chordwise_panels": 3, "spanwise_panels": N, "span_correction": correction},
-            "flow": {"speed": speed, "density": RHO}}
+    return resolve_scene({"time": {"stop": 1.0},
+                          "structure": {"fidelity": "prescribed", "bodies": [body], "motion": motion},
+                          "aero": {"model": "strip", "chordwise_panels": 3, "spanwise_panels": N,
+                                   "span_correction": correction},
+                          "flow": {"speed": speed, "density": RHO}}, "strip")
 
 
 def history(motion, times, **options):
@@ -126,5 +129,5 @@ def test_helmbold_span_correction(aspect):
 
 def test_unknown_span_correction_is_refused():
     with pytest.raises(SceneError) as err:
-        AeroSolver(scene({"alpha_deg": 2.0}, correction="prandtl"))
-    assert err.value.key == "aero.span_correction" and "helmbold, none" in str(err.value)
+        scene({"alpha_deg": 2.0}, correction="prandtl")        # refused when the scene is resolved
+    assert err.value.key == "aero.span_correction" and "'helmbold', 'none'" in str(err.value)

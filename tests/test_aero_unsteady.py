@@ -1,5 +1,5 @@
-"""Unsteady vortex-lattice method (000 Sec. V) through AeroSolver, against independent numbers: Wagner's
-function (sudden start), Theodorsen's theory (heaving wing, 000 Sec. VI.D), the closed form of the flat
+"""Unsteady vortex-lattice method (Otsuka et al. 2019, Sec. V) through AeroSolver, against independent numbers: Wagner's
+function (sudden start), Theodorsen's theory (heaving wing, Otsuka et al. 2019, Sec. VI.D), the closed form of the flat
 (quasi-steady horseshoe) wake, the steady VLM, virtual-work consistency of Q, and extreme inputs.
 
 The wing is a prescribed-fidelity structure (tests/test_prescribed.py): one flat rectangular body, span
@@ -22,6 +22,7 @@ from aero_fmu import wake as wakes
 from aero_fmu.solver import AeroSolver
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.errors import InputError, SceneError, SolverDiverged
+from fmu_common.scene_schema import resolve_scene
 from structure_fmu.solver import StructureSolver
 
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
@@ -60,9 +61,11 @@ def jones(s):
 def wing_scene(model, motion, span=1000.0, M=10, N=5, wake_length=20.0, speed=1.0, chord=1.0):
     section = dict(SECTION, chord=chord)
     body = {"name": "wing", "length": span, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0], "section": section}
-    return {"structure": {"fidelity": "prescribed", "bodies": [body], "motion": motion},
-            "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": N, "wake_length": wake_length},
-            "flow": {"speed": speed, "density": RHO}}
+    return resolve_scene({"time": {"stop": 1.0},
+                          "structure": {"fidelity": "prescribed", "bodies": [body], "motion": motion},
+                          "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": N,
+                                   "wake_length": wake_length},
+                          "flow": {"speed": speed, "density": RHO}}, "wing")
 
 
 def run(scene, dt, steps, **solver_options):
@@ -85,7 +88,7 @@ def fitted_amplitude(times, values, omega, t_from):
 
 
 def heave_response(model, k, M, N=5, wake_length=20.0, periods=3, fit_from=1):
-    """000 Sec. VI.D: V = 1 m/s, c = 1 m, span 1000 m, Z = 0.1 sin(2 k V t / c), dt = c / (M V).
+    """Otsuka et al. 2019, Sec. VI.D: V = 1 m/s, c = 1 m, span 1000 m, Z = 0.1 sin(2 k V t / c), dt = c / (M V).
     Returns the fitted complex C_L amplitude over periods [fit_from, periods]."""
     omega = 2 * k
     scene = wing_scene(model, {"heave_amplitude": 0.1, "frequency": omega}, M=M, N=N, wake_length=wake_length)
@@ -119,7 +122,7 @@ def test_reference_functions_are_the_classical_ones():
 
 # ---------------------------------------------------------------------------------------------- Wagner
 def wagner_errors(model, M=10, N=4, s_max=20.0):
-    """Sudden start of the AR-1000 wing at alpha = 5 deg (000 VI.D geometry), V = 1 m/s, dt = c/(MV),
+    """Sudden start of the AR-1000 wing at alpha = 5 deg (Otsuka et al. 2019, VI.D geometry), V = 1 m/s, dt = c/(MV),
     wake 20 chords (never truncated for s <= 40). C_L / C_L_steady, with C_L_steady from the steady VLM on
     the same lattice (its own steady value), against the exact phi(s) at s = 2 V (t - t_start) / c."""
     scene = wing_scene(model, {"alpha_deg": 5.0, "pitch_axis_position": 0.25}, M=M, N=N, wake_length=20.0)
@@ -157,7 +160,7 @@ def test_wagner_sudden_start_free_wake():
 
 # ---------------------------------------------------------------------------------------------- Theodorsen
 def test_theodorsen_heave_k025_prescribed_wake():
-    """000 VI.D heaving wing, k = 0.25, M = 10, N = 5, dt = c/(MV), wake 20 chords, fitted over periods 1-3
+    """Otsuka et al. 2019, VI.D heaving wing, k = 0.25, M = 10, N = 5, dt = c/(MV), wake 20 chords, fitted over periods 1-3
     (the start transient is gone by then: periods 5-7 differ by < 0.05%). Measured: amplitude +0.89%,
     phase +1.26 deg. Wake-length convergence, fitted over periods 5-7 (amplitude, phase error): 10 chords
     +0.44%, 1.42 deg; 20: +0.87%, 1.23; 40: +1.03%, 1.29; 80 (all of it): +0.99%, 1.29: 20 chords are
@@ -243,15 +246,17 @@ def test_wake_truncation_and_row_cap():
 def folded_scene(model):
     """Two flexible bodies hinged at 30 deg, deformed, in a stream at an angle: no symmetry to hide in."""
     outer = dict(SECTION, chord=0.7, axis_position=0.3)
-    return {"structure": {"fidelity": "flexible", "elements_per_body": 2,
-                          "bodies": [{"name": "inner", "length": 3.0, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0],
-                                      "section": SECTION},
-                                     {"name": "outer", "length": 2.0, "section": outer}],
-                          "joints": [{"type": "clamp", "body": "inner"},
-                                     {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
-                                      "initial_angle_deg": 30.0}]},
-            "aero": {"model": model, "chordwise_panels": 3, "spanwise_panels": 5, "wake_length": 4.0},
-            "flow": {"speed": 7.0, "density": RHO}}
+    return resolve_scene({
+        "time": {"stop": 1.0},
+        "structure": {"fidelity": "flexible", "elements_per_body": 2,
+                      "bodies": [{"name": "inner", "length": 3.0, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0],
+                                  "section": SECTION},
+                                 {"name": "outer", "length": 2.0, "section": outer}],
+                      "joints": [{"type": "clamp", "body": "inner"},
+                                 {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
+                                  "initial_angle_deg": 30.0}]},
+        "aero": {"model": model, "chordwise_panels": 3, "spanwise_panels": 5, "wake_length": 4.0},
+        "flow": {"speed": 7.0, "density": RHO}}, "folded")
 
 
 @pytest.mark.parametrize("model", ["uvlm-flat", "uvlm-prescribed", "uvlm-free", "strip"])
@@ -259,7 +264,7 @@ def test_generalized_force_is_consistent_with_the_panel_force_resultants(model):
     """After a few steps of a deforming, moving folded wing in an oblique stream: for a rigid translation
     dE = (d on every r slot, 0 on gradients), Q . dE = d . sum(a); for a rigid rotation omega
     (dr = omega x r, dr_x = omega x r_x, dr_y = omega x r_y), Q . dE = omega . sum(r_a x a), the moment of
-    the panel forces about the origin: 000 Eq. (12) to 1e-10 (relative)."""
+    the panel forces about the origin: Otsuka et al. 2019, Eq. (12) to 1e-10 (relative)."""
     scene = folded_scene(model)
     rng = np.random.default_rng(3)
     aero = AeroSolver(scene, parameters={"flow.direction_x": 1.0, "flow.direction_y": 0.2, "flow.direction_z": 0.3})
@@ -397,10 +402,11 @@ def tandem_scene(model, gap):
     bodies = [{"name": "front", "length": 4.0, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0], "section": SECTION},
               {"name": "rear", "length": 4.0, "root": [1 + 1.5 / M, 0, gap], "span_axis": [0, 1, 0],
                "chord_axis": [1, 0, 0], "section": SECTION}]
-    return {"structure": {"fidelity": "prescribed", "bodies": bodies,
-                          "motion": {"heave_amplitude": 0.2, "frequency": 1.0}},
-            "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": 4, "wake_length": 10.0},
-            "flow": {"speed": 1.0, "density": RHO}}
+    return resolve_scene({"time": {"stop": 1.0},
+                          "structure": {"fidelity": "prescribed", "bodies": bodies,
+                                        "motion": {"heave_amplitude": 0.2, "frequency": 1.0}},
+                          "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": 4, "wake_length": 10.0},
+                          "flow": {"speed": 1.0, "density": RHO}}, "tandem")
 
 
 @pytest.mark.parametrize("model", ["uvlm-prescribed", "uvlm-free"])
@@ -441,14 +447,17 @@ def _distance(points, starts, ends):
 
 
 def test_requests_that_make_no_sense_are_refused_clearly():
-    """Bad scene values and parameters: SceneError naming the key; NaN/inf or wrong-size e, de: InputError
+    """Bad scene values (refused when the scene is resolved) and parameters: SceneError naming the key; a
+    scene without an aero model: SceneError from the solver; NaN/inf or wrong-size e, de: InputError
     naming the entry (FMI name, 1-based); a step back in time: InputError (restore a state instead); a
     degenerate wing (all coordinates zero: zero-area panels): SolverDiverged. The state is unchanged."""
     scene = wing_scene("uvlm-prescribed", {"alpha_deg": 3.0}, span=4.0, M=2, N=3)
-    for key, value in (("model", "vortex"), ("model", "none"), ("chordwise_panels", 0), ("wake_length", 0.0)):
+    for key, value in (("model", "vortex"), ("chordwise_panels", 0), ("wake_length", 0.0)):
         bad = dict(scene, aero=dict(scene["aero"], **{key: value}))
         with pytest.raises(SceneError, match=f"aero.{key}"):
-            AeroSolver(bad)
+            resolve_scene(bad, "bad")
+    with pytest.raises(SceneError, match="aero.model"):
+        AeroSolver(dict(scene, aero=dict(scene["aero"], model="none")))
     for parameters, match in (({"flow.speed": -1.0}, "flow.speed"), ({"flow.density": float("nan")}, "flow.density"),
                               ({"flow.direction_x": 0.0}, "flow.direction"), ({"gravity_z": 1.0}, "gravity_z")):
         with pytest.raises(SceneError, match=match):

@@ -1,4 +1,4 @@
-"""Steady vortex-lattice method with a flat horseshoe wake (000 Sec. V) against closed-form and reference
+"""Steady vortex-lattice method with a flat horseshoe wake (Otsuka et al. 2019, Sec. V) against closed-form and reference
 values. The wing is a prescribed-fidelity structure scene (tests/test_prescribed.py): one flat rectangular
 body, span along y, chord along x (n = r_x x r_y = -z), at a static angle of attack from the motion's
 alpha_deg (nose up toward n), in a free stream along +x.
@@ -18,6 +18,7 @@ import pytest
 from aero_fmu import biot_savart
 from aero_fmu.lattice import Lattice
 from aero_fmu.vlm import SteadyVLM, bound_segments, ring_segments, steady_lift
+from fmu_common.scene_schema import resolve_scene
 from fmu_common.vectors import rotation_about
 from structure_fmu.solver import StructureSolver
 from fmu_common.topology import Topology
@@ -35,7 +36,7 @@ def wing_scene(aspect_ratio, alpha_deg=0.0, chord=1.0, fidelity="prescribed", el
         structure["motion"] = {"alpha_deg": alpha_deg, "pitch_axis_position": 0.25}
     else:
         structure["elements_per_body"] = elements
-    return {"structure": structure}
+    return resolve_scene({"time": {"stop": 1.0}, "structure": structure}, "wing")
 
 
 def wing_at(aspect_ratio, alpha_deg, chord=1.0):
@@ -62,7 +63,7 @@ def test_lift_slope_of_a_very_slender_wing_is_two_pi():
 @pytest.mark.parametrize("aspect_ratio, reference", [(4, 3.66), (8, 4.63)])
 def test_lift_slope_of_rectangular_wings(aspect_ratio, reference):
     """Rectangular flat wings of AR 4 and 8: converged lifting-surface lift slopes 3.66 and 4.63 per radian
-    (issue 3), required within 2%. M = 8, N = 128 and 256 (1024 and 2048 panels); the Richardson
+    required within 2%. M = 8, N = 128 and 256 (1024 and 2048 panels); the Richardson
     extrapolation 2 CL(256) - CL(128) (first-order convergence in N) must be within 2% too, and the two
     grids must agree within 0.5% (converged)."""
     coarse = lift_slope(aspect_ratio, 8, 128)
@@ -94,7 +95,7 @@ def test_rotating_the_wing_or_the_flow_gives_the_same_solution():
 
 
 def test_pressure_forces_agree_with_kutta_joukowski():
-    """000 Eqs. (23), (25) (pressure jump from the circulation gradient, normal to the panel) against
+    """Otsuka et al. 2019, Eqs. (23), (25) (pressure jump from the circulation gradient, normal to the panel) against
     rho Gamma V x dl on the bound segments: the lifts agree to O(alpha^2) (cos^2 alpha of the normal
     pressure force vs. the free-stream-normal Kutta-Joukowski force); at 1 degree within 1e-3. The total
     lift is positive along the wing normal side, with positive circulations."""

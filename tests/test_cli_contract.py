@@ -1,4 +1,4 @@
-"""The command line contract (DESIGN §7): summary.json and timeseries.csv contents, the run loop's
+"""The command line contract (README: command line, outputs): summary.json and timeseries.csv contents, the run loop's
 statuses, plots, and the CLI's exit codes and error messages."""
 
 import csv

@@ -1,4 +1,4 @@
-"""Deployment of the two-body wing in still air, without aerodynamics (000 Sec. VII; 003 Sec. 5).
+"""Deployment of the two-body wing in still air, without aerodynamics (Otsuka et al. 2019, Sec. VII; Otsuka et al. 2022, Sec. 5).
 
 The scenes couple the uvlm-flat aero unit at 10 m/s by default; these structural references run them with
 aero.model = none (the coupled cases are in tests/test_coupled_deployment.py)."""
@@ -60,21 +60,21 @@ def test_rigid_deployment_time_matches_one_dof_ode(tmp_path, backend, step):
 
 @pytest.mark.slow
 def test_flexible_deployment_reaches_zero_near_003(tmp_path):
-    """003 Sec. 5, Fig. 10a: the fold angle reaches 0 at 0.120 s (K = 0.026, 0 m/s; the scene's
-    mass-proportional damping, as 003 writes it)."""
+    """Otsuka et al. 2022, Sec. 5, Fig. 10a: the fold angle reaches 0 at 0.120 s (K = 0.026, 0 m/s; the scene's
+    mass-proportional damping, as Otsuka et al. 2022 writes it)."""
     assert main(["run", "scenes/deploy_flexible.toml", "--backend", "direct", "--out", str(tmp_path),
                  "--set", "time.stop=0.3", "--set", STILL_AIR[0]]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "ok"
     assert summary["deployment_time_s"] == pytest.approx(0.120, rel=0.10)
-    # the inner body bends out of the wing plane (y) after the latch; 000 measured -28 mm
+    # the inner body bends out of the wing plane (y) after the latch; Otsuka et al. 2019 measured -28 mm
     bending = summary["probes"]["bending_100mm"]["min_displacement"][1]
     assert -0.040 < bending < -0.015
     print(f"deployment {summary['deployment_time_s']:.4f} s, bending_100mm min {1e3 * bending:.1f} mm")
 
 
 def test_fifteen_elements_per_body_start_like_seven():
-    """003 used 15 elements per body. Their short elements give the gradient coordinates at the hinge
+    """Otsuka et al. 2022 used 15 elements per body. Their short elements give the gradient coordinates at the hinge
     initial accelerations near 1e8 m/s^2, which once made the first Newton iteration of generalized-alpha
     diverge; the first 20 ms must now run and agree with 7 elements (the outer body swings as a whole:
     the fold angle is a rigid-body measure, converged in the element count)."""

@@ -1,4 +1,4 @@
-"""The 18-DoF ANCF element (000 Sec. II) against closed-form values."""
+"""The 18-DoF ANCF element (Otsuka et al. 2019, Sec. II) against closed-form values."""
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -9,12 +9,12 @@ RNG = np.random.default_rng(7)
 
 
 def straight(length):
-    """Undeformed element along x with chord along y: e of 000 Eq. (3)."""
+    """Undeformed element along x with chord along y: e of Otsuka et al. 2019, Eq. (3)."""
     return np.array([0, 0, 0, 1, 0, 0, 0, 1, 0, length, 0, 0, 1, 0, 0, 0, 1, 0], dtype=float)
 
 
 def paper_mass_matrix(A, Qz, Izz, l):
-    """000 Eq. (5) with its identity blocks restored (papers README), scalar 6x6 part times rho = 1."""
+    """Otsuka et al. 2019, Eq. (5) with its identity blocks restored (docs/references.md, known slips), scalar 6x6 part times rho = 1."""
     upper = [
         [13 * A * l / 35, 11 * A * l**2 / 210, 7 * Qz * l / 20, 9 * A * l / 70, -13 * A * l**2 / 420, 3 * Qz * l / 20],
         [0, A * l**3 / 105, Qz * l**2 / 20, 13 * A * l**2 / 420, -A * l**3 / 140, Qz * l**2 / 30],

@@ -1,8 +1,9 @@
-"""Natural frequencies of the PVC wing body (003 Table 5) as a cantilever against beam theory."""
+"""Natural frequencies of the PVC wing body (Otsuka et al. 2022, Table 5) as a cantilever against beam theory."""
 import numpy as np
 import pytest
 
 from structure_fmu.modes import natural_frequencies
+from fmu_common.scene_schema import resolve_scene
 from structure_fmu.solver import StructureSolver
 
 PVC = {"chord": 0.05, "thickness": 0.002, "density": 1425.0, "youngs_modulus": 2.83e9, "torsional_rigidity": 0.18}
@@ -10,10 +11,11 @@ LENGTH = 0.15
 
 
 def pvc_cantilever(elements):
-    return {"structure": {"fidelity": "flexible", "elements_per_body": elements,
-                          "bodies": [{"name": "body", "length": LENGTH, "span_axis": [0, 0, 1],
-                                      "chord_axis": [1, 0, 0], "section": PVC}],
-                          "joints": [{"type": "clamp", "body": "body"}]}}
+    return resolve_scene({"time": {"stop": 1.0},
+                          "structure": {"fidelity": "flexible", "elements_per_body": elements,
+                                        "bodies": [{"name": "body", "length": LENGTH, "span_axis": [0, 0, 1],
+                                                    "chord_axis": [1, 0, 0], "section": PVC}],
+                                        "joints": [{"type": "clamp", "body": "body"}]}}, "pvc_cantilever")
 
 
 def test_pvc_body_bending_and_torsion_frequencies():

@@ -4,9 +4,9 @@ is not the tangent at the solution.
 The case: deploy_flexible with one spanwise aero panel per body, coupled in-process (Gauss-Seidel, as the
 master does) up to t = 0.1708 s, just after the latch (0.1688 s). There the step's predictor is far from the
 solution, a matrix factorized at the predictor contracts Newton's corrections only by about 0.4-0.6 per
-iteration, and a matrix refreshed once per step ran out of iterations ("Newton did not converge in 30
-iterations", docs/tradeoff.md before the change). The reference is the root of the same step equations
-(004 Eqs. 23-24 with the index-3 constraints) found by scipy's hybrid Powell method from the same predictor:
+iteration, and a matrix refreshed only once per step runs out of iterations ("Newton did not converge in 30
+iterations"). The reference is the root of the same step equations
+(Peng et al. 2019, Eqs. 23-24 with the index-3 constraints) found by scipy's hybrid Powell method from the same predictor:
 the step must agree with it.
 """
 from pathlib import Path
@@ -34,7 +34,7 @@ def coupled_until(scene, stop):
 
 
 def step_equations(model, integrator, state, h, Q):
-    """(residual function of x = [q_{n+1}, lambda_{n+1}], its starting point): 004 Eqs. (23)-(24) make
+    """(residual function of x = [q_{n+1}, lambda_{n+1}], its starting point): Peng et al. 2019, Eqs. (23)-(24) make
     q'_{n+1} and q''_{n+1} affine in q_{n+1} about the displacement predictor."""
     ga = integrator
     beta_p = (1 - ga.alpha_m) / (h * h * ga.beta * (1 - ga.alpha_f))

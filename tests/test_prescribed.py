@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError
+from fmu_common.scene_schema import resolve_scene
 from structure_fmu.motion import SpinUp
 from structure_fmu.solver import StructureSolver
 
@@ -10,14 +11,15 @@ OMEGA = 2.5
 
 
 def heaving_scene(**motion):
-    return {"structure": {"fidelity": "prescribed", "motion": motion,
-                          "bodies": [{"name": "wing", "length": 4.0, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0],
-                                      "section": {"chord": 1.0, "thickness": 0.01, "density": 100.0,
-                                                  "youngs_modulus": 1e9, "torsional_rigidity": 1.0}}]}}
+    return resolve_scene({"time": {"stop": 1.0}, "structure": {
+        "fidelity": "prescribed", "motion": motion,
+        "bodies": [{"name": "wing", "length": 4.0, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0],
+                    "section": {"chord": 1.0, "thickness": 0.01, "density": 100.0,
+                                "youngs_modulus": 1e9, "torsional_rigidity": 1.0}}]}}, "heaving")
 
 
 def test_heave_law_moves_every_point_rigidly():
-    """Z = A sin(omega t) along the section normal (000 Sec. VI.D), velocities consistent with positions."""
+    """Z = A sin(omega t) along the section normal (Otsuka et al. 2019, Sec. VI.D), velocities consistent with positions."""
     solver = StructureSolver(heaving_scene(heave_amplitude=0.1, frequency=OMEGA))
     assert solver.state.q.size == 0          # no structural solver: a scene models only what it needs
     e0 = solver.e.copy()

@@ -1,9 +1,10 @@
-"""Rigid fidelity (000 Sec. IV, Eq. 17): shape preservation and the physical pendulum."""
+"""Rigid fidelity (Otsuka et al. 2019, Sec. IV, Eq. 17): shape preservation and the physical pendulum."""
 import numpy as np
 import pytest
 from scipy.special import ellipk
 
 from orchestrator.scene import load_scene
+from fmu_common.scene_schema import resolve_scene
 from structure_fmu.solver import StructureSolver
 
 SCENES = "scenes"
@@ -11,13 +12,13 @@ SCENES = "scenes"
 
 def tumbling_scene(integrator):
     """A free rigid plate spinning near its unstable intermediate axis: a tumbling motion."""
-    return {"structure": {
+    return resolve_scene({"time": {"stop": 1.0}, "structure": {
         "fidelity": "rigid", "integrator": integrator, "step": 1e-3, "rho_inf": 0.9,
         "bodies": [{"name": "plate", "length": 0.6, "span_axis": [1, 0, 0], "chord_axis": [0, 1, 0],
                     "angular_velocity": [0.4, 6.0, 0.3],
                     "section": {"chord": 0.2, "thickness": 0.01, "density": 2700.0,
                                 "youngs_modulus": 70e9, "torsional_rigidity": 50.0}}],
-        "joints": []}}
+        "joints": []}}, "tumbling")
 
 
 def corner_distances(top, e):

@@ -1,4 +1,4 @@
-"""Spin-up maneuver (000 Sec. VI.B, Eq. 27; Simo & Vu-Quoc's beam): element convergence and settling."""
+"""Spin-up maneuver (Otsuka et al. 2019, Sec. VI.B, Eq. 27; Simo & Vu-Quoc's beam): element convergence and settling."""
 import numpy as np
 import pytest
 
@@ -10,7 +10,7 @@ from structure_fmu.solver import StructureSolver
 def transverse_tip_deflection(elements, stop=20.0, sample=0.01):
     """Tip distance from the rigidly rotating beam line (m), sampled every `sample` s.
 
-    The rigid line is rotated about Y by theta(t) of 000 Eq. (27), computed here from the law itself.
+    The rigid line is rotated about Y by theta(t) of Otsuka et al. 2019, Eq. (27), computed here from the law itself.
     """
     scene = load_scene("scenes/spin_up.toml", [f"structure.elements_per_body={elements}"])
     joint = scene["structure"]["joints"][0]

@@ -1,4 +1,4 @@
-"""Cantilever statics: the locking test of 000 Sec. VI.A and the large-deflection elastica."""
+"""Cantilever statics: the locking test of Otsuka et al. 2019, Sec. VI.A and the large-deflection elastica."""
 import json
 
 import numpy as np
@@ -19,7 +19,7 @@ def run(tmp_path, scene, *overrides):
 
 
 def test_quasi_static_cantilever_is_locking_free(tmp_path):
-    """Tip deflection with 3 elements within 1% of F L^3 / (3 EI) (000 Sec. VI.A, Eq. 26)."""
+    """Tip deflection with 3 elements within 1% of F L^3 / (3 EI) (Otsuka et al. 2019, Sec. VI.A, Eq. 26)."""
     scene = load_scene("scenes/cantilever_static.toml")
     body = scene["structure"]["bodies"][0]
     force = scene["structure"]["loads"][0]["force"][2]

@@ -1,0 +1,374 @@
+"""The scene schema: every key of a scene file, declared once, and `resolve_scene`, which checks a raw scene
+against it and returns the resolved scene.
+
+SI units throughout (s, m, kg, N, Pa, m/s, kg/m^3); angles in degrees where the key says `_deg`. Each key
+has a type, a unit, a default (or is required), what is allowed and a one-line description; docs/scenes.md
+is generated from these declarations (`orchestrator.scene_docs`). Numbers are finite unless a key says inf
+is allowed. The resolved scene is a plain, JSON-serialisable dict with every key present (None where a key
+has no value, e.g. a hinge without a stop) and every default filled, also the defaults that depend on
+another table (a probe's chord is its body's axis position); optional tables ([structure.motion], [load],
+[wing], [motion]) are absent when not given. The units receive it complete and set no defaults of their own.
+
+What `resolve_scene` checks: types, ranges, unknown keys (everywhere), unique names, the rules inside one
+table (a plate section needs all three of thickness, density and Young's modulus), references that a
+default needs (a probe's body), and the size bounds (`fmu_common.scene_bounds`). The relations between
+tables that building the units checks stay there: a joint's bodies exist, hinges form a tree, a body root
+carries one joint, a mass sits at a node (`fmu_common.topology`, `structure_fmu.topology`), and a probe
+lies within its body (`orchestrator.scene`).
+"""
+from __future__ import annotations
+
+import copy
+
+from .errors import SceneError
+from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
+                           MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
+from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, Table, Tables, Text, Variants,
+                     Vector, item_label)
+
+ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
+ACCELERATIONS = ("aitken", "iqn-ils")
+AERO_MODELS = ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
+SPAN_CORRECTIONS = ("helmbold", "none")
+FIDELITIES = ("prescribed", "rigid", "flexible")
+INTEGRATORS = ("rk4", "generalized-alpha")
+DAMPING_MODELS = ("deformation", "mass-proportional")
+
+PLATE = ("thickness", "density", "youngs_modulus")
+EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
+
+
+def positive(unit, doc, default=REQUIRED, **bounds):
+    return Number(unit, default, doc, low=0.0, low_open=True, **bounds)
+
+
+def non_negative(unit, doc, default=REQUIRED):
+    return Number(unit, default, doc, low=0.0)
+
+
+def fraction(doc, default):
+    return Number("fraction of chord from the leading edge", default, doc, low=0.0, high=1.0)
+
+
+def angle(doc, default, limit=180.0):
+    return Number("deg", default, doc, low=-limit, high=limit, low_open=True, high_open=True)
+
+
+# --- rules inside one table -----------------------------------------------------------------------
+
+def _section_rule(key: str, section: dict) -> None:
+    """A plate needs all three plate keys; without a plate every explicit property is required."""
+    plate = [name for name in PLATE if section[name] is not None]
+    if plate and len(plate) < len(PLATE):
+        missing = next(name for name in PLATE if section[name] is None)
+        raise SceneError(f"{key}.{missing}", MISSING, f"required with {', '.join(plate)}: thickness, density and "
+                                                      "youngs_modulus describe a rectangular plate together")
+    if not plate:
+        for name in EXPLICIT:
+            if section[name] is None:
+                raise SceneError(f"{key}.{name}", MISSING,
+                                 "required unless thickness, density and youngs_modulus describe a plate")
+
+
+def _motion_rule(key: str, motion: dict) -> None:
+    """alpha_deg is a constant pitch: it excludes the oscillating pitch and the heave."""
+    if motion["alpha_deg"] != 0.0:
+        for other in ("pitch_amplitude_deg", "heave_amplitude"):
+            if motion[other] != 0.0:
+                raise SceneError(f"{key}.alpha_deg", motion["alpha_deg"],
+                                 f"0 when {other} is given (alpha_deg is a constant pitch of a wing that does not "
+                                 "heave; an oscillating pitch is pitch_amplitude_deg)")
+
+
+# --- the declarations -----------------------------------------------------------------------------
+
+SECTION = Table({
+    "chord": positive("m", "chord c"),
+    "axis_position": fraction("position a of the reference line (the beam axis)", 0.5),
+    "torsional_rigidity": positive("N m^2", "GJ"),
+    "thickness": positive("m", "plate thickness h", Absent("no plate: the explicit properties below")),
+    "density": positive("kg/m^3", "plate material density rho", Absent("no plate")),
+    "youngs_modulus": positive("Pa", "plate Young's modulus E", Absent("no plate")),
+    "axial_stiffness": positive("N", "EA; overrides the plate's", Absent("E c h of the plate")),
+    "bending_stiffness_flap": positive("N m^2", "EI_yy, out of the wing plane; overrides the plate's",
+                                       Absent("E c h^3 / 12 of the plate")),
+    "bending_stiffness_chord": positive("N m^2", "EI_zz, in the chord plane; overrides the plate's",
+                                        Absent("E h c^3 / 12 of the plate")),
+    "mass_per_length": positive("kg/m", "rho A, spread uniformly over the chord; overrides the plate's",
+                                Absent("rho c h of the plate")),
+}, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
+       "properties, which override the plate's", rules=(_section_rule,))
+
+BODY = Table({
+    "name": Name("-", REQUIRED, "body name, referenced by joints, masses, loads, probes and strain gauges"),
+    "length": positive("m", "length along the span"),
+    "root": Vector("m", Absent("[0, 0, 0]; a hinge's child starts at its parent's tip and takes none"),
+                   "initial position of the root of the reference line (not for a hinge's child)"),
+    "span_axis": Vector("-", Absent("[1, 0, 0]; a hinge's child: its parent's, turned by the hinge"),
+                        "initial direction of r_x, the span (not for a hinge's child)", nonzero=True),
+    "chord_axis": Vector("-", Absent("[0, 1, 0]; a hinge's child: its parent's, which the hinge shares"),
+                         "direction of r_y from the leading to the trailing edge, perpendicular to span_axis "
+                         "(a hinge's child: its parent's, if given)", nonzero=True),
+    "damping": non_negative("1/s", "alpha: damping of deformation or of all motion (structure.damping_model)",
+                            0.0),
+    "angular_velocity": Vector("rad/s", Absent("at rest"), "initial rigid rotation rate about the root, global "
+                                                            "frame"),
+    "section": SECTION,
+}, doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
+       "`section = { ... }` of the body")
+
+_BODY_REF = "name of a body of structure.bodies"
+JOINT = Variants("type", {
+    "clamp": Table({"body": Name("-", REQUIRED, _BODY_REF)}, doc="the root node of `body` is fixed"),
+    "pin": Table({
+        "body": Name("-", REQUIRED, _BODY_REF),
+        "axis": Choice("-", "chord", "rotation axis: about the chord r_y, or about the section normal r_x x r_y",
+                       options=("chord", "normal")),
+    }, doc="the root of `body` is fixed in position and free to rotate about one axis"),
+    "driven": Table({
+        "body": Name("-", REQUIRED, _BODY_REF),
+        "law": Choice("-", "spin_up", "angle law: spin_up is Otsuka et al. 2019, Eq. 27", options=("spin_up",)),
+        "omega": Number("rad/s", REQUIRED, "final angular speed"),
+        "ramp_time": positive("s", "time to reach omega"),
+    }, doc="the root of `body` is a clamp rotating about its chord axis r_y by the angle law"),
+    "hinge": Table({
+        "name": Name("-", REQUIRED, "hinge name: the `fold_angle_<name>` column and the `<name>.stiffness`, "
+                                    "`<name>.damping`, `<name>.torque` parameters"),
+        "parent": Name("-", REQUIRED, "the body at whose tip the hinge sits"),
+        "child": Name("-", REQUIRED, "the body whose root the hinge carries"),
+        "initial_angle_deg": angle("fold angle at t = 0 (in (-180, 180) like the fold angle, which wraps at "
+                                   "+-180)", 0.0),
+        "stiffness": non_negative("N m/rad", "actuator stiffness K", 0.0),
+        "damping": non_negative("N m s/rad", "actuator damping C", 0.0),
+        "torque": Number("N m", 0.0, "actuator constant torque T_const"),
+        "stop_angle_deg": angle("latch: when the fold angle first reaches it, from either side, K is multiplied "
+                                "by latch_factor (Otsuka et al. 2022, Sec. 5); the fold angle wraps at +-180, so "
+                                "a stop outside (-180, 180) would never be reached", Absent("no latch")),
+        "latch_factor": Number("-", 1e4, "factor on K once latched", low=1.0),
+    }, doc="revolute joint between the tip of `parent` and the root of `child`, about the chord r_y; the "
+           "actuator torque K theta + C dtheta/dt + T_const acts to decrease the fold angle theta"),
+}, doc="what holds a body's root, at most one joint per root")
+
+MASS = Table({
+    "body": Name("-", REQUIRED, _BODY_REF),
+    "span": non_negative("m", "position from the body root; must be a node of the body", 0.0),
+    "mass": positive("kg", "lumped mass"),
+}, doc="A point mass at a node")
+
+_LOAD_AT = {
+    "span": non_negative("m", "position from the body root, at most the body length"),
+    "chord": fraction("where on the chord the force acts", Absent("the body's section.axis_position")),
+}
+_RAMP = {"ramp_time": positive("s", "ramp time t_s of the cosine ramp", 1.0)}
+_LAW_DOC = "constant: applied from t = 0; cosine_ramp: F (1 - cos(pi t / t_s)) / 2 up to t_s (Otsuka et al. " \
+           "2019, Eq. 26)"
+LOAD = Variants("law", {
+    "constant": Table({"body": Name("-", REQUIRED, _BODY_REF), **_LOAD_AT,
+                       "force": Vector("N", REQUIRED, "force, global frame")}),
+    "cosine_ramp": Table({"body": Name("-", REQUIRED, _BODY_REF), **_LOAD_AT,
+                          "force": Vector("N", REQUIRED, "force, global frame"), **_RAMP}),
+}, default="constant", doc=_LAW_DOC)
+
+_LOAD_CASE = {
+    "parameter": non_negative("-", "P L^2 / EI_yy of the body: the force magnitude P in units of its flap "
+                                   "stiffness and length"),
+    "direction": Vector("-", REQUIRED, "direction of the force, global frame", nonzero=True),
+    "body": Name("-", Absent("the last body of structure.bodies"), _BODY_REF),
+    "span": non_negative("m", "position from the body root", Absent("the body's length: its tip")),
+    "chord": fraction("where on the chord the force acts", Absent("the body's section.axis_position")),
+}
+_LOAD_CASE_LAWS = {"constant": Table(dict(_LOAD_CASE)), "cosine_ramp": Table({**_LOAD_CASE, **_RAMP})}
+
+MOTION = Table({
+    "heave_amplitude": Number("m", 0.0, "heave h(t) = heave_amplitude sin(frequency t) along heave_axis"),
+    "pitch_amplitude_deg": Number("deg", 0.0, "pitch(t) = pitch_amplitude_deg sin(frequency t + phase) about the "
+                                              "span axis through pitch_axis_position"),
+    "frequency": non_negative("rad/s", "circular frequency of heave and pitch", 0.0),
+    "phase_deg": Number("deg", 0.0, "phase of the pitch ahead of the heave"),
+    "pitch_axis_position": fraction("where the pitch axis crosses the chord",
+                                    Absent("each body's section.axis_position")),
+    "heave_axis": Vector("-", Absent("each body's section normal r_x x r_y"), "heave direction", nonzero=True),
+    "alpha_deg": angle("constant nose-up pitch (angle of attack); excludes pitch_amplitude_deg and "
+                       "heave_amplitude", 0.0, limit=90.0),
+}, doc="Only with `structure.fidelity = \"prescribed\"`, and then required: every body moves rigidly by this "
+       "law, no structural solver runs", optional=True, rules=(_motion_rule,))
+
+PROBE = Table({
+    "name": Name("-", REQUIRED, "column prefix in timeseries.csv (`<name>_x`, `_y`, `_z`) and key in "
+                                "summary.json; the structure FMU outputs `<name>_x/_y/_z` (m) and "
+                                "`<name>_vx/_vy/_vz` (m/s)"),
+    "body": Name("-", REQUIRED, _BODY_REF),
+    "span": non_negative("m", "position from the body root, at most the body length"),
+    "chord": fraction("where on the chord", Absent("the body's section.axis_position")),
+}, doc="A material point whose position is recorded")
+
+STRAIN_GAUGE = Table({
+    "name": Name("-", REQUIRED, "column name in timeseries.csv, output of the structure FMU, key in "
+                                "summary.json strain_gauges"),
+    "body": Name("-", REQUIRED, _BODY_REF),
+    "span": non_negative("m", "position from the body root, at most the body length"),
+    "surface_distance": positive("m", "distance from the reference line to the gauged surface",
+                                 Absent("half the body's section.thickness; required without one")),
+}, doc="A surface strain gauge: surface_distance x the bending curvature out of the wing plane (Otsuka et "
+       "al. 2022, Sec. 5)")
+
+SCENE = Table({
+    "name": Name("-", Absent("the scene file's name without .toml"),
+                 "scene name: the folders `fmus/<name>/` and `results/<name>/`"),
+    "description": Text("-", "", "free text, with the source case (e.g. Otsuka et al. 2019, Sec. VI.A)"),
+    "time": Table({"stop": positive("s", "end time")}),
+    "coupling": Table({
+        "step": positive("s", "communication step; the units take their own internal steps inside it", 1e-3),
+        "algorithm": Choice("-", "gauss-seidel", "how the units exchange e, de and Q (with an aero unit)",
+                            options=ALGORITHMS),
+        "tolerance": positive("-", "implicit only: a step is accepted when ||Q_new - Q_used|| / max(||Q_new||, "
+                                   "1e-12) is below it", 1e-6),
+        "max_iterations": Integer("-", 50, "implicit only: iterations per communication step before the run "
+                                           "stops as diverged", low=1, high=MAX_COUPLING_ITERATIONS,
+                                  why="each implicit iteration repeats the step of both units; refine coupling.step "
+                                      "instead"),
+        "acceleration": Choice("-", "aitken", "implicit only: aitken (dynamic relaxation) or iqn-ils (interface "
+                                              "quasi-Newton, as in preCICE)", options=ACCELERATIONS),
+        "relaxation": Number("-", 0.5, "implicit only: relaxation factor omega_0 of the first update of each "
+                                       "step", low=0.0, high=1.0, low_open=True),
+    }),
+    "flow": Table({
+        "speed": non_negative("m/s", "free-stream speed", 0.0),
+        "density": non_negative("kg/m^3", "air density", 1.2),
+        "direction": Vector("-", Absent("the chord_axis of the first body that is not a hinge's child"),
+                            "free-stream direction: the air velocity is speed x direction / |direction|",
+                            nonzero=True),
+    }),
+    "aero": Table({
+        "model": Choice("-", "none", "aerodynamic model; none builds no aero unit", options=AERO_MODELS),
+        "chordwise_panels": Integer("-", 2, "M vortex rings along the chord of each body", low=1,
+                                    high=MAX_CHORDWISE_PANELS, why=DENSE_AERO),
+        "spanwise_panels": Integer("-", 7, "N vortex rings (strips for strip theory) along the span of each body",
+                                   low=1, high=MAX_SPANWISE_PANELS, why=DENSE_AERO),
+        "wake_length": positive("chords", "wake truncation L_w; inf: semi-infinite flat-wake legs, and a shed wake "
+                                          f"kept whole up to {MAX_WAKE_ROWS} rows", 5.0, inf=True),
+        "step": positive("s", "internal aero step: the aero side of multi-rate coupling",
+                         Absent("one aero step per communication step")),
+        "span_correction": Choice("-", "helmbold", "strip theory only: helmbold scales the 2D lift slope 2 pi "
+                                                   "by A / (2 + sqrt(A^2 + 4)) (Helmbold 1942); none keeps 2D "
+                                                   "strips", options=SPAN_CORRECTIONS),
+    }),
+    "structure": Table({
+        "fidelity": Choice("-", "flexible", "prescribed (rigid motion by a law), rigid (one element per body, "
+                                            "Otsuka et al. 2019, Eq. 17) or flexible", options=FIDELITIES),
+        "elements_per_body": Integer("-", 4, "ANCF elements per body (flexible fidelity)", low=1,
+                                     high=MAX_ELEMENTS_PER_BODY, why=DENSE_STRUCTURE),
+        "integrator": Choice("-", "generalized-alpha", "time integrator", options=INTEGRATORS),
+        "step": positive("s", "internal time step; the last one in a communication step is shortened to land "
+                              "on it", 1e-4),
+        "rho_inf": Number("-", 0.8, "spectral radius at infinity of generalized-alpha", low=0.0, high=1.0),
+        "damping_model": Choice("-", "deformation", "what each body's damping alpha acts on: deformation "
+                                                    "(zero for rigid motion) or mass-proportional (all motion, as "
+                                                    "Otsuka et al. 2019, Sec. II.C write it)",
+                                options=DAMPING_MODELS),
+        "gravity": Vector("m/s^2", [0.0, 0.0, 0.0], "gravity vector, global frame"),
+        "bodies": Tables(BODY, "body", default=REQUIRED, min_items=1),
+        "joints": Tables(JOINT, "joint"),
+        "masses": Tables(MASS, "lumped mass"),
+        "loads": Tables(LOAD, "point load"),
+        "motion": MOTION,
+    }),
+    "probes": Tables(PROBE, "probe"),
+    "strain_gauges": Tables(STRAIN_GAUGE, "strain gauge"),
+    "load": Variants("law", _LOAD_CASE_LAWS, default="constant", doc=_LAW_DOC, optional=True),
+    "motion": Table({
+        "reduced_frequency": non_negative("-", "k = omega c / (2 V): becomes structure.motion.frequency = "
+                                               "2 k V / c (V = flow.speed, c = chord of the first body)"),
+        "amplitude": non_negative("chords", "heave amplitude: becomes structure.motion.heave_amplitude = "
+                                            "amplitude x c"),
+    }, doc="Shorthand: a heaving wing in the papers' non-dimensional terms (see below)", optional=True),
+    "wing": Table({
+        "chord": positive("m", "becomes section.chord of the only body", Absent("not set by [wing]")),
+        "aspect_ratio": positive("-", "span / chord: becomes the length of the only body = aspect_ratio x chord",
+                                 Absent("not set by [wing]")),
+        "alpha_deg": angle("constant angle of attack: becomes structure.motion.alpha_deg",
+                           Absent("not set by [wing]"), limit=90.0),
+    }, doc="Shorthand: a one-body rectangular wing (see below)", optional=True),
+})
+"""The whole scene."""
+
+
+# --- resolving --------------------------------------------------------------------------------------
+
+def resolve_scene(raw: dict, default_name: str) -> dict:
+    """The resolved scene of the raw scene `raw` (a TOML table, overrides applied): checked against SCENE,
+    every default filled (`default_name` for `name`), then the size bounds checked. Raises SceneError at the
+    first bad key. `raw` is not modified; resolving a resolved scene returns it unchanged."""
+    raw = copy.deepcopy(raw)
+    if not isinstance(raw, dict):
+        raise SceneError("<top level>", raw, "a TOML table")
+    scene = SCENE.resolve("", raw)
+    if scene["name"] is None:
+        scene["name"] = SCENE.keys["name"].check("name", default_name)
+    fill_derived_defaults(scene)
+    check_sizes(scene)
+    return scene
+
+
+def _bodies_by_name(scene: dict) -> dict[str, dict]:
+    return {body["name"]: body for body in scene["structure"]["bodies"]}
+
+
+def _body_of(scene: dict, key: str, name: str) -> dict:
+    """The body named `name`, referenced at dotted key `key`; SceneError listing the bodies otherwise."""
+    bodies = _bodies_by_name(scene)
+    if name not in bodies:
+        raise SceneError(key, name, f"the name of a body in structure.bodies: {', '.join(map(repr, bodies))}")
+    return bodies[name]
+
+
+def hinge_children(scene: dict) -> set[str]:
+    """Names of the bodies whose root a hinge carries."""
+    return {j["child"] for j in scene["structure"]["joints"] if j["type"] == "hinge"}
+
+
+def fill_derived_defaults(scene: dict) -> None:
+    """Fill, in place, the defaults that depend on another table (the `Absent` texts of SCENE say which)."""
+    structure = scene["structure"]
+    children = hinge_children(scene)
+    for body in structure["bodies"]:
+        if body["name"] not in children:
+            for key, default in (("root", [0.0, 0.0, 0.0]), ("span_axis", [1.0, 0.0, 0.0]),
+                                 ("chord_axis", [0.0, 1.0, 0.0])):
+                if body[key] is None:
+                    body[key] = default
+    parents = {j["child"]: j["parent"] for j in structure["joints"] if j["type"] == "hinge"}
+    bodies = _bodies_by_name(scene)
+    for _ in bodies:        # down the hinge tree; a loop or an unknown parent is the topology's to report
+        for child, parent in parents.items():
+            if child in bodies and parent in bodies and bodies[child]["chord_axis"] is None:
+                bodies[child]["chord_axis"] = copy.deepcopy(bodies[parent]["chord_axis"])
+    roots = [b for b in structure["bodies"] if b["name"] not in children]
+    if scene["flow"]["direction"] is None and roots:
+        scene["flow"]["direction"] = list(roots[0]["chord_axis"])
+    for load in structure["loads"]:
+        if load["chord"] is None and load["body"] in bodies:     # an unknown body is the topology's to report
+            load["chord"] = bodies[load["body"]]["section"]["axis_position"]
+    load = scene.get("load")
+    if load is not None:
+        if load["body"] is None:
+            load["body"] = structure["bodies"][-1]["name"]
+        body = _body_of(scene, "load.body", load["body"])
+        if load["span"] is None:
+            load["span"] = body["length"]
+        if load["chord"] is None:
+            load["chord"] = body["section"]["axis_position"]
+    for index, probe in enumerate(scene["probes"]):
+        body = _body_of(scene, f"probes.{item_label(index, probe)}.body", probe["body"])
+        if probe["chord"] is None:
+            probe["chord"] = body["section"]["axis_position"]
+    for index, gauge in enumerate(scene["strain_gauges"]):
+        key = f"strain_gauges.{item_label(index, gauge)}"
+        body = _body_of(scene, f"{key}.body", gauge["body"])
+        if gauge["surface_distance"] is None:
+            thickness = body["section"]["thickness"]
+            if thickness is None:
+                raise SceneError(f"{key}.surface_distance", MISSING,
+                                 f"required: body '{body['name']}' has no section.thickness (a distance > 0 from "
+                                 "the reference line to the gauged surface, m)")
+            gauge["surface_distance"] = 0.5 * thickness
