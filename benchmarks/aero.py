@@ -1,33 +1,32 @@
 """Aero unit cost per step: each model against the bound and wake panel counts, and the free/flat cost
-ratio on the deployment mesh (Otsuka et al. 2019, Sec. VII.A, report the flat wake 95% cheaper than the free
-wake).
+ratio on the deployment mesh (Otsuka et al. 2019, Sec. VII.A, report the flat wake 95% cheaper).
 
     python benchmarks/aero.py [--quick]
 
-Four measurements, wall time per `AeroSolver.advance` (mean of the last steps, one BLAS thread):
-  1. bound panels: an AR-8 wing, M x N from 2 x 7 to 8 x 64, wake 5 chords (5 M rows once filled),
-     dt = c/(MV); "rigid": a heaving wing (the influence matrix is factorized once), "deforming": a
-     non-rigid E each step (matrix and LU rebuilt every step, as in a deployment);
-  2. wake panels: M x N = 4 x 16, wake 2.5 to 20 chords (10 to 80 rows), prescribed and free wakes;
-  3. the deployment mesh of Otsuka et al. 2019: scenes/deploy_rigid.toml (two bodies, M = 2, N = 7 per body,
-     L_w = 5) at 15 m/s, the structure run by its own solver, only the aero step timed, over the first 0.1 s;
+Wall time per `AeroSolver.advance` (mean of the last steps, one BLAS thread):
+  1. bound panels: an AR-8 wing, M x N from 2 x 7 to 8 x 64, wake 5 chords, dt = c/(MV); "rigid": a heaving
+     wing (the influence matrix factorized once), "deforming": E changes every step (matrix and LU rebuilt);
+  2. wake panels: M x N = 4 x 16, wake 2.5 to 20 chords, prescribed and free wakes;
+  3. deploy_rigid at 15 m/s (M = 2, N = 7 per body, L_w = 5), the structure run by its own solver, only the
+     aero step timed, over the first 0.1 s;
   4. Biot-Savart throughput (Otsuka et al. 2019, Eq. 19): segment-point pairs per second for an influence
      matrix (normal wash, ring weights) and for the induced velocity of known circulations.
 The machines are shared and noisy: compare the ratios of one run, not absolute times across runs.
 """
 import argparse
 import time
+import timeit
 
 import numpy as np
 from report import ROOT, limit_blas_threads
 
 from aero_fmu.solver import AeroSolver
-from orchestrator.scene import read_scene_file, resolve_scene
+from fmu_common.scene_schema import AERO_MODELS
+from orchestrator.scene import load_scene, resolve_scene
 from structure_fmu.solver import StructureSolver
 
-MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
+MODELS = tuple(m for m in AERO_MODELS if m != "none")
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
-SCENES = ROOT / "scenes"
 
 
 def wing(model, M, N, wake_length, fidelity="prescribed"):
@@ -95,9 +94,7 @@ def wake_scaling(lengths, timed):
 
 
 def deployment(duration):
-    raw = read_scene_file(SCENES / "deploy_rigid.toml")
-    scene = resolve_scene(raw, "deploy_rigid")
-    scene["flow"]["speed"] = 15.0
+    scene = load_scene(ROOT / "scenes" / "deploy_rigid.toml", ["flow.speed=15"])
     structure = StructureSolver(scene)
     step = scene["coupling"]["step"]
     inputs = []
@@ -105,18 +102,19 @@ def deployment(duration):
         structure.advance(k * step)
         inputs.append((k * step, structure.e, structure.de))
     fold = np.degrees(structure.topology.fold_angles(inputs[-1][1])["fold"])
-    print(f"3. deployment mesh (Otsuka et al. 2019; deploy_rigid at 15 m/s, M = 2, N = 7 per body, L_w = 5, {len(inputs)} steps "
-          f"of {step:g} s, fold angle {fold:.0f} deg at the end)")
+    aero = scene["aero"]
+    print(f"3. deployment mesh (Otsuka et al. 2019; deploy_rigid at 15 m/s, M = {aero['chordwise_panels']}, "
+          f"N = {aero['spanwise_panels']} per body, L_w = {aero['wake_length']:g}, {len(inputs)} steps of {step:g} s, "
+          f"fold angle {fold:.0f} deg at the end)")
     times = {}
     for model in MODELS:
-        scene["aero"].update(model=model, chordwise_panels=2, spanwise_panels=7, wake_length=5.0)
-        aero = AeroSolver(scene)
+        solver = AeroSolver({**scene, "aero": {**aero, "model": model}})
         start = time.perf_counter()
         for t, e, de in inputs:
-            aero.advance(t, e, de)
+            solver.advance(t, e, de)
         times[model] = (time.perf_counter() - start) / len(inputs)
-        print(f"   {model:<16} {1e3 * times[model]:8.3f} ms per step, wake panels {aero.outputs()['wake_panels']}, "
-              f"C_L at the end {aero.outputs()['CL']:+.3f}")
+        print(f"   {model:<16} {1e3 * times[model]:8.3f} ms per step, wake panels {solver.outputs()['wake_panels']}, "
+              f"C_L at the end {solver.outputs()['CL']:+.3f}")
     print(f"   flat / free cost: {times['uvlm-flat'] / times['uvlm-free']:.3f} "
           f"(flat {100 * (1 - times['uvlm-flat'] / times['uvlm-free']):.0f}% cheaper; Otsuka et al. 2019 report 95%)")
 
@@ -135,14 +133,8 @@ def biot_savart_throughput(points=2000, segments=4000, repeats=3):
     print(f"4. Biot-Savart throughput, {points} points x {segments} segments")
     for label, call in (("influence matrix (normal wash)", lambda: influence(p, a, b, rings, 1e-3, normals=normals)),
                         ("induced velocity of known circulations", lambda: induced_velocity(p, a, b, gamma, 1e-3))):
-        best = min(_timed(call) for _ in range(repeats))
+        best = min(timeit.repeat(call, number=1, repeat=repeats))
         print(f"   {label:<40} {points * segments / best / 1e6:8.1f} million pairs per second")
-
-
-def _timed(call):
-    start = time.perf_counter()
-    call()
-    return time.perf_counter() - start
 
 
 def main():

@@ -3,29 +3,24 @@ against flow speed and aero model (Otsuka et al. 2019, Sec. VII; Otsuka et al. 2
 
     python benchmarks/deployment.py [--quick] [--jobs 2] [--resume] [--no-plots]
 
-Every run is `orchestrator.master.run_scene(scene, backend="direct")`, what `wingsim run SCENE --backend
-direct --set ...` runs, in `--jobs` worker processes (orchestrator.study):
+Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --backend direct --set ...` runs:
   1. deploy_rigid, 0.35 s, uvlm-flat at 0, 5, ..., 30 m/s and still air without aero (aero.model = none);
   2. deploy_flexible, 0.3 s, uvlm-flat at 0, 10, 20, 30 m/s and still air; when the scene's
      structure.damping_model is not "deformation", also 0, 10, 20 m/s and still air with it;
   3. deploy_flexible at 10 m/s with every aero.model.
 --quick: rigid at 0, 15, 30 m/s, flexible at 0, 10, 20 m/s, part 3 with strip and uvlm-flat.
-
-The figures of merit are orchestrator.metrics'; the report (benchmarks/templates/deployment.md) defines
-them. A full run writes docs/studies/deployment.md and docs/studies/img/deployment_*.png, --quick writes
-them to results/studies/quick/; every run's numbers go to results/studies/deployment.jsonl.
+The figures of merit are orchestrator.metrics'; the report (templates/deployment.md) defines them.
 """
-import os
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from report import QUICK, RECORDS, ROOT, STUDIES, arguments, command, figure, fmt, render, save, status
+from report import Report, fmt, ratio, status
 
 from orchestrator import metrics
 from orchestrator.scene import load_scene
-from orchestrator.study import Study
 
+REPORT = Report("deployment", __doc__)
 SPAN = 0.3                                            # m, deployed span (two 0.15 m bodies)
 TIP_TIME = 0.2                                        # s, Otsuka et al. 2022, Sec. 5: tip deflection at 0.2 s
 PAPER_2022 = {0.0: 0.120, 10.0: 0.166, 20.0: 0.198}   # s, Otsuka et al. 2022, Fig. 10: latch at 0, 10, 20 m/s
@@ -37,7 +32,7 @@ COST = {"none": 1, "strip": 1, "uvlm-flat": 1.2, "uvlm-prescribed": 1.5, "uvlm-f
 @dataclass(frozen=True)
 class Job:
     """One run: `scene` (file stem) with aero.model = `model` at flow.speed = `speed` (m/s; 0 for none) and
-    structure.damping_model = `damping` ("": the scene's)."""
+    structure.damping_model = `damping` ("": the scene's). Its repr keys its record."""
     scene: str
     model: str
     speed: float
@@ -54,15 +49,16 @@ class Job:
         return f"{self.scene} {flow}" + (f", {self.damping} damping" if self.damping else "")
 
 
-def scene_damping(scene):
-    """structure.damping_model of `scene` (file stem) as the scene file resolves it."""
-    return load_scene(ROOT / "scenes" / f"{scene}.toml")["structure"].get("damping_model", "deformation")
+def load(name, overrides=()):
+    """The resolved scene scenes/<name>.toml with `overrides`."""
+    return load_scene(REPORT.root / "scenes" / f"{name}.toml", list(overrides))
 
 
 def plan(quick):
     """{part: [Job, ...]} in table order."""
     still = lambda scene, damping="": Job(scene, "none", 0.0, damping)
-    other = "" if quick or scene_damping("deploy_flexible") == "deformation" else "deformation"
+    damping = load("deploy_flexible")["structure"]["damping_model"]
+    other = "" if quick or damping == "deformation" else "deformation"
     variant = [Job("deploy_flexible", "uvlm-flat", v, other) for v in PAPER_2022] + [still("deploy_flexible", other)]
     return {1: [Job("deploy_rigid", "uvlm-flat", float(v)) for v in ((0, 15, 30) if quick else range(0, 31, 5))]
                + [still("deploy_rigid")],
@@ -78,7 +74,7 @@ def work(job):
     from orchestrator.results import summarize
 
     cpu = time.process_time()
-    result = run_scene(load_scene(ROOT / "scenes" / f"{job.scene}.toml", job.overrides), backend="direct")
+    result = run_scene(load(job.scene, job.overrides), backend="direct")
     series, summary = result.series, summarize(result)
     low, high = metrics.displacement_range(series, "bending_100mm", "y")
     t, tip_x, tip_y = series.time, series.column("tip_x"), series.column("tip_y")
@@ -98,11 +94,6 @@ def work(job):
 def pct(value, ref):
     """100 (value - ref) / ref, or None."""
     return None if value is None or ref is None else 100.0 * (value - ref) / ref
-
-
-def ratio(value, ref):
-    """value / ref, or None."""
-    return None if value is None or not ref else value / ref
 
 
 def rises(rows):
@@ -132,29 +123,6 @@ def row(job, result):
     return out
 
 
-def plot(parts, out, default):
-    """deployment_rigid, _flexible, _flexible_peaks and _fidelity.png."""
-    fig, ((a, b),) = figure(1, 2, 8.4, 3.4)
-    rigid = parts[1]
-    aero = [r for r in rigid if r["model"] != "none" and r["deploy_s"] is not None]
-    a.plot([r["speed"] for r in aero], [r["deploy_s"] for r in aero], "o-", label="uvlm-flat")
-    for r in rigid:
-        if r["model"] == "none" and r["deploy_s"] is not None:
-            a.axhline(r["deploy_s"], color="k", ls="--", lw=0.8, label="still air, no aero")
-        if r["curves"] is not None:
-            b.plot(r["curves"]["t"], r["curves"]["fold"], **style(r, "speed"))
-    a.set(xlabel="flow speed (m/s)", ylabel="deployment time (s)", title="deploy_rigid (Otsuka et al. 2019, Fig. 11a)")
-    b.set(xlabel="time (s)", ylabel="fold angle (deg)", title="deploy_rigid, uvlm-flat")
-    for ax in (a, b):
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
-    save(fig, out, "deployment_rigid")
-    histories([r for r in parts[2] if not r["damping"]], "speed", out, "deployment_flexible",
-              f"deploy_flexible, uvlm-flat, damping_model = {default}")
-    peaks(parts[2], out, default)
-    histories(parts[3], "model", out, "deployment_fidelity", "deploy_flexible at 10 m/s, by aero.model")
-
-
 def style(r, by):
     """Matplotlib keywords of a run's curve, labelled by "speed" or by "model"."""
     if r["model"] == "none":
@@ -164,63 +132,68 @@ def style(r, by):
     return {"lw": 1.0, "ls": {"uvlm-prescribed": "-.", "uvlm-free": ":"}.get(r["model"], "-"), "label": r["model"]}
 
 
-def histories(rows, by, out, name, title):
+def plot(parts, default):
+    """deployment_rigid, _flexible, _flexible_peaks and _fidelity.png."""
+    fig, ((a, b),) = REPORT.figure(1, 2, 8.4, 3.4)
+    aero = [r for r in parts[1] if r["model"] != "none" and r["deploy_s"] is not None]
+    a.plot([r["speed"] for r in aero], [r["deploy_s"] for r in aero], "o-", label="uvlm-flat")
+    for r in parts[1]:
+        if r["model"] == "none" and r["deploy_s"] is not None:
+            a.axhline(r["deploy_s"], color="k", ls="--", lw=0.8, label="still air, no aero")
+        if r["curves"] is not None:
+            b.plot(r["curves"]["t"], r["curves"]["fold"], **style(r, "speed"))
+    a.set(xlabel="flow speed (m/s)", ylabel="deployment time (s)", title="deploy_rigid (Otsuka et al. 2019, Fig. 11a)")
+    b.set(xlabel="time (s)", ylabel="fold angle (deg)", title="deploy_rigid, uvlm-flat")
+    REPORT.save(fig, "deployment_rigid", legend=7)
+    histories([r for r in parts[2] if not r["damping"]], "speed", "deployment_flexible",
+              f"deploy_flexible, uvlm-flat, damping_model = {default}")
+    histories(parts[3], "model", "deployment_fidelity", "deploy_flexible at 10 m/s, by aero.model")
+    fig, axes = REPORT.figure(1, 2, 8.4, 3.2)        # peak bending and strain against flow speed, per damping
+    for ax, key, ylabel in zip(axes[0], ("bend_mm", "strain_ue"),
+                               ("peak |bending_100mm y| (mm)", "peak strain_20mm (microstrain)")):
+        for damping, ls in (("", "-"), ("deformation", ":")):
+            aero = [r for r in parts[2] if r["damping"] == damping and r["model"] != "none" and r["ok"]]
+            if aero:
+                ax.plot([r["speed"] for r in aero], [r[key] for r in aero], "o", ls=ls,
+                        label=f"uvlm-flat, {damping or default}")
+            for r in parts[2]:
+                if r["damping"] == damping and r["model"] == "none" and r[key] is not None:
+                    ax.axhline(r[key], color="k", ls="--" if ls == "-" else ":", lw=0.8,
+                               label=f"still air, no aero, {damping or default}")
+        ax.set(xlabel="flow speed (m/s)", ylabel=ylabel)
+    axes[0, 0].set_title("Otsuka et al. 2019, Fig. 15", fontsize=9)
+    axes[0, 1].set_title("Otsuka et al. 2022, Fig. 12", fontsize=9)
+    REPORT.save(fig, "deployment_flexible_peaks", legend=7)
+
+
+def histories(rows, by, name, title):
     """Three stacked panels against time (s): fold angle (deg), bending_100mm y (mm), strain_20mm (microstrain)."""
-    fig, axes = figure(3, 1, 6.5, 7.5)
+    fig, axes = REPORT.figure(3, 1, 6.5, 7.5)
     for ax, (key, ylabel) in zip(axes[:, 0], (("fold", "fold angle (deg)"), ("bend_mm", "bending_100mm y (mm)"),
                                               ("strain_ue", "strain_20mm (microstrain)"))):
         for r in rows:
             if r["curves"] is not None:
                 ax.plot(r["curves"]["t"], r["curves"][key], **style(r, by))
         ax.set_ylabel(ylabel, fontsize=8)
-        ax.grid(True, alpha=0.3)
     axes[0, 0].set_title(title, fontsize=9)
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
-    save(fig, out, name)
-
-
-def peaks(rows, out, default):
-    """Peak bending (mm) and peak strain (microstrain) against flow speed (m/s), per damping model."""
-    fig, ((a, b),) = figure(1, 2, 8.4, 3.2)
-    for ax, key, ylabel in ((a, "bend_mm", "peak |bending_100mm y| (mm)"), (b, "strain_ue", "peak strain_20mm (microstrain)")):
-        for damping, ls in (("", "-"), ("deformation", ":")):
-            aero = [r for r in rows if r["damping"] == damping and r["model"] != "none" and r["ok"]]
-            if aero:
-                ax.plot([r["speed"] for r in aero], [r[key] for r in aero], "o", ls=ls, label=f"uvlm-flat, {damping or default}")
-            for r in rows:
-                if r["damping"] == damping and r["model"] == "none" and r[key] is not None:
-                    ax.axhline(r[key], color="k", ls="--" if ls == "-" else ":", lw=0.8,
-                               label=f"still air, no aero, {damping or default}")
-        ax.set(xlabel="flow speed (m/s)", ylabel=ylabel)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
-    a.set_title("Otsuka et al. 2019, Fig. 15", fontsize=9)
-    b.set_title("Otsuka et al. 2022, Fig. 12", fontsize=9)
-    save(fig, out, "deployment_flexible_peaks")
+    REPORT.save(fig, name)
 
 
 def main(argv=None):
-    args = arguments(__doc__, argv=argv)
+    args = REPORT.arguments(argv)
     parts = plan(args.quick)
-    start = time.perf_counter()
-    study = Study(RECORDS / f"deployment{'_quick' if args.quick else ''}.jsonl", resume=args.resume)
-    res = study.run([j for jobs in parts.values() for j in jobs], work, args.jobs,
-                    cost=lambda j: (10 if j.scene == "deploy_flexible" else 1) * COST[j.model],
-                    describe=lambda j, r: f"{r['status']}, deployment {fmt(r['deploy_s'], '.4f')} s")
-    wall = time.perf_counter() - start
+    res = REPORT.run([j for jobs in parts.values() for j in jobs], work,
+                     cost=lambda j: (10 if j.scene == "deploy_flexible" else 1) * COST[j.model],
+                     describe=lambda j, r: f"{r['status']}, deployment {fmt(r['deploy_s'], '.4f')} s")
     rows = {part: [row(j, res[j]) for j in jobs] for part, jobs in parts.items()}
-    scene = load_scene(ROOT / "scenes" / "deploy_flexible.toml")
-    out = QUICK if args.quick else STUDIES
+    structure = load("deploy_flexible")["structure"]
     if not args.no_plots:
-        plot(rows, out, scene_damping("deploy_flexible"))
-    render("deployment", out, parts=rows, runs=len(res), wall=wall, workers=args.jobs, command=command("deployment.py", argv),
-           paper=PAPER_2022, tip_time=TIP_TIME, default=scene_damping("deploy_flexible"), pct=pct, ratio=ratio, rises=rises,
-           after_latch=after_latch, cores=os.cpu_count(),
-           alpha=scene["structure"]["bodies"][0].get("damping", 0.0))
-    failed = [r["label"] for rs in rows.values() for r in rs if not r["ok"]]
-    print(f"{len(failed)} runs failed: {', '.join(failed)}" if failed else f"{len(res)} runs ok")
-    return 1 if failed else 0
+        plot(rows, structure["damping_model"])
+    REPORT.render(parts=rows, runs=len(res), paper=PAPER_2022, tip_time=TIP_TIME, default=structure["damping_model"],
+                  pct=pct, ratio=ratio, rises=rises, after_latch=after_latch, alpha=structure["bodies"][0]["damping"])
+    return REPORT.finish([r["label"] for rs in rows.values() for r in rs if not r["ok"]], len(res))
 
 
 if __name__ == "__main__":

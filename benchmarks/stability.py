@@ -3,41 +3,32 @@ explicit against implicit coupling against flow speed and air density.
 
     python benchmarks/stability.py [--quick] [--jobs 2] [--resume] [--no-plots]
 
-The case is scenes/stability_wing.toml (a clamped wing body under a sudden tip load; the report,
-benchmarks/templates/stability.md, states it and what "stable" means). Every probe is one run,
-`orchestrator.master.run_scene(scene, backend="direct")`, in `--jobs` worker processes (orchestrator.study);
-the estimates the map is compared with are orchestrator.stability's. Parts:
-  1. structure only, E = 1e6 ... 1e12 Pa: the largest stable structure.step of RK4 and of generalized-alpha
-     (rho_inf = 1, 0.8, 0.5, 0), by a bracketing search on a geometric grid;
-  2. coupled with uvlm-flat: flow speed x air density, gauss-seidel, jacobi and implicit; the runs unstable
-     without a "diverged" from the units are then run on to RUN_ON_STOP without the runaway stop;
-  3. the largest stable coupling.step at 10 m/s against density;
-  4. gauss-seidel at 0 m/s with 1, 2, 4, 8 structure steps per coupling step;
-  5. gauss-seidel and implicit at 60 m/s, 3 x air at three coupling steps (flutter).
---quick: two stiffnesses, RK4 and rho_inf = 0.8, a 2 x 2 coupling grid, fewer densities and steps.
-A full run writes docs/studies/stability.md and docs/studies/img/stability_*.png, --quick writes them to
-results/studies/quick/; every task's numbers go to results/studies/stability.jsonl.
+scenes/stability_wing.toml, a clamped wing under a sudden tip load (templates/stability.md says what "stable"
+means), in five parts: 1. the largest stable structure.step against Young's modulus; 2. a map of flow speed x
+air density per coupling algorithm (the unstable runs the units did not report run on to RUN_ON_STOP);
+3. the largest stable coupling.step against density; 4. structure steps per coupling step; 5. flutter at
+60 m/s. The estimates the map is compared with are orchestrator.stability's. --quick: a few of each.
 """
 import math
 import re
-import time
 from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
-from report import QUICK, RECORDS, ROOT, STUDIES, arguments, command, figure, fmt, render, save, span, table
+from report import Report, fmt, span, table
 
 from orchestrator import stability
 from orchestrator.scene import load_scene
-from orchestrator.study import Study
+from orchestrator.stability import grid_probe, grid_step as step_of
 
-SCENE = ROOT / "scenes" / "stability_wing.toml"
+REPORT = Report("stability", __doc__)
+SCENE = REPORT.root / "scenes" / "stability_wing.toml"
 AIR = 1.2                          # kg/m^3, the density factors multiply it
 RUNAWAY = "stability map: runaway"
 RUNAWAY_FACTOR = 100.0             # stop a run once KE > RUNAWAY_FACTOR x P delta_s
 COUPLING_STEP = 1e-3               # s, coupling.step of part 2 (deploy_flexible's)
 SUBSTEPS = 4                       # structure steps per coupling step in the coupled runs
-RHO_INF = 0.8                      # generalized-alpha's rho_inf in the coupled runs (the scene's)
+RHO_INF = load_scene(SCENE)["structure"]["rho_inf"]   # generalized-alpha's in the coupled runs: the scene's
 COUPLED_STOP = 0.05                # s, time.stop of the coupled runs (at least 20 coupling steps in part 3)
 RUN_ON_STOP = 0.2                  # s, part 2's runs the units did not report, run on without the runaway stop
 LINE_SPEED = 10.0                  # m/s, part 3 (deploy_flexible's flow speed)
@@ -48,81 +39,28 @@ FLUTTER_CASE = (60.0, 3.0, (1e-3, 5e-4, 2.5e-4))   # part 5: speed (m/s), densit
 INTEGRATORS = (("rk4", None), ("generalized-alpha", 1.0), ("generalized-alpha", 0.8),
                ("generalized-alpha", 0.5), ("generalized-alpha", 0.0))
 ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
+EXPLICIT = ("gauss-seidel", "jacobi")
 SYMBOL = {"": "S", "solver": "D", "runaway": "R", "energy": "E", "displacement": "X", "error": "!"}
 
 
-# ---- one probe ---------------------------------------------------------------------------------------
-class Watch:
-    """run_scene's `units` and `progress` hooks: keeps the structure unit and, after every communication step,
-    stops the run with a diverged UnitError once its kinetic energy exceeds `limit` (J)."""
-
-    def __init__(self, limit):
-        from orchestrator import units
-
-        self.units, self.UnitError, self.limit, self.structure = units, units.UnitError, limit, None
-
-    def make_unit(self, **kwargs):
-        unit = self.units.make_unit(**kwargs)
-        self.structure = unit if kwargs["kind"] == "structure" else self.structure
-        return unit
-
-    def update(self, t):
-        kinetic = self.structure.monitors()["kinetic_energy"]
-        if not kinetic <= self.limit:
-            raise self.UnitError(f"{RUNAWAY}: kinetic energy {kinetic:.3g} J > {self.limit:.3g} J at "
-                                       f"t = {t:.6g} s (run diverged, stopped here)", diverged=True)
-
-    def finish(self, t, status):
-        pass
-
-
 def probe(overrides, watch=True):
-    """One run of the scene with `overrides`: status, message, simulated_s, wall_s, the bounds and response of
-    orchestrator.stability.sudden_load_response at the tip, twist_max (deg, the tip chord line turning out of
-    its plane at rest), stable and why: "" (stable), "solver" (the units reported "diverged"), "error"
-    (status "error"), "runaway" (stopped by Watch, only if `watch`), "energy" or "displacement" (status "ok"
-    but a bound exceeded)."""
-    from orchestrator.master import run_scene
-
-    scene = load_scene(SCENE, overrides)
-    P, delta = stability.tip_load_scale(scene, "wing")
-    hooks = Watch(RUNAWAY_FACTOR * P * delta) if watch else None
-    start = time.perf_counter()
-    result = run_scene(scene, backend="direct", units=hooks, progress=hooks)
-    series = result.series
-    response = stability.sudden_load_response(series, "tip", P, delta)
-    chord = np.subtract(*(series.positions[:, series.probe_names.index(p)] for p in ("tip_trailing_edge",
-                                                                                     "tip_leading_edge")))
+    """One run of the scene with `overrides` (orchestrator.stability.sudden_load_run at the tip, stopped at
+    RUNAWAY_FACTOR P delta_s if `watch`) and twist_max (deg): the tip chord line turning out of its plane at rest."""
+    record, series = stability.sudden_load_run(load_scene(SCENE, overrides), "wing", "tip",
+                                               RUNAWAY_FACTOR if watch else None, RUNAWAY)
+    chord = [series.column(f"tip_trailing_edge_{a}") - series.column(f"tip_leading_edge_{a}") for a in "xy"]
     with np.errstate(invalid="ignore"):    # chord x at rest, turning towards the section normal y; span along z
-        twist = float(np.nanmax(np.abs(np.degrees(np.arctan2(chord[:, 1], chord[:, 0]))))) if len(chord) else math.nan
-    if result.status != "ok":
-        why = "error" if result.status == "error" else "runaway" if result.message.startswith(RUNAWAY) else "solver"
-    else:
-        why = ("energy" if not response["ke_max"] <= response["ke_bound"] else
-               "displacement" if not response["tip_max"] <= response["tip_bound"] else "")
-    return {"status": result.status, "message": result.message, "simulated_s": result.simulated_time_s,
-            "wall_s": time.perf_counter() - start, **response, "twist_max": twist, "stable": not why, "why": why}
+        twist = float(np.nanmax(np.abs(np.degrees(np.arctan2(chord[1], chord[0]))))) if len(series) else math.nan
+    return record | {"twist_max": twist}
 
 
-def coupled(algorithm, V, factor, step, stop, substeps=SUBSTEPS):
-    """Overrides of a uvlm-flat run at flow.speed V (m/s), density factor x 1.2 kg/m^3, coupling.step `step`
-    (s) taken by the structure in `substeps` equal steps, until `stop` (s)."""
-    return ["aero.model=uvlm-flat", f"coupling.algorithm={algorithm}", f"flow.speed={float(V)!r}",
-            f"flow.density={AIR * factor!r}", f"coupling.step={step!r}", f"structure.step={step / substeps!r}",
-            f"structure.rho_inf={RHO_INF!r}", f"time.stop={stop!r}"]
-
-
-# ---- the tasks ------------------------------------------------------------------------------------------
+# ---- the tasks (their repr is the key of their record in results/studies/stability.jsonl) -----------------
 @dataclass(frozen=True)
 class StepSearch:
     """Part 1: the largest stable structure.step of `integrator` (rho_inf `rho`) at Young's modulus E (Pa)."""
     E: float
     integrator: str
     rho: float | None
-
-    @property
-    def label(self):
-        return f"E = {self.E:.0e} Pa, {integrator_label(self.rho)}"
 
     def run(self):
         omega_1, omega_max = stability.frequency_range(load_scene(SCENE, stiffness(self.E)))
@@ -157,7 +95,10 @@ class Coupled:
                 f"in {self.substeps} steps, {self.stop:g} s")
 
     def run(self):
-        return probe(coupled(self.algorithm, self.V, self.factor, self.step, self.stop, self.substeps), self.watch)
+        return probe(["aero.model=uvlm-flat", f"coupling.algorithm={self.algorithm}", f"flow.speed={float(self.V)!r}",
+                      f"flow.density={AIR * self.factor!r}", f"coupling.step={self.step!r}",
+                      f"structure.step={self.step / self.substeps!r}", f"structure.rho_inf={RHO_INF!r}",
+                      f"time.stop={self.stop!r}"], self.watch)
 
 
 @dataclass(frozen=True)
@@ -169,14 +110,10 @@ class CouplingSearch:
     factor: float
     octaves: int
 
-    @property
-    def label(self):
-        return f"coupling step of {self.algorithm} at {self.V:g} m/s, {self.factor:g} x air"
-
     def run(self):
-        def run(h):
-            return probe(coupled(self.algorithm, self.V, self.factor, h, max(COUPLED_STOP, 20 * h)))
-        return stability.largest_stable_step(run, LINE_TOP, fine=4, octaves=self.octaves)
+        return stability.largest_stable_step(
+            lambda h: Coupled(self.algorithm, self.V, self.factor, h, stop=max(COUPLED_STOP, 20 * h)).run(),
+            LINE_TOP, fine=4, octaves=self.octaves)
 
 
 def stiffness(E):
@@ -199,7 +136,8 @@ def plan(quick=False):
                 for V in speeds if a != "implicit" or V in IMPLICIT_SPEEDS],
             3: [CouplingSearch("gauss-seidel", LINE_SPEED, f, 5) for f in ((1.0, 30.0) if quick else
                                                                             (0.1, 1.0, 3.0, 10.0, 20.0, 30.0, 100.0))]
-               + [CouplingSearch("implicit", LINE_SPEED, f, 3) for f in ((1.0,) if quick else (1.0, 10.0, 30.0, 100.0))],
+               + [CouplingSearch("implicit", LINE_SPEED, f, 3)
+                  for f in ((1.0,) if quick else (1.0, 10.0, 30.0, 100.0))],
             4: [Coupled("gauss-seidel", 0.0, f, step, k) for f in (densities[1:2] if quick else densities)
                 for k in substeps],
             5: [Coupled(a, flutter_speed, flutter_factor, h) for a in ("gauss-seidel", "implicit")
@@ -226,53 +164,40 @@ def describe(task, out):
     return f"largest stable step {fmt(step_of(out, 'stable'), '.3g')} s, {len(out['rows'])} runs"
 
 
-# ---- estimates (orchestrator.stability; independent of the runs) ---------------------------------------------
 def estimates():
-    """The numbers the coupling map is compared with (SI units; mu_* per kg/m^3 of air, mu_crit_* -)."""
+    """The numbers the coupling map is compared with (orchestrator.stability, independent of the runs; SI
+    units, mu_* per kg/m^3 of air, mu_crit_* -), with divergence_speed(density factor) (m/s) and
+    onset_factor(mu_crit), the density factor at which the lattice's largest added-mass ratio reaches it."""
     scene = load_scene(SCENE, ["aero.model=uvlm-flat"])
     body = scene["structure"]["bodies"][0]
     section, length = body["section"], body["length"]
     c = section["chord"]
     mu_max, mu_1, modes = stability.lattice_added_mass(scene, "wing")
     slope = stability.lift_slope(scene)
-    e = (section.get("axis_position", 0.5) - 0.25) * c                   # m, aerodynamic centre ahead of the axis
+    e = (section["axis_position"] - 0.25) * c                          # m, aerodynamic centre ahead of the axis
     mu_crit = lambda lag, substeps=SUBSTEPS: stability.critical_mass_ratio(lag, substeps, RHO_INF)
+    q_D = stability.divergence_pressure(section["torsional_rigidity"], length, c, e, slope)
     return {"m_s": section["density"] * c * section["thickness"],        # kg/m, structure per unit span
             "plate": math.pi * c ** 2 / 4,                               # m^2: m_a = rho pi c^2 / 4 per kg/m^3
             "M": scene["aero"]["chordwise_panels"], "mu_max": mu_max, "mu_1": mu_1, "modes": modes,
             "mu_crit": {a: mu_crit(lag) for a, lag in stability.LAGS.items()},
             "mu_crit_plain": {a: mu_crit(lag, 256) for a, lag in stability.LAGS.items()},
             "mu_crit_substeps": {k: mu_crit(0, k) for k in SUBSTEP_CASE[2]},
-            "slope": slope, "aspect": length / c,
-            "q_D": stability.divergence_pressure(section["torsional_rigidity"], length, c, e, slope)}
+            "slope": slope, "aspect": length / c, "q_D": q_D,
+            "divergence_speed": lambda factor: stability.divergence_speed(q_D, AIR * factor),
+            "onset_factor": lambda mu: mu / (mu_max * AIR)}
 
 
-def divergence_speed(est, factor):
-    """Torsional divergence speed (m/s) at density factor x 1.2 kg/m^3."""
-    return stability.divergence_speed(est["q_D"], AIR * factor)
-
-
-def onset_factor(est, mu_crit):
-    """Density factor (x 1.2 kg/m^3) at which the lattice's largest added-mass ratio reaches mu_crit."""
-    return mu_crit / (est["mu_max"] * AIR)
+def modal_growth(est, algorithm, factor):
+    """(predicted peak kinetic energy / (P delta_s), mode) at the end of a part 2 run at 0 m/s."""
+    return stability.modal_growth(est["modes"], AIR * factor, stability.LAGS[algorithm], COUPLING_STEP,
+                                  round(COUPLED_STOP / COUPLING_STEP), SUBSTEPS, RHO_INF)
 
 
 # ---- reading the results --------------------------------------------------------------------------------
-def step_of(out, which):
-    """The grid step (s) of a search's `which` = "stable" | "unstable" end, or None."""
-    k = out.get(which)
-    return None if k is None else out["top"] * 2.0 ** (-k / out["fine"])
-
-
-def probe_row(out, which):
-    """The probe row of a search's `which` end, or None."""
-    return None if out.get(which) is None else out["rows"][str(out[which])]
-
-
 def reason(message):
     """The units' reason in a "diverged" message, without the call, the time and the hint."""
-    text = message.split("failed: ")[-1].split(". Hint")[0]
-    text = re.sub(r"^(structure|aero) unit: solver ", "", text)
+    text = re.sub(r"^(structure|aero) unit: solver ", "", message.split("failed: ")[-1].split(". Hint")[0])
     return re.sub(r"^diverged at t = [^:]*: ", "", text).replace("|", "/")
 
 
@@ -303,7 +228,7 @@ def search_cell(out):
 
 def failure(out):
     """how() of the smallest unstable probe of a search, or "-"."""
-    return "-" if "rows" not in out or out.get("unstable") is None else how(probe_row(out, "unstable"))
+    return "-" if "rows" not in out or out.get("unstable") is None else how(grid_probe(out, "unstable"))
 
 
 def find(res, part, **fields):
@@ -336,11 +261,10 @@ def run_on(task):
 
 def check_named(message):
     """Which of the units' checks stopped a "diverged" run, from its message."""
-    for key, name in (("Newton", "Newton iteration"), ("NaN", "NaN/inf"), ("constraint residual", "constraint residual"),
-                      ("gradient vectors", "gradient size"), ("implicit coupling", "implicit iteration")):
-        if key in message:
-            return name
-    return "other"
+    return next((name for key, name in (("Newton", "Newton iteration"), ("NaN", "NaN/inf"),
+                                        ("constraint residual", "constraint residual"),
+                                        ("gradient vectors", "gradient size"),
+                                        ("implicit coupling", "implicit iteration")) if key in message), "other")
 
 
 # ---- tables (markdown text) -----------------------------------------------------------------------------------
@@ -366,8 +290,8 @@ def table_stiffness(res, part):
             row.append(f"{search_cell(out)} ({fmt(ga / measured if ga and measured else None, '.0f')}x)")
         rows.append(row)
     return table(["E (Pa)", "omega_1 (rad/s)", "omega_max (rad/s)", "2 sqrt(2) / omega_max (s)",
-                  "RK4 stable / unstable (s)", "RK4 / estimate"] + [f"gen-alpha rho_inf = {r:g} (s, x RK4)" for r in rhos],
-                 rows)
+                  "RK4 stable / unstable (s)", "RK4 / estimate",
+                  *(f"gen-alpha rho_inf = {r:g} (s, x RK4)" for r in rhos)], rows)
 
 
 def table_failures(res, part):
@@ -391,25 +315,20 @@ def table_modal(res, part, est, V):
     rows = []
     for f in sorted({t.factor for t in part}):
         row = [f"{f:g}"]
-        for a in ("gauss-seidel", "jacobi"):
+        for a in EXPLICIT:
             energy, mode = modal_growth(est, a, f)
             out = find(res, part, algorithm=a, V=V, factor=f)
-            row += [f"{energy:.3g} ({est['modes']['omega'][mode] / (2 * math.pi):.0f} Hz)", "-" if out is None else cell(out)]
+            hertz = est["modes"]["omega"][mode] / (2 * math.pi)
+            row += [f"{energy:.3g} ({hertz:.0f} Hz)", "-" if out is None else cell(out)]
         rows.append(row)
     return table(["density x 1.2 (kg/m^3)", "gauss-seidel predicted (mode)", "gauss-seidel measured",
                   "jacobi predicted (mode)", "jacobi measured"], rows)
 
 
-def modal_growth(est, algorithm, factor):
-    """(predicted peak kinetic energy / (P delta_s), mode) at the end of a part 2 run at 0 m/s."""
-    return stability.modal_growth(est["modes"], AIR * factor, stability.LAGS[algorithm], COUPLING_STEP,
-                                  round(COUPLED_STOP / COUPLING_STEP), SUBSTEPS, RHO_INF)
-
-
 def table_run_on(res, part):
     """Part 2's runs the units did not report, run on to RUN_ON_STOP: per algorithm, how many the units
     reported "diverged", when (s), how long after the response left the bounds (ms), the largest kinetic
-    energy (x P delta_s), which checks stopped them, and the runs not reported."""
+    energy (x P delta_s), which checks stopped them, and the runs not reported. Also the count reported."""
     rows = []
     for a in ALGORITHMS:
         mine = [res[run_on(t)] for t in unflagged(res, part) if t.algorithm == a and run_on(t) in res]
@@ -438,8 +357,9 @@ def table_line(res, part):
             out = find(res, part, algorithm=a, factor=f)
             row += ["not run", "-"] if out is None else [search_cell(out), failure(out)]
         rows.append(row)
-    return table(["density x 1.2 (kg/m^3)", "gauss-seidel: largest stable coupling step (s)", "smallest unstable step tried",
-                  "implicit: largest stable coupling step (s)", "smallest unstable step tried"], rows)
+    return table(["density x 1.2 (kg/m^3)", "gauss-seidel: largest stable coupling step (s)",
+                  "smallest unstable step tried", "implicit: largest stable coupling step (s)",
+                  "smallest unstable step tried"], rows)
 
 
 def table_substeps(res, part, est):
@@ -453,7 +373,7 @@ def table_substeps(res, part, est):
         unstable = [f for f, c in zip(factors, cells) if c != "S"]
         measured = (f"> {factors[-1]:g}" if not unstable else f"<= {factors[0]:g}" if not stable
                     else f"{max(stable):g} to {min(unstable):g}")
-        rows.append([str(k), f"{mu:.3f}", f"{onset_factor(est, mu):.3g}", measured] + cells)
+        rows.append([str(k), f"{mu:.3f}", f"{est['onset_factor'](mu):.3g}", measured] + cells)
     return table(["structure steps per coupling step", "mu_crit", "predicted onset (x air)", "measured onset (x air)"]
                  + [f"{f:g} x air" for f in factors], rows)
 
@@ -465,10 +385,11 @@ def table_flutter(res, part):
         row = [f"{h * 1e3:g}"]
         for a in ("gauss-seidel", "implicit"):
             out = find(res, part, algorithm=a, step=h) or {"error": "not run"}
-            row += [out["error"], "-", "-"] if "error" in out else [cell(out), f"{out['ke_max']:.3g}", f"{out['twist_max']:.3g}"]
+            row += ([out["error"], "-", "-"] if "error" in out else
+                    [cell(out), f"{out['ke_max']:.3g}", f"{out['twist_max']:.3g}"])
         rows.append(row)
-    return table(["coupling step (ms)", "gauss-seidel", "KE max (J)", "tip twist max (deg)", "implicit",
-                  "KE max (J)", "tip twist max (deg)"], rows)
+    return table(["coupling step (ms)"] + ["gauss-seidel", "KE max (J)", "tip twist max (deg)", "implicit",
+                                           "KE max (J)", "tip twist max (deg)"], rows)
 
 
 # ---- the facts the report words -------------------------------------------------------------------------------
@@ -476,49 +397,54 @@ def stiffness_facts(res, part):
     """Part 1: RK4's bracket of its estimate and the fitted exponent of E; per rho_inf the ratios to RK4's step
     and the steps per first period; how many generalized-alpha searches ended at a Newton failure."""
     rk4 = [(t.E, res[t]) for t in part if t.rho is None and "error" not in res[t]]
-    low = [step_of(r, "stable") * r["omega_max"] / stability.RK4_IMAGINARY for _, r in rk4 if step_of(r, "stable")]
-    high = [step_of(r, "unstable") * r["omega_max"] / stability.RK4_IMAGINARY for _, r in rk4 if step_of(r, "unstable")]
+    bracket = {w: [step_of(r, w) * r["omega_max"] / stability.RK4_IMAGINARY for _, r in rk4 if step_of(r, w)]
+               for w in ("stable", "unstable")}
     pts = np.array([(E, step_of(r, "stable")) for E, r in rk4 if step_of(r, "stable")])
+    rk4_step = {E: step_of(r, "stable") for E, r in rk4}
     ga = {}
     for rho in dict.fromkeys(t.rho for t in part if t.rho is not None):
         steps = [(t.E, step_of(res[t], "stable"), res[t]["omega_1"]) for t in part
                  if t.rho == rho and "error" not in res[t] and step_of(res[t], "stable")]
-        rk4_step = {E: step_of(r, "stable") for E, r in rk4}
         ratios = [h / rk4_step[E] for E, h, _ in steps if rk4_step.get(E)]
         if ratios:
             ga[rho] = (span(ratios, ".0f"), span([2 * math.pi / w / h for _, h, w in steps], ".0f"))
     searches = [t for t in part if t.rho is not None and "error" not in res[t] and res[t].get("unstable") is not None]
-    return {"low": span(low, ".3f") if low else None, "high": span(high, ".3f") if high else None,
+    return {"low": span(bracket["stable"], ".3f") if bracket["stable"] else None,
+            "high": span(bracket["unstable"], ".3f") if bracket["unstable"] else None,
             "exponent": float(np.polyfit(np.log(pts[:, 0]), np.log(pts[:, 1]), 1)[0]) if len(pts) > 1 else math.nan,
             "ga": ga, "ga_searches": len(searches),
-            "newton": sum("Newton" in probe_row(res[t], "unstable")["message"] for t in searches)}
+            "newton": sum("Newton" in grid_probe(res[t], "unstable")["message"] for t in searches)}
 
 
 def coupling_facts(res, part, est):
     """Part 2: measured onsets at the lowest speed, the free-mass estimate's overshoot, the modal prediction's
     first unstable density, and the runs the units did not report or that failed otherwise."""
     V = min(t.V for t in part)
-    measured, overshoot, first = {}, {}, {}
-    for a in dict.fromkeys(t.algorithm for t in part):
-        measured[a] = onset(res, part, a, V)
-        low, high = measured[a]
-        if a in est["mu_crit"] and high is not None and onset_factor(est, est["mu_crit"][a]) > high:
-            predicted = onset_factor(est, est["mu_crit"][a])
-            overshoot[a] = f"{predicted / high:.2g} to {predicted / low:.2g}" if low else f"at least {predicted / high:.2g}"
-    for a in ("gauss-seidel", "jacobi"):
+    measured = {a: onset(res, part, a, V) for a in dict.fromkeys(t.algorithm for t in part)}
+    overshoot = {}
+    for a, (low, high) in measured.items():
+        predicted = est["onset_factor"](est["mu_crit"][a]) if a in est["mu_crit"] else None
+        if predicted is not None and high is not None and predicted > high:
+            overshoot[a] = (f"{predicted / high:.2g} to {predicted / low:.2g}" if low else
+                            f"at least {predicted / high:.2g}")
+    first = {}
+    for a in EXPLICIT:
         for f in sorted({t.factor for t in part}):
             energy, mode = modal_growth(est, a, f)
             if energy > 1.0:
                 first[a] = (f, mode)
                 break
     flagged = [(t, res[t]) for t in unflagged(res, part)]
-    failed = [(t, res[t]) for t in part if t.algorithm == "implicit" and "error" not in res[t] and res[t]["why"] == "solver"]
-    residuals = [float(m.group(1)) for _, r in failed if (m := re.search(r"interface residual ([0-9.e+-]+) after", r["message"]))]
+    failed = [(t, res[t]) for t in part if t.algorithm == "implicit" and "error" not in res[t]
+              and res[t]["why"] == "solver"]
+    residuals = [float(m.group(1)) for _, r in failed
+                 if (m := re.search(r"interface residual ([0-9.e+-]+) after", r["message"]))]
     run_on_table, reported = table_run_on(res, part)
-    return {"V": V, "total": len(part), "measured": measured, "overshoot": overshoot, "first": first, "flagged": flagged,
-            "ended_ok": [(t, r) for t, r in flagged if r["status"] == "ok"],
+    return {"V": V, "total": len(part), "measured": measured, "overshoot": overshoot, "first": first,
+            "flagged": flagged, "ended_ok": [(t, r) for t, r in flagged if r["status"] == "ok"],
             "run_on": [run_on(t) for t, _ in flagged if run_on(t) in res], "run_on_table": run_on_table,
-            "reported": reported, "errors": [(t, res[t]) for t in part if "error" in res[t] or res[t]["why"] == "error"],
+            "reported": reported,
+            "errors": [(t, res[t]) for t in part if "error" in res[t] or res[t]["why"] == "error"],
             "failed": failed, "residuals": residuals, "newton": sum("Newton" in r["message"] for _, r in failed)}
 
 
@@ -544,7 +470,7 @@ def line_facts(res, part, stiffness_part):
     smallest = min((step_of(res[t], "unstable") for t in part if t.algorithm == "gauss-seidel" and t.factor in none),
                    default=None)
     newton = [t for t in part if "error" not in res[t] and res[t].get("unstable") is not None
-              and "Newton" in probe_row(res[t], "unstable")["message"]]
+              and "Newton" in grid_probe(res[t], "unstable")["message"]]
     E_scene = load_scene(SCENE)["structure"]["bodies"][0]["section"]["youngs_modulus"]
     own = [step_of(res[t], "stable") * math.sqrt(t.E / E_scene) for t in stiffness_part
            if t.rho == RHO_INF and "error" not in res[t] and step_of(res[t], "stable")]
@@ -553,10 +479,10 @@ def line_facts(res, part, stiffness_part):
 
 
 # ---- figures ----------------------------------------------------------------------------------------------
-def plot_stiffness(res, part, out):
+def plot_stiffness(res, part):
     """Left: largest stable step (s) against E (Pa), log-log, with the RK4 estimate and the top of the grid;
     right: the same steps times omega_max (-), with RK4's 2 sqrt(2)."""
-    fig, ((ax, bx),) = figure(1, 2, 11.0, 4.4)
+    fig, ((ax, bx),) = REPORT.figure(1, 2, 11.0, 4.4)
     first = {t.E: res[t] for t in reversed(part) if "error" not in res[t]}
     Es = sorted(first)
     ax.loglog(Es, [stability.rk4_step_limit(first[E]["omega_max"]) for E in Es], "k--", lw=1,
@@ -568,22 +494,18 @@ def plot_stiffness(res, part, out):
         runs = [res[t] | {"E": t.E} for t in part if t.rho == rho and "error" not in res[t]]
         for which, fill in (("stable", None), ("unstable", "none")):
             pts = [(r["E"], step_of(r, which), r["omega_max"]) for r in runs if step_of(r, which)]
-            if not pts:
-                continue
-            E, h, w = (np.array(v) for v in zip(*pts))
-            style = {"marker": markers[rho], "mfc": fill, "color": f"C{list(markers).index(rho)}", "ms": 5,
-                     "ls": "-" if which == "stable" else "none", "lw": 1,
-                     "label": integrator_label(rho) if which == "stable" else None}
-            ax.loglog(E, h, **style)
-            bx.semilogx(E, h * w, **style)
+            if pts:
+                E, h, w = (np.array(v) for v in zip(*pts))
+                style = {"marker": markers[rho], "mfc": fill, "color": f"C{list(markers).index(rho)}", "ms": 5,
+                         "ls": "-" if which == "stable" else "none", "lw": 1,
+                         "label": integrator_label(rho) if which == "stable" else None}
+                ax.loglog(E, h, **style)
+                bx.semilogx(E, h * w, **style)
     ax.set(xlabel="Young's modulus E (Pa)", ylabel="structure.step (s)")
     bx.set(xlabel="Young's modulus E (Pa)", ylabel="structure.step x omega_max (-)", yscale="log")
     ax.set_title("Largest stable step (filled), next grid step: unstable (open)", fontsize=9)
     bx.set_title("The same in units of 1 / omega_max (highest mode)", fontsize=9)
-    for a in (ax, bx):
-        a.grid(True, which="both", alpha=0.25)
-        a.legend(fontsize=7)
-    save(fig, out, "stability_stiffness")
+    REPORT.save(fig, "stability_stiffness", legend=7)
 
 
 STYLE = {"": ("o", "tab:green", "stable"), "solver": ("x", "tab:red", "diverged (reported by the units)"),
@@ -592,11 +514,11 @@ STYLE = {"": ("o", "tab:green", "stable"), "solver": ("x", "tab:red", "diverged 
          "displacement": ("D", "tab:brown", "status ok, tip > 4 delta_s"), "error": ("*", "k", "status error")}
 
 
-def plot_coupling(res, part, est, out):
+def plot_coupling(res, part, est):
     """One panel per algorithm: speed (m/s) x density factor (log), a marker per run, the divergence speed and
     the added-mass onset estimates drawn over."""
     algorithms = list(dict.fromkeys(t.algorithm for t in part))
-    fig, (axes,) = figure(1, len(algorithms), 4.2 * len(algorithms), 5.0)
+    fig, (axes,) = REPORT.figure(1, len(algorithms), 4.2 * len(algorithms), 5.0)
     factors = np.geomspace(min(t.factor for t in part), max(t.factor for t in part), 100)
     legend = {}
     for ax, algorithm in zip(axes, algorithms):
@@ -604,68 +526,57 @@ def plot_coupling(res, part, est, out):
             marker, color, label = STYLE[res[t]["why"]]
             legend[label], = ax.semilogy(t.V, t.factor, marker=marker, color=color, ls="none", ms=7)
         legend["torsional divergence speed (static estimate)"], = ax.semilogy(
-            [divergence_speed(est, f) for f in factors], factors, "k--", lw=1)
+            [est["divergence_speed"](f) for f in factors], factors, "k--", lw=1)
         if algorithm in est["mu_crit"]:
             mu = est["mu_crit"][algorithm]
-            ax.axhline(onset_factor(est, mu), color="tab:blue", lw=1, ls=":")
-            ax.text(62, onset_factor(est, mu) * 1.1, f"added-mass estimate, mu = {mu:.2f}", fontsize=6,
+            ax.axhline(est["onset_factor"](mu), color="tab:blue", lw=1, ls=":")
+            ax.text(62, est["onset_factor"](mu) * 1.1, f"added-mass estimate, mu = {mu:.2f}", fontsize=6,
                     ha="right", color="tab:blue")
         ax.set(xlim=(-3, 63), ylim=(min(factors) / 1.5, max(factors) * 1.5), xlabel="flow speed (m/s)",
                ylabel="density / 1.2 kg/m^3", title=algorithm)
-        ax.grid(True, which="both", alpha=0.25)
     fig.legend(list(legend.values()), list(legend), loc="lower center", ncol=3, fontsize=7)
-    save(fig, out, "stability_coupling", rect=(0, 0.1, 1, 1))
+    REPORT.save(fig, "stability_coupling", rect=(0, 0.1, 1, 1))
 
 
-def plot_line(res, part, out):
+def plot_line(res, part):
     """Largest stable coupling step (s) against density factor, per algorithm."""
-    fig, ((ax,),) = figure(1, 1, 5.5, 3.8)
+    fig, ((ax,),) = REPORT.figure(1, 1, 5.5, 3.8)
     for a, marker, color in (("gauss-seidel", "o", "tab:blue"), ("implicit", "s", "tab:green")):
         runs = [res[t] | {"f": t.factor} for t in part if t.algorithm == a and "error" not in res[t]]
-        stable = [(r["f"], step_of(r, "stable")) for r in runs if step_of(r, "stable")]
-        unstable = [(r["f"], step_of(r, "unstable")) for r in runs if step_of(r, "unstable")]
-        if stable:
-            ax.loglog(*zip(*stable), marker=marker, lw=1, color=color, label=f"{a}: largest stable")
-        if unstable:
-            ax.loglog(*zip(*unstable), marker=marker, mfc="none", ls="none", color=color,
-                      label=f"{a}: smallest unstable step tried")
+        for which, fill, text in (("stable", None, "largest stable"),
+                                  ("unstable", "none", "smallest unstable step tried")):
+            pts = [(r["f"], step_of(r, which)) for r in runs if step_of(r, which)]
+            if pts:
+                ax.loglog(*zip(*pts), marker=marker, mfc=fill, lw=1, ls="-" if fill is None else "none", color=color,
+                          label=f"{a}: {text}")
     ax.axhline(LINE_TOP, color="0.5", ls=":", lw=1, label="top of the grid")
     ax.set(xlabel="density / 1.2 kg/m^3", ylabel="coupling.step (s)")
     ax.set_title(f"uvlm-flat at {LINE_SPEED:g} m/s, {SUBSTEPS} structure steps per coupling step", fontsize=9)
-    ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=7)
-    save(fig, out, "stability_coupling_step")
+    REPORT.save(fig, "stability_coupling_step", legend=7)
 
 
 def main(argv=None):
-    args = arguments(__doc__, argv=argv)
+    args = REPORT.arguments(argv)
     parts = plan(args.quick)
-    start = time.perf_counter()
     est = estimates()
-    study = Study(RECORDS / f"stability{'_quick' if args.quick else ''}.jsonl", resume=args.resume)
-    run = lambda tasks: study.run(tasks, work, args.jobs, cost=cost, describe=describe)
-    res = run([t for part in parts.values() for t in part])
-    res |= run([run_on(t) for t in unflagged(res, parts[2])])
-    wall = time.perf_counter() - start
-    out = QUICK if args.quick else STUDIES
-    if not args.no_plots:
-        plot_stiffness(res, parts[1], out)
-        plot_coupling(res, parts[2], est, out)
-        plot_line(res, parts[3], out)
+    res = REPORT.run([t for part in parts.values() for t in part], work, cost=cost, describe=describe)
+    res |= REPORT.run([run_on(t) for t in unflagged(res, parts[2])], work, cost=cost, describe=describe)
     p1, p2, p3, p4, p5 = parts.values()
-    render("stability", out, command=command("stability.py", argv), wall=wall, workers=args.jobs, tasks=len(res),
-           runs=sum(len(r["rows"]) if "rows" in r else 1 for r in res.values()),
-           est=est, AIR=AIR, RUNAWAY_FACTOR=RUNAWAY_FACTOR, COUPLING_STEP=COUPLING_STEP, SUBSTEPS=SUBSTEPS,
-           RHO_INF=RHO_INF, COUPLED_STOP=COUPLED_STOP, RUN_ON_STOP=RUN_ON_STOP, LINE_SPEED=LINE_SPEED,
-           LINE_TOP=LINE_TOP, IMPLICIT_SPEEDS=IMPLICIT_SPEEDS, SUBSTEP_CASE=SUBSTEP_CASE, FLUTTER_CASE=FLUTTER_CASE,
-           RK4_REAL=stability.RK4_REAL, RK4_IMAGINARY=stability.RK4_IMAGINARY,
-           algorithms=list(dict.fromkeys(t.algorithm for t in p2)), res=res, reason=reason,
-           divergence_speed=lambda f: divergence_speed(est, f), onset_factor=lambda mu: onset_factor(est, mu),
-           table_stiffness=table_stiffness(res, p1), table_failures=table_failures(res, p1),
-           p1=stiffness_facts(res, p1), maps={a: table_map(res, p2, a) for a in ALGORITHMS},
-           table_modal=table_modal(res, p2, est, min(t.V for t in p2)), p2=coupling_facts(res, p2, est),
-           table_line=table_line(res, p3), p3=line_facts(res, p3, p1), table_substeps=table_substeps(res, p4, est),
-           table_flutter=table_flutter(res, p5), p5=flutter_trends(res, p5))
+    if not args.no_plots:
+        plot_stiffness(res, p1)
+        plot_coupling(res, p2, est)
+        plot_line(res, p3)
+    constants = {k: v for k, v in globals().items() if k.isupper()}     # the case, as the template names it
+    REPORT.render(**constants, tasks=len(res), runs=sum(len(r["rows"]) if "rows" in r else 1 for r in res.values()),
+                  est=est, RK4_REAL=stability.RK4_REAL, RK4_IMAGINARY=stability.RK4_IMAGINARY,
+                  algorithms=list(dict.fromkeys(t.algorithm for t in p2)), res=res, reason=reason,
+                  divergence_speed=est["divergence_speed"], onset_factor=est["onset_factor"],
+                  table_stiffness=table_stiffness(res, p1), table_failures=table_failures(res, p1),
+                  p1=stiffness_facts(res, p1), maps={a: table_map(res, p2, a) for a in ALGORITHMS},
+                  table_modal=table_modal(res, p2, est, min(t.V for t in p2)), p2=coupling_facts(res, p2, est),
+                  table_line=table_line(res, p3), p3=line_facts(res, p3, p1),
+                  table_substeps=table_substeps(res, p4, est), table_flutter=table_flutter(res, p5),
+                  p5=flutter_trends(res, p5))
 
 
 if __name__ == "__main__":

@@ -1,35 +1,29 @@
 """Trade study of the flexible deployment: error against cost of every structure, aero and coupling choice,
 with the Pareto front, and the convergence findings of Otsuka et al. 2019 (Sec. VII.A) with our numbers.
 
-    python benchmarks/tradeoff.py [--quick] [--jobs 2] [--resume] [--speeds 10 20] [--stop 0.3]
-                                  [--cost wall|cpu] [--no-plots]
+    python benchmarks/tradeoff.py [--quick] [--jobs 2] [--resume] [--no-plots] [--speeds 10 20] [--stop 0.3]
+                                  [--cost wall|cpu]
 
 scenes/deploy_flexible.toml as shipped is the base; one factor at a time is changed (FACTORS, levels from
-the least to the most accurate), plus the most accurate run (every factor at its last level), at flow.speed
-10 and 20 m/s, time.stop 0.3 s. Every run is `orchestrator.master.run_scene(scene, backend="direct")` in
-`--jobs` worker processes (orchestrator.study). Errors (orchestrator.metrics) are against the most accurate
-run of the same speed, and within each factor against its own most accurate level; the report
-(benchmarks/templates/tradeoff.md) defines them. --cost cpu draws the Pareto fronts against each run's
-CPU time instead of its wall time (on a loaded machine the wall time can be several times the CPU time).
---quick: time.stop 0.05 s, 10 m/s, two or three levels per factor (QUICK_FACTORS): a smoke test.
-The default speeds and stop write docs/studies/tradeoff.md and docs/studies/img/tradeoff_*.png, others
-results/studies/tradeoff/ (--quick: results/studies/quick/); every run's numbers go to
-results/studies/tradeoff.jsonl.
+the least to the most accurate), plus the most accurate run (every factor at its last level). Errors
+(orchestrator.metrics) are against the most accurate run of the same speed, and within each factor against
+its own most accurate level; the report (templates/tradeoff.md) defines them. --cost cpu draws the Pareto
+fronts against CPU time instead of wall time. --quick: time.stop 0.05 s, 10 m/s, QUICK_FACTORS. Speeds or
+a stop other than the defaults write to results/studies/tradeoff/.
 """
 import math
-import os
 import time
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-from report import QUICK, RECORDS, ROOT, STUDIES, arguments, command, figure, fmt, render, save, status
+from report import RECORDS, Report, fmt, ratio, status
 
 from orchestrator import metrics
 from orchestrator.scene import load_scene
-from orchestrator.study import Study
 
-SCENE = ROOT / "scenes" / "deploy_flexible.toml"
-RIGID_SCENE = ROOT / "scenes" / "deploy_rigid.toml"     # where the rigid fidelity's integrator and step come from
+REPORT = Report("tradeoff", __doc__)
+SCENE = REPORT.root / "scenes" / "deploy_flexible.toml"
+RIGID_SCENE = REPORT.root / "scenes" / "deploy_rigid.toml"   # where the rigid fidelity's integrator and step come from
 SPEEDS = (10.0, 20.0)          # m/s
 STOP = 0.3                     # s, time.stop: the wing latches at about 0.17 s (10 m/s) and 0.20 s (20 m/s)
 QUICK_STOP = 0.05              # s
@@ -124,7 +118,9 @@ def level_text(factor, level):
         return "rigid" if level == "rigid" else f"{level} elements/body"
     if factor in ("M", "N", "L_w"):
         return f"{factor} = {level:g}"
-    return f"step {1e3 * level:g} ms" if factor == "step" else f"h = {1e3 * level:g} ms" if factor == "h" else str(level)
+    if factor in ("step", "h"):
+        return f"step {1e3 * level:g} ms" if factor == "step" else f"h = {1e3 * level:g} ms"
+    return str(level)
 
 
 def with_level(base, name, level):
@@ -198,11 +194,6 @@ def errors(row, ref):
             "cl": metrics.cl_error_pct(t, cl, t_ref, cl_ref, until=CL_WINDOW)}
 
 
-def ratio(value, ref):
-    """value / ref, or None."""
-    return None if value is None or not ref else value / ref
-
-
 def analyse(jobs, res, base, best, key):
     """Per job: errors against the most accurate run of its speed ("err"), wall and CPU time / base ("ratio",
     "cpu_ratio"); per (speed, metric): the Pareto front [Job] in error against cost `key` (wall_s | cpu_s)."""
@@ -253,14 +244,14 @@ def saving(cheap, costly):
 
 
 # ---- figures ------------------------------------------------------------------------------------------------
-def plot_fronts(jobs, res, ana, fronts, names, base, cost_key, img):
+def plot_fronts(jobs, res, ana, fronts, names, base, cost_key):
     """tradeoff_<metric>.png, one panel per speed: error (%) against cost (s), log-log, every run a labelled
     point coloured by its factor (filled on the Pareto front), the front a step line; an error of 0 (the most
     accurate run) drawn as a triangle at a third of the smallest other error."""
     key, xlabel = COSTS[cost_key]
     speeds = sorted({j.speed for j in jobs})
     for metric, name in FIGURES.items():
-        fig, axes = figure(1, len(speeds), 7.5 * len(speeds), 6.5)
+        fig, axes = REPORT.figure(1, len(speeds), 7.5 * len(speeds), 6.5)
         for ax, speed in zip(axes[0], speeds):
             front = fronts[(speed, metric)]
             here = [j for j in jobs if j.speed == speed and ana[j]["err"][metric] is not None and res[j][key]]
@@ -280,18 +271,17 @@ def plot_fronts(jobs, res, ana, fronts, names, base, cost_key, img):
             ax.set(xscale="log", yscale="log", xlabel=f"{xlabel} (s)", ylabel=f"{METRICS[metric]} error (%)",
                    title=f"{speed:g} m/s")
             ax.axhline(LIMIT, color="0.5", lw=0.6, ls="--")
-            ax.grid(True, which="both", alpha=0.25)
             ax.legend(fontsize=6, loc="lower left")       # cheap and accurate: the corner no run reaches
         fig.suptitle(f"deploy_flexible: {METRICS[metric]} error against the most accurate run\n(filled: on the "
                      "Pareto front; triangle: error 0, drawn below the others; dashed: 1%)", fontsize=8)
-        save(fig, img, f"tradeoff_{name}")
+        REPORT.save(fig, f"tradeoff_{name}")
 
 
-def plot_convergence(conv, factors, img):
+def plot_convergence(conv, factors):
     """tradeoff_convergence.png: per factor, the errors (%) of its levels against its most accurate level;
     colour by metric, line style by speed."""
     cols = math.ceil(len(factors) / 2)
-    fig, axes = figure(2, cols, 3.3 * cols, 6.4)
+    fig, axes = REPORT.figure(2, cols, 3.3 * cols, 6.4)
     colors = {"deploy": "tab:blue", "bend": "tab:orange", "cl": "tab:green"}
     lines = dict(zip(sorted({speed for _, speed in conv}), ("o-", "s--", "^:", "d-.")))
     for ax, name in zip(axes.flat, factors):
@@ -306,54 +296,50 @@ def plot_convergence(conv, factors, img):
         ax.axhline(LIMIT, color="k", lw=0.6, ls="--")
         ax.set_title(f"{FACTOR_NAMES[name]}: against {level_text(name, factors[name][-1])}", fontsize=7)
         ax.set_ylabel("error (%)", fontsize=7)
-        ax.grid(True, which="both", alpha=0.25)
     for ax in list(axes.flat)[len(factors):]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=5)
     fig.suptitle("deploy_flexible: each factor against its own most accurate level, the others at base "
                  "(dashed: 1%)", fontsize=8)
-    save(fig, img, "tradeoff_convergence")
+    REPORT.save(fig, "tradeoff_convergence")
 
 
 def main(argv=None):
-    args = arguments(__doc__, argv=argv, **{
+    args = REPORT.arguments(argv, **{
         "--speeds": {"type": float, "nargs": "+", "help": "flow speeds, m/s (default 10 20; --quick: 10)"},
         "--stop": {"type": float, "help": f"time.stop, s (default {STOP:g}; --quick: {QUICK_STOP:g})"},
         "--cost": {"choices": COSTS, "default": "wall", "help": "the cost of the Pareto fronts: wall or CPU time"}})
     factors = QUICK_FACTORS if args.quick else FACTORS
     speeds = tuple(args.speeds or ((10.0,) if args.quick else SPEEDS))
     stop = args.stop or (QUICK_STOP if args.quick else STOP)
+    if not args.quick and (speeds, stop) != (SPEEDS, STOP):
+        REPORT.out = RECORDS / "tradeoff"
     base, best = base_setting(), replace(base_setting(), **{n: levels[-1] for n, levels in factors.items()})
     settings = [base] + [with_level(base, n, level) for n, levels in factors.items() for level in levels] + [best]
     jobs = [Job(s, v, stop) for v in speeds for s in dict.fromkeys(settings)]
     names = {j.setting: label(j.setting, base, best) for j in jobs}
-    start = time.perf_counter()
-    study = Study(RECORDS / f"tradeoff{'_quick' if args.quick else ''}.jsonl", resume=args.resume)
-    res = study.run(jobs, work, args.jobs, cost=cost, initializer=warm_up,
-                    describe=lambda j, r: f"{r['status']}, deployment {fmt(r['deploy_s'], '.4f')} s, run {r['wall_s']:.1f} s")
+    describe = lambda j, r: f"{r['status']}, deployment {fmt(r['deploy_s'], '.4f')} s, run {r['wall_s']:.1f} s"
+    res = REPORT.run(jobs, work, cost=cost, initializer=warm_up, describe=describe)
     res = {j: r if "error" not in r else {"status": "error", "message": r["error"], "wall_s": None, "cpu_s": None,
                                           "deploy_s": None, "bend_mm": None, "cl": None} for j, r in res.items()}
-    wall = time.perf_counter() - start
     key = COSTS[args.cost][0]
     ana, fronts = analyse(jobs, res, base, best, key)
     conv = convergence(jobs, res, factors, base, key)
-    out = QUICK if args.quick else STUDIES if speeds == SPEEDS and stop == STOP else RECORDS / "tradeoff"
     if not args.no_plots:
-        plot_fronts(jobs, res, ana, fronts, names, base, args.cost, out)
-        plot_convergence(conv, factors, out)
+        plot_fronts(jobs, res, ana, fronts, names, base, args.cost)
+        plot_convergence(conv, factors)
     integrator, rigid_step = rigid_integrator()
-    structure = load_scene(SCENE)["structure"]
-    render("tradeoff", out, command=command("tradeoff.py", argv), runs=len(jobs), wall=wall, workers=args.jobs,
-           jobs=jobs, res=res, ana=ana, fronts=fronts, conv=conv, names=names, factors=factors, base=base,
-           best=best, stop=stop, window=min(CL_WINDOW, stop), cost_key=key, cost_name=COSTS[args.cost][1].removeprefix("run "),
-           rigid_integrator=integrator, rigid_step=rigid_step, structure=structure, speeds=sorted(speeds),
-           finest_step=1e3 * min(factors["step"]), METRICS=METRICS, FIGURES=FIGURES,
-           FACTOR_NAMES=FACTOR_NAMES, LIMIT=LIMIT, PAPER_CHOICE=PAPER_CHOICE, FLAT_VS_FREE_PAPER=FLAT_VS_FREE_PAPER,
-           level_text=level_text, factor_of=factor_of, within_from=within_from, saving=saving, errors=errors,
-           with_level=with_level, replace=replace, status=status, cores=os.cpu_count())
+    REPORT.render(runs=len(jobs), jobs=jobs, res=res, ana=ana, fronts=fronts, conv=conv, names=names, factors=factors,
+                  base=base, best=best, stop=stop, window=min(CL_WINDOW, stop), cost_key=key, speeds=sorted(speeds),
+                  cost_name=COSTS[args.cost][1].removeprefix("run "), rigid_integrator=integrator,
+                  rigid_step=rigid_step, structure=load_scene(SCENE)["structure"],
+                  finest_step=1e3 * min(factors["step"]),
+                  METRICS=METRICS, FIGURES=FIGURES, FACTOR_NAMES=FACTOR_NAMES, LIMIT=LIMIT, PAPER_CHOICE=PAPER_CHOICE,
+                  FLAT_VS_FREE_PAPER=FLAT_VS_FREE_PAPER, level_text=level_text, factor_of=factor_of,
+                  within_from=within_from, saving=saving, errors=errors, with_level=with_level, replace=replace,
+                  status=status)
     failed = [f"{names[j.setting]} at {j.speed:g} m/s" for j in jobs if res[j]["status"] != "ok"]
-    print(f"{len(failed)} runs failed: {', '.join(failed)}" if failed else f"{len(jobs)} runs ok")
-    return 1 if failed else 0
+    return REPORT.finish(failed, len(jobs))
 
 
 if __name__ == "__main__":

@@ -149,7 +149,7 @@ def strain_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
 def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     """model, CL_final, CL_min, CL_max (-) and lift_final (N) over the samples after the first."""
     keys = ("CL_final", "CL_min", "CL_max", "lift_final")
-    out: dict[str, Any] = {"model": scene.get("aero", {}).get("model"), **dict.fromkeys(keys)}
+    out: dict[str, Any] = {"model": scene["aero"]["model"], **dict.fromkeys(keys)}
     if len(series) < 2:
         return out
     cl, lift = series.CL[1:], series.lift[1:]
@@ -162,8 +162,8 @@ def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
 
 def coupling_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     """algorithm, acceleration, total_iterations, max_iterations_used, max_residual over the steps after t = 0."""
-    coupling = scene.get("coupling", {})
-    out: dict[str, Any] = {"algorithm": coupling.get("algorithm"), "acceleration": coupling.get("acceleration"),
+    coupling = scene["coupling"]
+    out: dict[str, Any] = {"algorithm": coupling["algorithm"], "acceleration": coupling["acceleration"],
                            "total_iterations": 0, "max_iterations_used": None, "max_residual": None}
     if len(series) < 2:
         return out

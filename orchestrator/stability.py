@@ -2,7 +2,9 @@
 the lattice's added mass and lift slope, and the torsional divergence speed.
 
 Independent of any coupled run: each is an analytic formula or a small linear model, so that a measured
-stability map (benchmarks/stability.py, docs/studies/stability.md) can be checked against it.
+stability map (benchmarks/stability.py, docs/studies/stability.md) can be checked against it. The map's
+measuring tools are here too: a run under a sudden load judged stable or not (``sudden_load_run``, with
+``EnergyLimit`` to stop a runaway), and the search for the largest stable step (``largest_stable_step``).
 
 Model of the explicit coupling (``coupled_mode_radius``): one structural mode of unit modal mass and
 natural frequency omega under the force of uvlm-flat's quasi-steady circulation, which is proportional to
@@ -22,6 +24,7 @@ that updates x and v.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -228,6 +231,61 @@ def sudden_load_response(series, probe: str, P: float, delta: float) -> dict:
             "bounded": bool(ke <= P * delta and tip <= 4 * delta)}
 
 
+def sudden_load_run(scene: dict, body: str, probe: str, runaway: float | None = None,
+                    message: str = "runaway") -> tuple[dict, object]:
+    """(record, series) of one in-process run of a scene whose load on ``body`` is applied suddenly at t = 0
+    (``tip_load_scale``), judged at ``probe`` (``sudden_load_response``).
+
+    The record: "status", "message", "simulated_s" of the run, "wall_s" (s), the response's bounds and
+    maxima, "stable" and "why": "" (status "ok", within both bounds), "energy" or "displacement" (status
+    "ok", that bound exceeded), "solver" (status "diverged"), "error" (status "error"), or "runaway": stopped
+    by an ``EnergyLimit`` at ``runaway`` x P delta_s (J), its message starting with ``message``.
+    """
+    from orchestrator.master import run_scene
+
+    P, delta = tip_load_scale(scene, body)
+    hooks = EnergyLimit(runaway * P * delta, message) if runaway is not None else None
+    start = time.perf_counter()
+    result = run_scene(scene, backend="direct", units=hooks, progress=hooks)
+    response = sudden_load_response(result.series, probe, P, delta)
+    if result.status == "ok":
+        why = ("energy" if not response["ke_max"] <= response["ke_bound"] else
+               "displacement" if not response["tip_max"] <= response["tip_bound"] else "")
+    else:
+        stopped = hooks is not None and hooks.stopped is not None
+        why = "error" if result.status == "error" else "runaway" if stopped else "solver"
+    return {"status": result.status, "message": result.message, "simulated_s": result.simulated_time_s,
+            "wall_s": time.perf_counter() - start, **response, "stable": not why, "why": why}, result.series
+
+
+class EnergyLimit:
+    """``run_scene``'s ``units`` and ``progress`` hooks that stop a run once the structure's kinetic energy
+    exceeds ``limit`` (J): after a communication step past it, a ``UnitError`` with ``diverged`` True (the
+    run ends "diverged", its message starting with ``message``) and ``stopped`` = that step's time (s)."""
+
+    def __init__(self, limit: float, message: str = "kinetic energy limit"):
+        from orchestrator import units
+
+        self._units, self.UnitError = units, units.UnitError
+        self.limit, self.message, self.structure, self.stopped = limit, message, None, None
+
+    def make_unit(self, **kwargs):
+        unit = self._units.make_unit(**kwargs)
+        if kwargs["kind"] == "structure":
+            self.structure = unit
+        return unit
+
+    def update(self, t: float) -> None:
+        kinetic = self.structure.monitors()["kinetic_energy"]
+        if not kinetic <= self.limit:
+            self.stopped = t
+            raise self.UnitError(f"{self.message}: kinetic energy {kinetic:.3g} J > {self.limit:.3g} J at "
+                                 f"t = {t:.6g} s (run diverged, stopped here)", diverged=True)
+
+    def finish(self, t: float, status: str) -> None:
+        pass
+
+
 def largest_stable_step(run, top: float, fine: int, octaves: int) -> dict:
     """The largest step h_k = top 2^(-k/fine), k = 0 ... fine x octaves, for which ``run(h)`` (a dict with a
     bool "stable") is stable, by a bracketing search: halve the step from ``top`` until a run is stable,
@@ -253,3 +311,16 @@ def largest_stable_step(run, top: float, fine: int, octaves: int) -> dict:
         rows[str(mid)] = run(top * 2.0 ** (-mid / fine))
         stable, unstable = (mid, unstable) if rows[str(mid)]["stable"] else (stable, mid)
     return {**out, "stable": stable, "unstable": unstable}
+
+
+def grid_step(search: dict, which: str) -> float | None:
+    """The step (s) of ``largest_stable_step``'s result ``search`` at its ``which`` = "stable" or "unstable"
+    end, top 2^(-k/fine), or None where that end is None."""
+    k = search.get(which)
+    return None if k is None else search["top"] * 2.0 ** (-k / search["fine"])
+
+
+def grid_probe(search: dict, which: str) -> dict | None:
+    """What ``run`` returned at the ``which`` = "stable" or "unstable" end of ``largest_stable_step``'s result
+    ``search``, or None where that end is None."""
+    return None if search.get(which) is None else search["rows"][str(search[which])]

@@ -3,8 +3,9 @@ as they finish so that a study can be resumed and its report rendered again with
 
 A task is a hashable, picklable value (a frozen dataclass) whose ``repr`` names it; ``work(task)`` runs
 in a worker and returns a JSON-able dict. ``Study.run`` appends one JSON line per finished task,
-``{"task": repr(task), "result": {...}}``, to the study's file (e.g. results/studies/stability.jsonl), and
-returns every result as read back from JSON, so a fresh result and a resumed one are the same values.
+``{"task": repr(task), "result": {...}, "wall_s": s, "finished": Unix time}``, to the study's file (e.g.
+results/studies/stability.jsonl), and returns every result as read back from JSON, so a fresh result and
+a resumed one are the same values.
 A task that raises becomes ``{"error": "<type>: <message>"}``: reported, never dropped.
 
 ``wingsim sweep`` (``orchestrator.sweep``) is the command-line tool for a grid of ``--set`` values; a
@@ -59,11 +60,14 @@ class Study:
         self.path, self.stream = Path(path), stream if stream is not None else sys.stderr
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.results: dict[str, dict] = {}
+        self._spans: list[tuple[float, float]] = []    # (start, end) of each recorded task, Unix time, s
         if resume and self.path.exists():
             for line in self.path.read_text().splitlines():
                 if line.strip():
                     record = json.loads(line)
                     self.results[record["task"]] = record["result"]
+                    if "finished" in record:
+                        self._spans.append((record["finished"] - record["wall_s"], record["finished"]))
         else:
             self.path.write_text("")
 
@@ -81,6 +85,14 @@ class Study:
             self._run(todo, work, jobs, describe, initializer)
         return {task: self.results[repr(task)] for task in tasks}
 
+    @property
+    def wall_time(self) -> float | None:
+        """Wall time (s) from the start of the first recorded task to the end of the last, also when the
+        record was resumed; None for a record without times."""
+        if not self._spans:
+            return None
+        return max(end for _, end in self._spans) - min(start for start, _ in self._spans)
+
     def _run(self, todo, work, jobs, describe, initializer) -> None:
         start = time.perf_counter()
         context = multiprocessing.get_context("spawn")
@@ -91,9 +103,12 @@ class Study:
             for k, future in enumerate(as_completed(futures), 1):
                 task = futures[future]
                 text, wall = future.result()
-                record.write(json.dumps({"task": repr(task), "result": json.loads(text)}) + "\n")
+                finished = time.time()
+                self._spans.append((finished - wall, finished))
+                record.write(json.dumps({"task": repr(task), "result": json.loads(text), "wall_s": wall,
+                                         "finished": finished}) + "\n")
                 record.flush()
                 result = self.results[repr(task)] = json.loads(text)
                 outcome = result["error"] if "error" in result else describe(task, result) if describe else "done"
-                print(f"[{k}/{len(todo)} {time.perf_counter() - start:7.1f} s] {getattr(task, 'label', task)}: {outcome} ({wall:.1f} s)",
-                      file=self.stream, flush=True)
+                print(f"[{k}/{len(todo)} {time.perf_counter() - start:7.1f} s] {getattr(task, 'label', task)}: "
+                      f"{outcome} ({wall:.1f} s)", file=self.stream, flush=True)

@@ -1,5 +1,6 @@
 """orchestrator.study: tasks in worker processes, recorded one JSON line each, resumed without running again."""
 import json
+import time
 
 from orchestrator.study import Study
 
@@ -25,3 +26,19 @@ def test_a_resumed_study_reads_the_recorded_tasks_back_and_runs_only_the_new_one
     assert again == {TASKS[0]: {"x": 1}, TASKS[1]: {"x": 2.5, "y": [1, 2]}}
     assert Study(path).run(TASKS[:1], json.loads, jobs=1) == {TASKS[0]: {"x": 1}}   # not resumed: afresh
     assert len(path.read_text().splitlines()) == 1
+
+
+def _sleep(seconds):
+    time.sleep(seconds)
+    return {}
+
+
+def test_a_resumed_study_keeps_the_wall_time_of_its_recorded_runs(tmp_path):
+    """The report of a re-rendered study states how long its runs took, not how long the re-render took:
+    the span from the first recorded task's start to the last one's end, read back from the record."""
+    path = tmp_path / "study.jsonl"
+    study = Study(path)
+    study.run([0.3], _sleep, jobs=1)
+    assert study.wall_time >= 0.3
+    assert Study(path, resume=True).wall_time == study.wall_time
+    assert Study(path).wall_time is None   # afresh: nothing recorded yet
