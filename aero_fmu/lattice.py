@@ -19,8 +19,8 @@ s of `fmu_common.shape_functions`. We therefore store scalar matrices acting on 
 X = E.reshape(-1, 3) (row 3 node + k holds r, r_x, r_y of a node): points = Sc @ X is the same as
 kron(Sc, I_3) @ E (Otsuka et al. 2019, Eq. 20), nine times fewer operations. Likewise the tangents at the collocation
 points r_x = Sx @ X (S_x: x-derivative of S) and r_y = Sy @ X (S_y = dS/dy: the r_y interpolation), from
-which n = r_x x r_y / |r_x x r_y| (Otsuka et al. 2019, Eq. 21) and tau_x, tau_y (Otsuka et al. 2019, Eq. 24). All matrices are built
-once; `geometry(E)` is one matrix product.
+which n = r_x x r_y / |r_x x r_y| (Otsuka et al. 2019, Eq. 21) and tau_x, tau_y (Otsuka et al. 2019, Eq. 24).
+All matrices are built once; `geometry(E)` is one matrix product.
 """
 from dataclasses import dataclass
 
@@ -91,7 +91,9 @@ class Lattice:
         parts = {"corner": [], "collocation": [], "application": [], "grid": []}
         for body in bodies:
             # span stations as exact fractions num / den of the body length; chord fractions as floats
-            rows = lambda num, den, frac: _body_rows(body, num.ravel(), den, frac.ravel(), slots, lengths, self.n_slots)
+            # (rows is called only in this pass of the loop)
+            rows = lambda num, den, frac: _body_rows(body, num.ravel(), den, frac.ravel(),  # noqa: B023
+                                                     slots, lengths, self.n_slots)
             parts["corner"].append(rows(j_c, N, (i_c + 0.25) / M))
             parts["collocation"].append(rows(2 * j_p + 1, 2 * N, (i_p + 0.75) / M))
             parts["application"].append(rows(2 * j_p + 1, 2 * N, (i_p + 0.25) / M))
@@ -101,7 +103,7 @@ class Lattice:
         self.collocation_matrix = stack("collocation", 0)        # Sp
         self.tangent_x_matrix = stack("collocation", 1)          # Sx
         self.tangent_y_matrix = stack("collocation", 2)          # Sy
-        self.application_matrix = stack("application", 0)       # Sa, where panel forces act (Otsuka et al. 2019, Eq. 12)
+        self.application_matrix = stack("application", 0)       # Sa: panel force points (Otsuka et al. 2019, Eq. 12)
         self.grid_matrix = stack("grid", 0)                      # panel edges: f = i/M (leading edge 0, trailing 1)
         self._all = np.vstack([self.corner_matrix, self.collocation_matrix, self.application_matrix,
                                self.tangent_x_matrix, self.tangent_y_matrix])
@@ -125,7 +127,8 @@ class Lattice:
 
     # ------------------------------------------------------------------ per time step
     def geometry(self, E):
-        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (Otsuka et al. 2019, Eqs. 20-21, 24)."""
+        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (Otsuka et al. 2019,
+        Eqs. 20-21, 24)."""
         X = np.asarray(E, dtype=float).reshape(-1, 3)
         P = self._all @ X
         nc, n_p = self.n_corners, self.n_panels

@@ -237,8 +237,8 @@ class SteadyVLM:
         return self._full[1]
 
     def solve(self, E, flow_velocity, density, lift_direction=None) -> SteadySolution:
-        """Circulations, panel forces (Otsuka et al. 2019, Eqs. 22, 23 steady part, 25) and C_L = lift / (q S) with S the
-        reference area; C_L = 0 at zero dynamic pressure. flow_velocity (3,) m/s, density kg/m^3;
+        """Circulations, panel forces (Otsuka et al. 2019, Eqs. 22, 23 steady part, 25) and C_L = lift / (q S)
+        with S the reference area; C_L = 0 at zero dynamic pressure. flow_velocity (3,) m/s, density kg/m^3;
         lift_direction (3,) or None for `lift_axis`."""
         U = np.asarray(flow_velocity, dtype=float)
         geometry, bound, _ = self.bound_part(E)

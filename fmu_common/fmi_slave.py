@@ -277,9 +277,9 @@ class SolverSlave(Fmi2Slave):
                                       description=f"hash of the structural topology; must match the {other_unit}'s",
                                       getter=lambda: self.topology_hash), nested=False)
 
-    def to_xml(self, model_options=dict()):
+    def to_xml(self, model_options: dict | None = None):
         """pythonfmu's model description plus the UnitDefinitions of every declared unit."""
-        root = super().to_xml(model_options)
+        root = super().to_xml({} if model_options is None else model_options)
         units = sorted({v.unit for v in self.vars.values() if getattr(v, "unit", None)})
         defs = Element("UnitDefinitions")
         for unit in units:

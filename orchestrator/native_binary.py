@@ -50,7 +50,7 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
     Raises ShimUnavailable when something the shim needs is missing, RuntimeError if the compiler fails.
     """
     fmu = Path(fmu)
-    compiler = _compiler()
+    compiler = c_compiler()
     libpython = libpython or _libpython()
     python = python or sys.executable
     if not python:
@@ -65,7 +65,7 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
         defines = {"SHIM_LIBPYTHON": libpython, "SHIM_PYTHON": python, "SHIM_GUID": guid,
                    "SHIM_INNER": inner_name(model_identifier)}
         command = compiler + ["-shared", "-fPIC", "-O2", "-pthread", "-Wall",
-                              "-I", str(_fmi_headers()), "-I", str(_python_headers())]
+                              "-I", str(fmi_headers()), "-I", str(_python_headers())]
         command += [f"-D{name}={_c_string(value)}" for name, value in defines.items()]
         command += ["-o", str(shim), str(SHIM_SOURCE), "-ldl"]
         proc = subprocess.run(command, capture_output=True, text=True)
@@ -78,13 +78,15 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
 def unavailable_reason() -> str | None:
     """What is missing to build the shim with this interpreter, or None if nothing is."""
     try:
-        _compiler(), _libpython(), _python_headers(), _fmi_headers()
+        c_compiler(), _libpython(), _python_headers(), fmi_headers()
     except ShimUnavailable as missing:
         return str(missing)
     return None
 
 
-def _compiler() -> list[str]:
+def c_compiler() -> list[str]:
+    """The system C compiler as a command: ``$CC`` split like a shell word list, else ``cc``; raises
+    ShimUnavailable when it is not on PATH (or the platform is not Linux)."""
     if not sys.platform.startswith("linux"):
         raise ShimUnavailable(f"the shim is built for Linux only, not {sys.platform}")
     cc = shlex.split(os.environ.get("CC", "") or "cc")
@@ -112,7 +114,8 @@ def _python_headers() -> Path:
     return include
 
 
-def _fmi_headers() -> Path:
+def fmi_headers() -> Path:
+    """The folder of the FMI 2.0 C headers fmpy ships (fmpy/c-code); raises ShimUnavailable without them."""
     spec = importlib.util.find_spec("fmpy")
     folders = list(spec.submodule_search_locations or []) if spec else []
     for folder in folders:

@@ -1,11 +1,11 @@
 """The samples a run records at each communication point.
 
 One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
-each strain gauge's surface strain (-, a column named as the gauge), the structure's energy (J), its kinetic energy (J) and its constraint residual (-), and, for a scene
-with an aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the
-iterations ``coupling_iterations`` the master took in the communication step ending at that sample and
-the relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column
-names are those of
+each strain gauge's surface strain (-, a column named as the gauge), the structure's energy (J), its kinetic
+energy (J) and its constraint residual (-), and, for a scene with an aero unit, the lift coefficient ``CL``
+(-) and the ``lift`` (N), and, for implicit coupling, the iterations ``coupling_iterations`` the master took
+in the communication step ending at that sample and the relative interface residual ``coupling_residual``
+(-) it accepted (0 and NaN at t = 0). The column names are those of
 ``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
@@ -102,7 +102,8 @@ class TimeSeries:
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
         aero, coupling = aero or {}, coupling or {}
         self._rows.append(np.concatenate((
-            [time], np.asarray(positions, float).reshape(-1), angles, [strains.get(n, np.nan) for n in self.strain_names],
+            [time], np.asarray(positions, float).reshape(-1), angles,
+            [strains.get(n, np.nan) for n in self.strain_names],
             [monitors[n] for n in MONITOR_COLUMNS],
             [aero.get(n, np.nan) for n in self.aero_names], [coupling.get(n, np.nan) for n in self.coupling_names],
         )).astype(float))

@@ -102,7 +102,8 @@ def main(paths: list[Path]) -> int:
     failed = 0
     for path in paths:
         problems = validate(Path(path))
-        print(f"{path}: {'ok (model description valid, ' + str(STEPS) + ' steps simulated)' if not problems else 'FAILED'}")
+        verdict = f"ok (model description valid, {STEPS} steps simulated)" if not problems else "FAILED"
+        print(f"{path}: {verdict}")
         for problem in problems:
             print(f"  - {problem}")
         failed += bool(problems)

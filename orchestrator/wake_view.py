@@ -5,13 +5,13 @@ therefore replay the aero solver in-process: ``aero_fmu.solver.AeroSolver(scene)
 tunable parameters (those ``run_scene`` runs with), advanced with the e, de the aero unit was given at each
 of its steps (``RunResult.aero_inputs``, recorded by the master) and the same step end times
 (t + h, as ``AeroSlave.do_step`` computes them). With explicit coupling the aero unit's state depends
-on nothing else, so the replay reproduces the unit's wake bit for bit (tests/test_wake_view.py). With
+on nothing else, so the replay reproduces the unit's wake bit for bit (tests/cli/test_wake_view.py). With
 implicit coupling the master records only the accepted (final) iterate of each communication step (the
 rejected iterates were undone by restoring the unit's saved state), and the replay takes one ``advance``
 per step with those inputs, as for explicit coupling. It then agrees with the unit to about 1e-10
 (relative), not bit for bit: the aero unit reuses its influence-matrix factorization while the lattice
 moves rigidly within ``aero_fmu.factorization.RIGID_TOLERANCE``, and that cache, not part of the unit's
-FMU state, may have been built at a rejected iterate's geometry (tests/test_coupling.py).
+FMU state, may have been built at a rejected iterate's geometry (tests/units/test_coupling.py).
 
 The figure: ``INSTANTS`` panels at 1/4, 1/2, 3/4 and the end of the run, each a mplot3d view with equal
 scales on x, y, z (m) and the time in the title; the wing's panels (leading to trailing edge) in grey, the

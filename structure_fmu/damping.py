@@ -1,7 +1,7 @@
 """Damping of deformation: mass-proportional, zero for rigid-body motion (Otsuka et al. 2019, Sec. II.C, corrected).
 
-Otsuka et al. 2019 prints F_damping = -alpha M (the velocity is missing) and states in Sec. IV that the damping is zero for
-a rigid body: it acts on deformation only. We take the deformation velocity of a body as its velocity
+Otsuka et al. 2019 prints F_damping = -alpha M (the velocity is missing) and states in Sec. IV that the damping
+is zero for a rigid body: it acts on deformation only. We take the deformation velocity of a body as its velocity
 relative to the rigid motion of its root node's frame, v_def = (I - P) de, where P de is the velocity
 field of a rigid body moving with the root node (translation of r, angular velocity of the frame
 r_x/|r_x|, r_y, their cross product). The force F = -alpha (I - P)^T M (I - P) de is dissipative

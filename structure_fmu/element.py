@@ -1,7 +1,7 @@
 """The 18-DoF asymmetrically gradient-deficient ANCF beam element (Otsuka et al. 2019, Sec. II).
 
-Element coordinates (Otsuka et al. 2019, Eq. 3): e = [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B], 18 numbers, metres for r and
-dimensionless for the gradients. Every kernel here is a pure function vectorized over elements: arrays
+Element coordinates (Otsuka et al. 2019, Eq. 3): e = [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B], 18 numbers, metres
+for r and dimensionless for the gradients. Every kernel here is a pure function vectorized over elements: arrays
 of element coordinates have shape (n_elements, 18), element lengths shape (n_elements,).
 
 Position of a material point (Otsuka et al. 2019, Eq. 2): r(x, y) = S(x, y) e, the shape functions of
@@ -124,7 +124,8 @@ def _dot(a, b):
 
 
 _G = len(GAUSS_W)
-_CYCLE = (np.r_[2 * _G:3 * _G, _G:2 * _G, 0:_G], np.r_[_G:2 * _G, 0:_G, 2 * _G:3 * _G])   # rows (r_y, r'', r'), (r'', r', r_y)
+# rows (r_y, r'', r') and (r'', r', r_y)
+_CYCLE = (np.r_[2 * _G:3 * _G, _G:2 * _G, 0:_G], np.r_[_G:2 * _G, 0:_G, 2 * _G:3 * _G])
 
 
 @_cached_per_lengths
@@ -245,7 +246,7 @@ def elastic_jacobian(e, length, stiffness):
     to the slots [d, x^A, y^A, x^B, y^B] by `_field_basis`; the axial quadratic form couples the stretches'
     gradients across points and nodes; torsion is two triple products of nodal vectors. r^A enters only as
     -d (a translation does not strain). Checked against complex-step and finite differences of
-    `elastic_force` (tests/test_element.py).
+    `elastic_force` (tests/units/test_element.py).
     """
     m = _measures(e, length)
     n, eye = e.shape[0], np.eye(3)
@@ -289,7 +290,8 @@ def elastic_jacobian(e, length, stiffness):
     hessian += ct[:, None, None] * (grad_tau[:, :, None] * grad_tau[:, None, :])
     blocks = np.zeros((n, 15, 15))
     for (p, q, r), sign, (a, b, c) in (((1, 2, 4), 0.5, (xA, yA, yB)), ((3, 4, 2), -0.5, (xB, yB, yA))):
-        for (i, j), block in (((p, q), _triple_hessian(c)), ((p, r), -_triple_hessian(b)), ((q, r), _triple_hessian(a))):
+        pairs = (((p, q), _triple_hessian(c)), ((p, r), -_triple_hessian(b)), ((q, r), _triple_hessian(a)))
+        for (i, j), block in pairs:
             blocks[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += sign * block
     hessian += (ct * m["tau"])[:, None, None] * (blocks + np.swapaxes(blocks, 1, 2))
     return hessian[:, _NODE_COMPONENTS][:, :, _NODE_COMPONENTS] * (_NODE_SIGNS[:, None] * _NODE_SIGNS[None, :])

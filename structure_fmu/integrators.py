@@ -112,7 +112,7 @@ class RK4:
 VELOCITY_TOLERANCE = 1e-8
 """Relative tolerance of generalized-alpha's Newton iteration on q' (on q it is GeneralizedAlpha.tol).
 Measured: a damped spinning plate then decays as exp(-alpha t) to 1e-4 over 1000 steps (with q alone at
-1e-9: 6e-4, tests/test_damping.py), for about a third more iterations on deploy_flexible."""
+1e-9: 6e-4, tests/units/test_damping.py), for about a third more iterations on deploy_flexible."""
 
 
 class _NewtonDiverging(Exception):
@@ -178,7 +178,8 @@ class GeneralizedAlpha:
 
     def _predictor(self, state, h, kind):
         """(q, dq, ddq, a_known) at the start of Newton: q''_{n+1} = q''_n ("acceleration") or
-        q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are Peng et al. 2019, Eqs. (23)-(24)."""
+        q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are Peng et al. 2019,
+        Eqs. (23)-(24)."""
         am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
         a_known = (af * state.ddq - am * state.accel) / (1 - am)
         if kind == "acceleration":
@@ -208,14 +209,13 @@ class GeneralizedAlpha:
             dq_scale = max(1.0, float(np.max(np.abs(dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
-        # structure.step by round-off, so the matrix is refreshed there and at the next step: 598 of the
-        # 1018 factorizations of deploy_flexible. Reusing it across them (a relative tolerance on h) was
-        # measured slower: 751 factorizations but 7155 Newton iterations against 5588, about 8% more work.
-        # A refresh every second step instead saved 5-7% at h = 0.2 ms but cost 10% at 0.5 ms.
+        # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
+        # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
+        # saves; refreshing only every second step gains at short steps and loses at long ones.
         if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
             self._factor(model, t, q, dq, state.latched, lam, h)
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
-        for iteration in range(self.max_iterations):
+        for _ in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
             residual = model.mass_q @ ddq - F
             phi = np.zeros(0)

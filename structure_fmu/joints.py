@@ -1,4 +1,5 @@
-"""Revolute hinge with its axis along the chord: fold angle, spring actuator and latch (Otsuka et al. 2019, Sec. II.C; Otsuka et al. 2022, Sec. 5).
+"""Revolute hinge with its axis along the chord: fold angle, spring actuator and latch (Otsuka et al. 2019,
+Sec. II.C; Otsuka et al. 2022, Sec. 5).
 
 The fold angle theta is the angle from the parent's tip gradient a = r_x (parent) to the child's root
 gradient b = r_x (child), positive about the shared chord vector n = r_y:

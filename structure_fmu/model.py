@@ -56,8 +56,8 @@ class StructureModel:
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
-        # literal Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 force, which also damps the bodies' rigid motion (a constant
-        # matrix, `mass_damping`)
+        # literal Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 force, which also damps the bodies'
+        # rigid motion (a constant matrix, `mass_damping`)
         self.mass_damping = None
         if self.flexible:
             for name, body in topology.bodies.items():

@@ -155,7 +155,8 @@ class StructureTopology(topology.Topology):
             fixed = len(self.motions)
             self.motions.append(Fixed())
             if axis == "chord":
-                root = [self._new_prescribed(r0, True, fixed), self._new_free(x0), self._new_prescribed(y0, False, fixed)]
+                root = [self._new_prescribed(r0, True, fixed), self._new_free(x0),
+                        self._new_prescribed(y0, False, fixed)]
             else:
                 root = [self._new_prescribed(r0, True, fixed), self._new_free(x0), self._new_free(y0)]
                 normal = np.cross(x0, y0)

@@ -5,7 +5,6 @@ import csv
 import io
 import json
 import os
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -19,9 +18,9 @@ from orchestrator.results import deployment_time, energy_drift, summarize, write
 from orchestrator.scene import read_scene_file, resolve_scene
 from orchestrator.timeseries import TimeSeries
 from subprocesses import wingsim
+from repository import ROOT, SCENES
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"
+EXAMPLE = SCENES / "deploy_rigid.toml"
 DESIGN_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                          "max_constraint_residual", "energy_drift", "probes"}
 SUMMARY_FIELDS = DESIGN_SUMMARY_FIELDS | {"stepping_wall_time_s"}   # ours: the communication steps' wall time
@@ -46,7 +45,8 @@ KINETIC = np.array([0.0, 0.4, 1.2, 0.9, 0.3, 0.1])  # peak 1.2 J < |E_0| = 2 J: 
 RESIDUAL = np.array([0.0, 1e-12, 3e-10, 2e-11, 1e-12, 5e-12])
 
 
-def synthetic(scene, status="ok", samples=len(TIME)):
+def synthetic(scene, status="ok", samples=None):
+    samples = len(TIME) if samples is None else samples
     series = TimeSeries.from_arrays(["tip"], ["fold"], TIME[:samples], TIP[:samples, None, :],
                                     FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples],
                                     kinetic_energy=KINETIC[:samples])

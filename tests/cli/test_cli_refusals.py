@@ -26,8 +26,9 @@ from orchestrator.results import summarize
 from orchestrator.scene import load_scene
 from orchestrator.sweep import RUN_FILE, combinations, finished_summary, parse_grid
 from subprocesses import CODE_ROOT
+from repository import SCENES
 
-SCENE = CODE_ROOT / "scenes" / "deploy_rigid.toml"
+SCENE = SCENES / "deploy_rigid.toml"
 STILL = ["--set", "aero.model=none", "--set", "time.stop=0.02", "--backend", "direct"]
 CONTRACT_STATUSES = {"ok", "diverged", "error"}
 MARKER = "WINGSIM_TEST_MARKER"
@@ -248,9 +249,9 @@ def ended(proc: subprocess.Popen, what: str) -> str:
     """stderr of `proc` once it has exited, within WAIT_S (killed and failed after that)."""
     try:
         return proc.communicate(timeout=WAIT_S)[1]
-    except subprocess.TimeoutExpired:
+    except subprocess.TimeoutExpired as late:
         proc.kill()
-        raise AssertionError(f"{what} had not exited {WAIT_S:g} s after the signal: {proc.communicate()[1]}")
+        raise AssertionError(f"{what} had not exited {WAIT_S:g} s after the signal: {proc.communicate()[1]}") from late
 
 
 def _proc(pid: int, name: str) -> bytes:
@@ -327,9 +328,9 @@ def sweep_with_two_workers(tmp_path):
 
     try:
         kids = wait_for(started, "two sweep workers and the resource tracker")
-    except AssertionError:
+    except AssertionError as missing:
         proc.kill()
-        raise AssertionError(proc.communicate()[1])
+        raise AssertionError(proc.communicate()[1]) from missing
     assert set(kids) <= set(marked(marker))   # the marker reaches them: it finds them after the parent dies
     return proc, marker, kids
 

@@ -2,16 +2,15 @@
 
 import copy
 import json
-from pathlib import Path
 
 import pytest
 
 from orchestrator.overrides import apply_overrides, parse_override, parse_value
 from orchestrator.scene import MISSING, load_scene, read_scene_file, resolve_scene
 from fmu_common.errors import SceneError
+from repository import SCENES
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "scenes" / "deploy_rigid.toml"
+EXAMPLE = SCENES / "deploy_rigid.toml"
 
 
 @pytest.fixture
@@ -274,7 +273,7 @@ def test_a_stop_angle_the_fold_angle_never_reaches_fails_at_load(stop):
 # --- aero scenes: flow.direction and the [motion] / [wing] shorthands ------------------------------
 
 def aero_raw(name):
-    return read_scene_file(ROOT / "scenes" / f"{name}.toml")
+    return read_scene_file(SCENES / f"{name}.toml")
 
 
 def test_flow_direction_defaults_to_the_chord_axis_of_the_first_root_body(raw):

@@ -19,9 +19,8 @@ from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import REQUIRED, Key, Table, Tables, Variants, item_label
 from orchestrator.cli import main
 from orchestrator.scene import load_scene, read_scene_file, resolve_scene
-from subprocesses import CODE_ROOT
+from repository import SCENES
 
-SCENES = CODE_ROOT / "scenes"
 SHIPPED = sorted(SCENES.glob("*.toml"))
 FAST_S = 1.0      # a refusal takes well under a second
 

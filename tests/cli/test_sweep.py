@@ -10,9 +10,10 @@ from orchestrator.results import summarize
 from orchestrator.scene import load_scene
 from orchestrator.sweep import combinations, parse_grid, split_values, summary_figures
 from fmu_common.errors import SceneError
-from subprocesses import CODE_ROOT, wingsim
+from subprocesses import wingsim
+from repository import SCENES
 
-SCENE = CODE_ROOT / "scenes" / "deploy_rigid.toml"
+SCENE = SCENES / "deploy_rigid.toml"
 SETS = ["aero.model=none", "time.stop=0.08"]   # still air, short: each run deploys in ~0.06 s of simulated time
 GRID = ["structure.joints.fold.stiffness=0.02,0.026", "structure.joints.fold.torque=0.3,0.4"]
 KEYS = ["structure.joints.fold.stiffness", "structure.joints.fold.torque"]
@@ -147,7 +148,7 @@ def test_resume_runs_only_missing(tmp_path):
 
 
 def test_dask_cluster_on_loopback(local_sweep, tmp_path, monkeypatch):
-    distributed = pytest.importorskip("distributed")
+    import distributed
     out = tmp_path / "dask"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster:

@@ -2,7 +2,6 @@
 drawn from a replay of the aero unit that reproduces the unit's wake bit for bit, and never able to fail
 a run."""
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,8 +12,8 @@ from orchestrator.master import communication_times, run_scene
 from orchestrator.plots import write_plots
 from orchestrator.scene import load_scene
 from structure_fmu.solver import StructureSolver
+from repository import SCENES
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
 PNG = b"\x89PNG\r\n\x1a\n"
 
 

@@ -1,6 +1,6 @@
 """Replay an FMI host's output CSV through fmpy: the same FMU, the same communication points, compared.
 
-    python tests/fmpy_replay.py FMU CSV
+    python tests/fmi/fmpy_replay.py FMU CSV
 
 CSV is a host's result file (a "time" column and one column per Real variable, as the FMI Compliance
 Checker writes with `-o`). The FMU is instantiated with fmpy's FMU2Slave, initialized with the start

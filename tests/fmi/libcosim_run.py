@@ -1,6 +1,6 @@
 """Run wingsim's structure and aero FMUs in another FMI 2.0 master, the Open Simulation Platform's libcosim.
 
-    python tests/libcosim_run.py FMU_DIR STEP STOP
+    python tests/fmi/libcosim_run.py FMU_DIR STEP STOP
 
 Connects e[i], de[i] (structure -> aero) and Q[i] (aero -> structure) for every coordinate, steps libcosim's
 fixed-step algorithm (all units step, then values are exchanged: Jacobi), and prints the structure unit's
@@ -24,7 +24,8 @@ from libcosimpy.CosimSlave import CosimLocalSlave
 
 def main(fmu_dir: Path, step: float, stop: float) -> None:
     log_output_level(CosimLogLevel.ERROR)
-    refs = {unit: {v.name: v.valueReference for v in read_model_description(str(fmu_dir / f"{unit}.fmu")).modelVariables}
+    refs = {unit: {v.name: v.valueReference
+                   for v in read_model_description(str(fmu_dir / f"{unit}.fmu")).modelVariables}
             for unit in ("structure", "aero")}
     execution = CosimExecution.from_step_size(int(round(step * 1e9)))   # nanoseconds
     structure = execution.add_local_slave(CosimLocalSlave(str(fmu_dir / "structure.fmu"), "structure"))

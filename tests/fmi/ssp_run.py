@@ -1,7 +1,7 @@
 """Run an SSP package written by `wingsim export` in another tool, as its user would (not a test module).
 
-    python tests/ssp_run.py libcosim PACKAGE.ssp [PARAMETER ...]
-    python tests/ssp_run.py fmpy PACKAGE.ssp
+    python tests/fmi/ssp_run.py libcosim PACKAGE.ssp [PARAMETER ...]
+    python tests/fmi/ssp_run.py fmpy PACKAGE.ssp
 
 The stop time and the communication step are read from the package's SystemStructure.ssd
 (DefaultExperiment stopTime; the step of its com.opensimulationplatform annotation):

@@ -6,25 +6,22 @@ import subprocess
 import sys
 import types
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
 
-fmpy = pytest.importorskip("fmpy")
-from fmpy import read_model_description  # noqa: E402
-from fmpy.validation import validate_fmu  # noqa: E402
+from orchestrator import units as real_units
+from orchestrator.build import build_fmus, fmus_up_to_date
+from orchestrator.cli import fmu_dir as run_fmu_dir  # a fixture below is named fmu_dir
+from orchestrator.master import CouplingError, check_connection, run_scene
+from orchestrator.scene import load_scene
+from orchestrator.units import UnitError, make_unit
+from fmu_common.topology import Topology
+from repository import SCENES
+from subprocesses import simulate_in_fresh_python, wingsim
 
-from orchestrator import units as real_units  # noqa: E402
-from orchestrator.build import build_fmus, fmus_up_to_date  # noqa: E402
-from orchestrator.cli import fmu_dir as run_fmu_dir  # noqa: E402  (a fixture below is named fmu_dir)
-from orchestrator.master import CouplingError, check_connection, run_scene  # noqa: E402
-from orchestrator.scene import load_scene  # noqa: E402
-from orchestrator.units import UnitError, make_unit  # noqa: E402
-from fmu_common.topology import Topology  # noqa: E402
-from subprocesses import simulate_in_fresh_python, wingsim  # noqa: E402
-
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
 # Otsuka et al. 2019, Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
 HEAVE = ["time.stop=0.5", "aero.wake_length=3"]
 H = 0.1
@@ -40,9 +37,9 @@ def scene():
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(scene, tmp_path_factory):
-    out = tmp_path_factory.mktemp("fmus")
-    assert build_fmus(scene, out) == [out / "structure.fmu", out / "aero.fmu"]
+def fmu_dir(built_fmus):
+    out = built_fmus("heaving_wing", *HEAVE)
+    assert sorted(p.name for p in out.iterdir()) == ["aero.fmu", "structure.fmu"]
     return out
 
 

@@ -3,7 +3,7 @@ other tools against wingsim's own master.
 
 The reference for the deployment time is ``run_scene`` with ``coupling.algorithm = "jacobi"``: every other host
 here exchanges like Jacobi (both units step from the outputs at t, then the outputs are copied), read from their
-code: libcosim's fixed-step algorithm (as tests/test_libcosim.py compares), fmpy's ``simulate_ssp`` (its loop
+code: libcosim's fixed-step algorithm (as tests/fmi/test_libcosim.py compares), fmpy's ``simulate_ssp`` (its loop
 steps every component, then applies the connections), and fmpy's container FMU (each internal step: every unit
 steps, then ``updateConnections``). libcosim and the container exchange the initial outputs once at
 initialization, as the master does; fmpy's ``simulate_ssp`` starts every connection at 0.0 instead, which the
@@ -26,17 +26,16 @@ import numpy as np
 import pytest
 from lxml import etree
 
+from fmi_hosts import UnitSpec, assert_clean, assert_replayed_by_fmpy, check, fmpy_run, run_c_host
+from fmu_common.topology import Topology
 from orchestrator import native_binary
 from orchestrator.cli import fmu_dir, main
 from orchestrator.master import run_scene
 from orchestrator.scene import hinge_joints, load_scene
-from fmu_common.topology import Topology
+from repository import SCENES
 from subprocesses import wingsim
-from test_c_host import UnitSpec, fmpy_run, host, run_c_host  # noqa: F401  (host: the compiled C host fixture)
-from test_compliance_checker import CHECKER, assert_clean, assert_replayed_by_fmpy, check
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENE = ROOT / "scenes" / "deploy_rigid.toml"
+SCENE = SCENES / "deploy_rigid.toml"
 SSP_RUN = Path(__file__).with_name("ssp_run.py")
 SCHEMA = Path(importlib.util.find_spec("fmpy").origin).parent / "ssp" / "schema"
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -206,11 +205,11 @@ def test_libcosim_runs_the_package_to_the_jacobi_deployment_time(coupled, jacobi
 
 
 def test_fmpy_simulate_ssp_runs_the_structure_only_package_to_wingsim_s_deployment(still_air):
-    fmpy_run = run_tool("fmpy", still_air["ssp"])
-    assert fmpy_run["steps"] == 300
+    by_fmpy = run_tool("fmpy", still_air["ssp"])
+    assert by_fmpy["steps"] == 300
     result = run_scene(load_scene(SCENE, STILL_AIR), backend="fmu", fmu_dir=still_air["fmus"])
     assert result.status == "ok", result.message
-    assert fmpy_run["deployment_time_s"] == pytest.approx(result.latch_times["fold"], abs=TIME_TOL)
+    assert by_fmpy["deployment_time_s"] == pytest.approx(result.latch_times["fold"], abs=TIME_TOL)
 
 
 @pytest.mark.xfail(strict=True, reason="fmpy 0.3.32's simulate_ssp starts every connection at 0.0 instead of "
@@ -261,10 +260,10 @@ def test_fmpy_runs_the_container_to_the_jacobi_deployment_time(coupled, jacobi):
     assert np.all(vacuum["lift"] == 0.0) and np.any(result["lift"][:21] != 0.0)
 
 
-def test_the_container_in_the_c_host_with_an_empty_environment(host, coupled, jacobi, tmp_path):
-    """The C host of test_c_host.py runs wing.fmu as its only unit with no environment but the variables that
-    choose this process's numeric kernels (test_c_host.numeric_env); fmpy's FMU2Slave makes the same calls in
-    this process: equal outputs, bit for bit."""
+def test_the_container_in_the_c_host_with_an_empty_environment(c_host, coupled, jacobi, tmp_path):
+    """The C host of tests/fmi/c_host/ runs wing.fmu as its only unit with no environment but the variables
+    that choose this process's numeric kernels (fmi_hosts.numeric_env); fmpy's FMU2Slave makes the same calls
+    in this process: equal outputs, bit for bit."""
     folder = tmp_path / "wing"
     with zipfile.ZipFile(coupled["container"]) as z:
         z.extractall(folder)
@@ -272,19 +271,18 @@ def test_the_container_in_the_c_host_with_an_empty_environment(host, coupled, ja
     unit.outputs = [(vr, name) for vr, name in unit.outputs
                     if name in ("latch_time_fold", "fold_angle_fold", "energy", "CL", "lift")]
     steps, h = 300, 0.001
-    c = run_c_host(host, [unit], steps, h, steps * h, ["run"], tmp_path / "host")["run"]
+    c = run_c_host(c_host, [unit], steps, h, steps * h, ["run"], tmp_path / "host")["run"]
     np.testing.assert_array_equal(c, fmpy_run([unit], steps, h, steps * h))
     latch = 1 + [name for _, name in unit.outputs].index("latch_time_fold")
     assert c[-1, latch] == pytest.approx(jacobi, abs=TIME_TOL)
 
 
-@pytest.mark.skipif(not CHECKER.is_file(), reason=f"the FMI Compliance Checker is not installed at {CHECKER}")
 @pytest.mark.skipif(native_binary.unavailable_reason() is not None,
                     reason=f"the units keep pythonfmu's binary, which a host without Python cannot load: "
                            f"{native_binary.unavailable_reason()}")
-def test_the_container_passes_the_compliance_checker_in_an_empty_environment(coupled, tmp_path):
+def test_the_container_passes_the_compliance_checker_in_an_empty_environment(fmu_checker, coupled, tmp_path):
     out_csv = tmp_path / "out.csv"
-    assert_clean(check(coupled["container"], out_csv, 1e-3, 0.02))
+    assert_clean(check(fmu_checker, coupled["container"], out_csv, 1e-3, 0.02))
     # the same numbers through fmpy, for every output; not for the container's own `time` variable, a running
     # sum of its steps, which the replay would compare with the checker's time column (1e-17 apart)
     lines = out_csv.read_text().split("\n", 1)

@@ -5,9 +5,9 @@ import types
 import numpy as np
 
 from orchestrator import units as real_units
-from orchestrator.build import build_fmus
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
+from repository import SCENES
 
 
 def nan_from_step(k_bad, kind="structure"):
@@ -30,10 +30,9 @@ def nan_from_step(k_bad, kind="structure"):
     return types.SimpleNamespace(make_unit=make_unit, UnitError=real_units.UnitError)
 
 
-def test_nan_input_mid_run_stops_the_master_with_the_units_reason(tmp_path):
-    scene = load_scene("scenes/deploy_rigid.toml", ["time.stop=0.05", "coupling.step=0.01", "aero.model=none"])
-    build_fmus(scene, tmp_path)
-    result = run_scene(scene, backend="fmu", fmu_dir=tmp_path, units=nan_from_step(3))
+def test_nan_input_mid_run_stops_the_master_with_the_units_reason(built_fmus):
+    scene = load_scene(SCENES / "deploy_rigid.toml", ["time.stop=0.05", "coupling.step=0.01", "aero.model=none"])
+    result = run_scene(scene, backend="fmu", fmu_dir=built_fmus("deploy_rigid"), units=nan_from_step(3))
     assert result.status == "error"
     assert "Q[5]" in result.message and "NaN" in result.message
     # samples at 0, 0.01 and 0.02 s were written before the failing step from 0.02 s
@@ -41,12 +40,11 @@ def test_nan_input_mid_run_stops_the_master_with_the_units_reason(tmp_path):
     assert np.all(np.isfinite(result.series.positions))
 
 
-def test_aero_unit_failing_mid_run_stops_the_master_with_its_reason(tmp_path):
+def test_aero_unit_failing_mid_run_stops_the_master_with_its_reason(built_fmus):
     """The aero FMU is given a NaN coordinate at its 3rd input (t = 0.02 s with Gauss-Seidel, which hands
     it the structure's e at the end of each step); it refuses the step, and the run ends there."""
-    scene = load_scene("scenes/deploy_rigid.toml", ["time.stop=0.05", "coupling.step=0.01"])
-    assert [p.name for p in build_fmus(scene, tmp_path)] == ["structure.fmu", "aero.fmu"]
-    result = run_scene(scene, backend="fmu", fmu_dir=tmp_path, units=nan_from_step(3, kind="aero"))
+    scene = load_scene(SCENES / "deploy_rigid.toml", ["time.stop=0.05", "coupling.step=0.01"])
+    result = run_scene(scene, backend="fmu", fmu_dir=built_fmus("deploy_rigid"), units=nan_from_step(3, kind="aero"))
     assert result.status == "error"
     assert "aero" in result.message and "e[5]" in result.message and "NaN" in result.message
     # the initial inputs (call 1) and the step to 0.01 s (call 2) are fine; the step from 0.01 s fails

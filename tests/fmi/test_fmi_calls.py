@@ -17,22 +17,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-fmpy = pytest.importorskip("fmpy")
-from fmpy import extract, read_model_description  # noqa: E402
-from fmpy.fmi1 import FMICallException, calloc, free  # noqa: E402
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException, calloc, free
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from orchestrator import native_binary  # noqa: E402
-from orchestrator.build import build_fmus  # noqa: E402
-from orchestrator.scene import load_scene  # noqa: E402
-from orchestrator.units import FMU_FILES, KINDS  # noqa: E402
-from fmu_common.fmi_slave import SCENE_RESOURCE  # noqa: E402
-from structure_fmu.solver import StructureSolver  # noqa: E402
-from fmu_common.topology import Topology  # noqa: E402
+from orchestrator import native_binary
+from orchestrator.scene import load_scene
+from orchestrator.units import FMU_FILES, KINDS
+from fmu_common.fmi_slave import SCENE_RESOURCE
+from structure_fmu.solver import StructureSolver
+from fmu_common.topology import Topology
+from repository import SCENES
 
-ROOT = Path(__file__).resolve().parents[1]
 H = 1e-3  # communication step, s
 ERROR = 3  # fmi2Error
 
@@ -228,14 +225,12 @@ def accepted(unit):
 
 @pytest.fixture(scope="module")
 def scene():
-    return load_scene(ROOT / "scenes" / "deploy_rigid.toml")
+    return load_scene(SCENES / "deploy_rigid.toml")
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(scene, tmp_path_factory):
-    out = tmp_path_factory.mktemp("fmus")
-    assert [p.name for p in build_fmus(scene, out)] == [FMU_FILES["structure"], FMU_FILES["aero"]]
-    return out
+def fmu_dir(built_fmus):
+    return built_fmus("deploy_rigid")
 
 
 @pytest.fixture
@@ -471,7 +466,7 @@ def test_with_two_instances_of_an_fmu_garbage_is_refused_when_set(make, scene):
 def test_reset_returns_the_fmu_to_the_state_after_instantiation(make, scene):
     unit = make("fmu", "structure")
     runs = []
-    for run in range(2):
+    for _ in range(2):
         initialize(unit)
         set_inputs(unit, "structure", scene)
         for k in range(3):

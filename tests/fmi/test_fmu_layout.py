@@ -5,12 +5,10 @@ import json
 import shutil
 import xml.etree.ElementTree as ET
 import zipfile
-from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
 
-from orchestrator.build import build_fmus
 from orchestrator.cli import main
 from orchestrator.layout import Variable, mismatches
 from orchestrator.master import run_scene
@@ -18,17 +16,15 @@ from orchestrator.scene import load_scene
 from orchestrator.units import UnitError, make_unit
 from fmu_common.fmi_slave import fmi_name
 from fmu_common.topology import Topology
+from repository import SCENES
 
-SCENE = "scenes/deploy_rigid.toml"
+SCENE = SCENES / "deploy_rigid.toml"
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
+def built(built_fmus):
     """(scene, folder holding structure.fmu and aero.fmu of deploy_rigid as built)."""
-    scene = load_scene(SCENE)
-    folder = tmp_path_factory.mktemp("built")
-    build_fmus(scene, folder)
-    return scene, folder
+    return load_scene(SCENE), built_fmus("deploy_rigid")
 
 
 def _rewrite(fmu, dest, edit_description=None, edit_build_info=None):
@@ -124,9 +120,8 @@ def test_wingsim_run_exits_1_on_a_tampered_fmu(built, tmp_path, monkeypatch, cap
     work = tmp_path / "work"
     (work / "fmus").mkdir(parents=True)
     shutil.copytree(folder, work / "fmus" / scene["name"])   # where `wingsim run` looks for them
-    scene_file = Path(SCENE).resolve()
     monkeypatch.chdir(work)
-    assert main(["run", str(scene_file), "--out", "out"]) == 1
+    assert main(["run", str(SCENE), "--out", "out"]) == 1
     summary = json.loads((work / "out" / "summary.json").read_text())
     assert summary["status"] == "error" and fold in summary["message"]
     assert summary["simulated_time_s"] == 0.0

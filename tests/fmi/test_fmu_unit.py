@@ -2,44 +2,35 @@
 import json
 import os
 import zipfile
-from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
 
-fmpy = pytest.importorskip("fmpy")
-from fmpy import read_model_description  # noqa: E402
-from fmpy.validation import validate_fmu  # noqa: E402
+from fmu_common.fmi_slave import DIVERGED_CATEGORY
+from fmu_common.topology import Topology
+from orchestrator.build import embedded_scene, fmus_up_to_date
+from orchestrator.scene import load_scene
+from orchestrator.units import UnitError, make_unit
+from repository import SCENES
+from structure_fmu.solver import StructureSolver
+from subprocesses import simulate_in_fresh_python
 
-from fmu_common.fmi_slave import DIVERGED_CATEGORY  # noqa: E402
-from orchestrator.build import build_fmus, embedded_scene, fmus_up_to_date  # noqa: E402
-from orchestrator.units import UnitError, make_unit  # noqa: E402
-from structure_fmu.solver import StructureSolver  # noqa: E402
-from fmu_common.topology import Topology  # noqa: E402
-from subprocesses import simulate_in_fresh_python  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
-SCENE = ROOT / "scenes" / "deploy_rigid.toml"
 H = 1e-3  # communication step, s
-
-
-def load(path=SCENE):
-    """The scene in still air: the structure unit alone."""
-    from orchestrator.scene import load_scene
-
-    return load_scene(path, ["aero.model=none"])
+STILL_AIR = ["aero.model=none"]   # the structure unit alone
 
 
 @pytest.fixture(scope="module")
 def scene():
-    return load()
+    return load_scene(SCENES / "deploy_rigid.toml", STILL_AIR)
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(scene, tmp_path_factory):
-    out = tmp_path_factory.mktemp("fmus")
-    assert build_fmus(scene, out) == [out / "structure.fmu"]
+def fmu_dir(built_fmus):
+    out = built_fmus("deploy_rigid", *STILL_AIR)
+    assert [p.name for p in out.iterdir()] == ["structure.fmu"]
     return out
 
 
@@ -99,7 +90,7 @@ def test_variables_match_topology(scene, fmu_dir):
     assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
         "Real", "J", "output", "continuous", "exact")
     # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, latch
-    # times, probe positions and velocities and strain gauges (tests/test_sensors.py), parameters
+    # times, probe positions and velocities and strain gauges (tests/units/test_sensors.py), parameters
     h = len(topology.hinge_names)
     assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
     assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [

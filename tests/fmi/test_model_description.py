@@ -3,14 +3,13 @@ UnitDefinitions defines (SI base units checked against their definitions), a Def
 scene, no problems for fmpy's validation; pythonfmu installed at the version pyproject pins."""
 import math
 import tomllib
-from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from orchestrator.build import build_fmus
 from orchestrator.scene import load_scene
+from repository import ROOT, SCENES
 
 # SI definitions (kg, m, s, rad exponents and factor to SI) of units the FMUs use
 SI = {
@@ -22,9 +21,9 @@ SI = {
 
 
 @pytest.fixture(scope="module", params=["deploy_rigid", "deploy_flexible"])
-def built(request, tmp_path_factory):
-    scene = load_scene(f"scenes/{request.param}.toml")
-    return scene, build_fmus(scene, tmp_path_factory.mktemp(request.param))
+def built(request, built_fmus):
+    folder = built_fmus(request.param)
+    return load_scene(SCENES / f"{request.param}.toml"), [folder / "structure.fmu", folder / "aero.fmu"]
 
 
 def test_every_variable_described_and_every_real_has_a_defined_unit(built):
@@ -62,7 +61,7 @@ def test_fmpy_validation_finds_no_problems(built):
 def test_installed_pythonfmu_is_the_pinned_version():
     import pythonfmu
 
-    project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
     pins = [d for d in project["project"]["dependencies"] if d.startswith("pythonfmu")]
     assert pins == ["pythonfmu==0.7.0"]
     assert pythonfmu.__version__ == "0.7.0"

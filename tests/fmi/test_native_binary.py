@@ -8,7 +8,6 @@ Without a C compiler, `wingsim build` keeps pythonfmu's binary and says so.
 """
 import ctypes
 import shutil
-import subprocess
 import zipfile
 from pathlib import Path
 
@@ -20,24 +19,21 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2ModelExchange)
 
 import pythonfmu
+from fmi_hosts import check
 from orchestrator import native_binary
-from orchestrator.build import build_fmus
 from orchestrator.cli import main
-from orchestrator.scene import load_scene
+from repository import SCENES
 
-ROOT = Path(__file__).resolve().parents[1]
-CHECKER = ROOT.parent / "shared" / "tools" / "fmucheck" / "fmuCheck.linux64"
 PYTHONFMU_BINARY = Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64" / "libpythonfmu-export.so"
 OK, ERROR = 0, 3
 H = 1e-3
 
+
 @pytest.fixture(scope="module")
-def structure_fmu(tmp_path_factory):
+def structure_fmu(built_fmus):
     if native_binary.unavailable_reason() is not None:
         pytest.skip(f"the shim cannot be built: {native_binary.unavailable_reason()}")
-    out = tmp_path_factory.mktemp("fmus")
-    build_fmus(load_scene(ROOT / "scenes" / "deploy_rigid.toml"), out)
-    return out / "structure.fmu"
+    return built_fmus("deploy_rigid") / "structure.fmu"
 
 
 class Host:
@@ -86,6 +82,17 @@ class Host:
             self.fmu.fmi2FreeInstance(self.c)
         self.fmu.freeLibrary()
         shutil.rmtree(self.dir, ignore_errors=True)
+
+
+def assert_steps(fmu: Path) -> None:
+    """The FMU instantiates, initializes and takes one step in this process (fmpy), every call fmi2OK."""
+    h = Host(fmu)
+    try:
+        assert h.instantiate() is not None, h.log
+        h.initialize()
+        assert h.status("fmi2DoStep", 0.0, H, 0) == OK
+    finally:
+        h.close()
 
 
 @pytest.fixture
@@ -221,9 +228,8 @@ def test_a_refused_call_returns_error_and_its_reason_even_with_logging_off(host)
     assert all(status != OK for status, _, _ in h.log)  # fmi2OK messages stay off
 
 
-@pytest.mark.skipif(not CHECKER.is_file(), reason=f"the FMI Compliance Checker is not installed at {CHECKER}")
 @pytest.mark.parametrize("missing", ["python", "libpython"])
-def test_a_moved_build_environment_gives_null_and_names_the_missing_path(structure_fmu, tmp_path, missing):
+def test_a_moved_build_environment_gives_null_and_names_the_missing_path(fmu_checker, structure_fmu, tmp_path, missing):
     moved = tmp_path / "structure.fmu"
     shutil.copyfile(structure_fmu, moved)
     gone = tmp_path / "moved-env" / ("bin/python" if missing == "python" else "lib/libpython3.so.1.0")
@@ -232,8 +238,7 @@ def test_a_moved_build_environment_gives_null_and_names_the_missing_path(structu
         names = z.namelist()
     assert len(names) == len(set(names))  # installed again over the shim: pythonfmu's binary kept once
 
-    proc = subprocess.run([str(CHECKER), "-k", "cs", "-h", "0.001", "-s", "0.002", "-l", "3", str(moved)],
-                          env={}, capture_output=True, text=True, timeout=600)
+    proc = check(fmu_checker, moved, None, 0.001, 0.002)
     text = proc.stdout + proc.stderr
     assert proc.returncode == 1, text  # a checker error exit, not a signal
     assert "Could not instantiate the model" in text, text
@@ -246,18 +251,12 @@ def test_in_a_python_host_a_moved_build_environment_is_not_needed(structure_fmu,
     moved = tmp_path / "structure.fmu"
     shutil.copyfile(structure_fmu, moved)
     native_binary.install_shim(moved, python=str(tmp_path / "gone" / "bin" / "python"))
-    h = Host(moved)
-    try:
-        assert h.instantiate() is not None, h.log
-        h.initialize()
-        assert h.status("fmi2DoStep", 0.0, H, 0) == OK
-    finally:
-        h.close()
+    assert_steps(moved)
 
 
 def test_without_a_c_compiler_build_keeps_pythonfmus_binary_and_says_so(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    assert main(["build", str(ROOT / "scenes" / "deploy_rigid.toml"), "--out", str(tmp_path / "fmus")]) == 0
+    assert main(["build", str(SCENES / "deploy_rigid.toml"), "--out", str(tmp_path / "fmus")]) == 0
     err = capsys.readouterr().err
     assert f"no C compiler: {tmp_path / 'no-such-cc'}" in err
     assert "runs only in Python hosts" in err
@@ -266,14 +265,7 @@ def test_without_a_c_compiler_build_keeps_pythonfmus_binary_and_says_so(tmp_path
         with zipfile.ZipFile(fmu) as z:
             assert z.read(f"{native_binary.PLATFORM_DIR}/{unit}.so") == PYTHONFMU_BINARY.read_bytes()
             assert f"{native_binary.PLATFORM_DIR}/{native_binary.inner_name(unit)}" not in z.namelist()
-    # and it is a working FMU for a Python host
-    h = Host(tmp_path / "fmus" / "structure.fmu")
-    try:
-        assert h.instantiate() is not None, h.log
-        h.initialize()
-        assert h.status("fmi2DoStep", 0.0, H, 0) == OK
-    finally:
-        h.close()
+    assert_steps(tmp_path / "fmus" / "structure.fmu")   # a working FMU for a Python host
 
 
 RAISING_SLAVE = '''
@@ -324,11 +316,5 @@ def test_after_a_python_exception_the_instance_is_retired_and_the_host_lives(str
         finally:
             h.close()
         gc.collect()
-    h = Host(structure_fmu)  # the interpreter is sound: a unit still runs
-    try:
-        assert h.instantiate() is not None
-        h.initialize()
-        assert h.status("fmi2DoStep", 0.0, H, 0) == OK
-    finally:
-        h.close()
+    assert_steps(structure_fmu)   # the interpreter is sound: a unit still runs
     gc.collect()

@@ -54,7 +54,7 @@ def test_undeformed_lattice_points_are_analytic():
     nc, n_p = (M + 1) * (N + 1), M * N
     for b, (root, x0, L, c, a) in enumerate(bodies):
         edges, mids = L * np.arange(N + 1) / N, L * (np.arange(N) + 0.5) / N
-        ref = lambda spans, fractions: analytic(root, x0, y0, L, c, a, spans, fractions).reshape(-1, 3)
+        ref = lambda spans, fractions: analytic(root, x0, y0, L, c, a, spans, fractions).reshape(-1, 3)  # noqa: B023
         np.testing.assert_allclose(grid[b * nc:(b + 1) * nc], ref(edges, np.arange(M + 1) / M), atol=1e-12)
         np.testing.assert_allclose(grid[b * nc:b * nc + N + 1], ref(edges, [0.0]), atol=1e-12)       # leading edge
         np.testing.assert_allclose(grid[(b + 1) * nc - N - 1:(b + 1) * nc], ref(edges, [1.0]), atol=1e-12)
@@ -98,15 +98,16 @@ def test_matrices_are_the_element_shape_functions_on_any_E():
                 dy = (top.point_position(E, name, s, f + 0.1) - top.point_position(E, name, s, f)) / (0.1 * c)
                 np.testing.assert_allclose(geo.r_y[p], dy, atol=1e-12)
                 cx = np.cross(geo.r_x[p], geo.r_y[p])
-                np.testing.assert_allclose(geo.normal[p], cx / np.linalg.norm(cx), atol=1e-14)   # Otsuka et al. 2019, Eq. (21)
+                # Otsuka et al. 2019, Eq. (21)
+                np.testing.assert_allclose(geo.normal[p], cx / np.linalg.norm(cx), atol=1e-14)
                 corner = b * (M + 1) * (N + 1) + (i + 1) * (N + 1) + j
                 np.testing.assert_allclose(geo.corners[corner], top.point_position(E, name, L * j / N, (i + 1.25) / M),
                                            atol=1e-13)
 
 
 def test_generalized_force_is_virtual_work():
-    """Q = sum S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12): Q . dE = sum_panels a . dr_a for any virtual displacement dE,
-    and for a rigid translation dE (dr = d on r slots, 0 on gradients) Q . dE = (sum a) . d."""
+    """Q = sum S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12): Q . dE = sum_panels a . dr_a for any virtual
+    displacement dE, and for a rigid translation dE (dr = d on r slots, 0 on gradients) Q . dE = (sum a) . d."""
     top = Topology.from_scene(folded_scene())
     lat = Lattice(top, 3, 4)
     forces = RNG.standard_normal((lat.n_panels, 3))

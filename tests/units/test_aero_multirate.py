@@ -3,11 +3,10 @@ inner ones on inputs e, de interpolated linearly between the previous and the ne
 
 Independent numbers: the wake gains one row per aero step (a count) and each prescribed row is V x
 aero step long; the interpolated inputs are recomputed here as the midpoint of two structure samples;
-Theodorsen's heave amplitude (tests/test_aero_unsteady.py) and an estimate of what the interpolation
-changes (test_theodorsen_heave_multirate). Wing and helpers as in tests/test_aero_unsteady.py.
+Theodorsen's heave amplitude (tests/flat_wing.py) and an estimate of what the interpolation changes
+(test_theodorsen_heave_multirate). The wing and the heave helpers are those of tests/flat_wing.py.
 """
 import pickle
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +16,10 @@ from orchestrator.overrides import parse_value
 from orchestrator.scene import load_scene, resolve_scene
 from fmu_common.errors import SceneError
 from structure_fmu.solver import StructureSolver
-from test_aero_unsteady import assert_heave_matches, fitted_amplitude, heave_theory, wing_scene
+from flat_wing import assert_heave_matches, fitted_amplitude, heave_theory, wing_scene
+from repository import SCENES
 
 MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
 
 
 def small_wing(model, step=None, wake_length=3.0, pitch_deg=3.0):
@@ -125,9 +124,9 @@ def test_inner_steps_use_linearly_interpolated_inputs(model):
 
 # ---------------------------------------------------------------------------------------------- 3
 def heave_run(M, H, step, k=0.25, periods=3):
-    """Otsuka et al. 2019, Sec. VI.D heaving wing (tests/test_aero_unsteady.heave_response: V = 1 m/s, c = 1 m, span
-    1000 m, N = 5, h = 0.1 sin(2 k t), wake 20 chords) with communication step H and aero.step `step`;
-    the fitted complex C_L amplitude over periods 1..3 of the samples at the communication times."""
+    """Otsuka et al. 2019, Sec. VI.D heaving wing (heave_response of tests/units/test_aero_unsteady.py: V = 1 m/s,
+    c = 1 m, span 1000 m, N = 5, h = 0.1 sin(2 k t), wake 20 chords) with communication step H and aero.step
+    `step`; the fitted complex C_L amplitude over periods 1..3 of the samples at the communication times."""
     omega = 2 * k
     scene = wing_scene("uvlm-prescribed", {"heave_amplitude": 0.1, "frequency": omega}, M=M, N=5,
                        wake_length=20.0)
@@ -159,7 +158,7 @@ def interpolation_effect(k, M, h0_over_c, wagner_start=0.5):
 
 def test_theodorsen_heave_multirate():
     """k = 0.25, M = 10: communication step 2h = 0.2 s with aero.step = h = 0.1 s against the single-rate
-    run at h (tests/test_aero_unsteady: +0.89%, 1.26 deg from Theodorsen) and Theodorsen. Measured:
+    run at h (tests/units/test_aero_unsteady.py: +0.89%, 1.26 deg from Theodorsen) and Theodorsen. Measured:
     multi-rate +1.76%, +1.28 deg from Theodorsen; |z_multi - z_single| / |z_single| = 0.86%, the amplitude
     larger as estimated (interpolation_effect: 1.39%). First order in h as estimated: M = 20 (h = 0.05 s,
     2h = 0.1 s) gives 0.44% (estimate 0.69%). The single-rate run at 2h (what one aero step per

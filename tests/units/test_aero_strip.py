@@ -2,7 +2,7 @@
 
 Per strip: relative flow V_rel = U - r' at 3/4 chord, force pi rho c |V_perp| (V_rel . n) per unit span
 along the section normal n at 1/4 chord (1/2 rho V^2 c 2 pi alpha_eff for small alpha_eff), Q by Otsuka et al. 2019
-Eq. (12). The wing is the prescribed flat body of tests/test_aero_unsteady.py (span y, chord x,
+Eq. (12). The wing is the prescribed flat body of tests/flat_wing.py (span y, chord x,
 n = -z), the stream V along +x.
 """
 import numpy as np

@@ -2,12 +2,10 @@
 function (sudden start), Theodorsen's theory (heaving wing, Otsuka et al. 2019, Sec. VI.D), the closed form of the flat
 (quasi-steady horseshoe) wake, the steady VLM, virtual-work consistency of Q, and extreme inputs.
 
-The wing is a prescribed-fidelity structure (tests/test_prescribed.py): one flat rectangular body, span
-along y, chord along x (n = r_x x r_y = -z), heaving along n or held at a nose-up angle alpha, in a free
-stream V along +x (the default flow direction, the chord axis). Theory references computed here:
-  * Theodorsen: C(k) = H1(k) / (H1(k) + i H0(k)) with the Hankel functions of the second kind; for
-    h = h0 sin(omega t) along the lift direction, k = omega c / (2V), the complex amplitude of C_L is
-    (h0/c) [2 pi k^2 - 4 pi i k C(k)] (apparent mass + circulatory, Bisplinghoff-Ashley-Halfman);
+The wing is the flat prescribed wing of tests/flat_wing.py (span along y, chord along x, n = -z, in a free
+stream V along +x, the default flow direction, the chord axis). Theory references computed here:
+  * Theodorsen (tests/flat_wing.py): for h = h0 sin(omega t) along the lift direction, k = omega c / (2V),
+    the complex amplitude of C_L is (h0/c) [2 pi k^2 - 4 pi i k C(k)];
   * Wagner: phi(s) = 1 + (2/pi) int_0^inf (F(k) - 1)/k sin(k s) dk, F = Re C (exact, by quadrature),
     checked against Jones' approximation (within 0.007);
   * flat wake: C_L = (h0/c) [-4 pi i k + (6 + 2/M) pi k^2] (derived in aero_fmu/uvlm.py).
@@ -16,30 +14,17 @@ Times: the first `advance` is the start (aero_fmu/uvlm.py); s = 2 V (t - t_start
 import numpy as np
 import pytest
 from scipy.integrate import quad
-from scipy.special import hankel2
 
 from aero_fmu import wake as wakes
 from aero_fmu.solver import AeroSolver
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.errors import InputError, SceneError, SolverDiverged
 from fmu_common.scene_schema import resolve_scene
+from flat_wing import RHO, SECTION, assert_heave_matches, fitted_amplitude, heave_theory, theodorsen, wing_scene
 from structure_fmu.solver import StructureSolver
-
-SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
-RHO = 1.2
 
 
 # ---------------------------------------------------------------------------------------------- theory
-def theodorsen(k):
-    """Theodorsen's function C(k) = F + iG."""
-    return hankel2(1, k) / (hankel2(1, k) + 1j * hankel2(0, k))
-
-
-def heave_theory(k, h0_over_c):
-    """Complex amplitude of C_L for h = h0 sin(omega t) along the lift direction (Theodorsen)."""
-    return h0_over_c * (2 * np.pi * k**2 - 4j * np.pi * k * theodorsen(k))
-
-
 def flat_wake_theory(k, h0_over_c, M):
     """Complex amplitude of C_L of the flat-wake model in plunge (closed form, aero_fmu/uvlm.py)."""
     return h0_over_c * ((6 + 2 / M) * np.pi * k**2 - 4j * np.pi * k)
@@ -57,17 +42,7 @@ def jones(s):
     return 1 - 0.165 * np.exp(-0.0455 * s) - 0.335 * np.exp(-0.3 * s)
 
 
-# ---------------------------------------------------------------------------------------------- scenes
-def wing_scene(model, motion, span=1000.0, M=10, N=5, wake_length=20.0, speed=1.0, chord=1.0):
-    section = dict(SECTION, chord=chord)
-    body = {"name": "wing", "length": span, "span_axis": [0, 1, 0], "chord_axis": [1, 0, 0], "section": section}
-    return resolve_scene({"time": {"stop": 1.0},
-                          "structure": {"fidelity": "prescribed", "bodies": [body], "motion": motion},
-                          "aero": {"model": model, "chordwise_panels": M, "spanwise_panels": N,
-                                   "wake_length": wake_length},
-                          "flow": {"speed": speed, "density": RHO}}, "wing")
-
-
+# ---------------------------------------------------------------------------------------------- runs
 def run(scene, dt, steps, **solver_options):
     """(times, CL, aero solver): the aero solver fed by the prescribed structure at t_k = k dt, k = 1..steps."""
     structure, aero = StructureSolver(scene), AeroSolver(scene, **solver_options)
@@ -79,14 +54,6 @@ def run(scene, dt, steps, **solver_options):
     return times, np.array(CL), aero
 
 
-def fitted_amplitude(times, values, omega, t_from):
-    """Complex amplitude z of values ~ Im(z e^{i omega t}) + offset over t >= t_from (least squares)."""
-    m = times >= t_from - 1e-9
-    X = np.stack([np.sin(omega * times[m]), np.cos(omega * times[m]), np.ones(m.sum())], axis=1)
-    a, b, _ = np.linalg.lstsq(X, values[m], rcond=None)[0]
-    return a + 1j * b
-
-
 def heave_response(model, k, M, N=5, wake_length=20.0, periods=3, fit_from=1):
     """Otsuka et al. 2019, Sec. VI.D: V = 1 m/s, c = 1 m, span 1000 m, Z = 0.1 sin(2 k V t / c), dt = c / (M V).
     Returns the fitted complex C_L amplitude over periods [fit_from, periods]."""
@@ -95,13 +62,6 @@ def heave_response(model, k, M, N=5, wake_length=20.0, periods=3, fit_from=1):
     T, dt = 2 * np.pi / omega, 1.0 / M
     times, CL, _ = run(scene, dt, int(np.ceil(periods * T / dt)))
     return fitted_amplitude(times, CL, omega, fit_from * T)
-
-
-def assert_heave_matches(z, reference, amplitude_tol, phase_tol_deg):
-    amplitude_error = abs(z) / abs(reference) - 1
-    phase_error = np.degrees(np.angle(z / reference))
-    assert abs(amplitude_error) < amplitude_tol, (abs(z), abs(reference), amplitude_error)
-    assert abs(phase_error) < phase_tol_deg, (np.degrees(np.angle(z)), np.degrees(np.angle(reference)))
 
 
 # ---------------------------------------------------------------------------------------------- references
@@ -160,8 +120,8 @@ def test_wagner_sudden_start_free_wake():
 
 # ---------------------------------------------------------------------------------------------- Theodorsen
 def test_theodorsen_heave_k025_prescribed_wake():
-    """Otsuka et al. 2019, VI.D heaving wing, k = 0.25, M = 10, N = 5, dt = c/(MV), wake 20 chords, fitted over periods 1-3
-    (the start transient is gone by then: periods 5-7 differ by < 0.05%). Measured: amplitude +0.89%,
+    """Otsuka et al. 2019, VI.D heaving wing, k = 0.25, M = 10, N = 5, dt = c/(MV), wake 20 chords, fitted over
+    periods 1-3 (the start transient is gone by then: periods 5-7 differ by < 0.05%). Measured: amplitude +0.89%,
     phase +1.26 deg. Wake-length convergence, fitted over periods 5-7 (amplitude, phase error): 10 chords
     +0.44%, 1.42 deg; 20: +0.87%, 1.23; 40: +1.03%, 1.29; 80 (all of it): +0.99%, 1.29: 20 chords are
     within 0.2% and 0.1 deg of the untruncated wake. Required: 3% and 3 deg."""

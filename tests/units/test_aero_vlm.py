@@ -1,7 +1,7 @@
-"""Steady vortex-lattice method with a flat horseshoe wake (Otsuka et al. 2019, Sec. V) against closed-form and reference
-values. The wing is a prescribed-fidelity structure scene (tests/test_prescribed.py): one flat rectangular
-body, span along y, chord along x (n = r_x x r_y = -z), at a static angle of attack from the motion's
-alpha_deg (nose up toward n), in a free stream along +x.
+"""Steady vortex-lattice method with a flat horseshoe wake (Otsuka et al. 2019, Sec. V) against closed-form and
+reference values. The wing is a prescribed-fidelity structure scene (tests/units/test_prescribed.py): one flat
+rectangular body, span along y, chord along x (n = r_x x r_y = -z), at a static angle of attack from the
+motion's alpha_deg (nose up toward n), in a free stream along +x.
 
 Lattice sizes (M chordwise x N spanwise) and why: the ring lattice is exact in 2D for any M; in 3D the
 lift slope of these wings converges like 1/N in the span (measured for AR 4: 3.6878, 3.6484, 3.6284,
@@ -22,6 +22,7 @@ from fmu_common.scene_schema import resolve_scene
 from fmu_common.vectors import rotation_about
 from structure_fmu.solver import StructureSolver
 from fmu_common.topology import Topology
+from repository import SCENES
 
 RHO, SPEED = 1.2, 10.0
 U = np.array([SPEED, 0.0, 0.0])
@@ -165,7 +166,7 @@ def test_scene_wake_length_inf_is_the_semi_infinite_flat_wake():
     from aero_fmu.solver import AeroSolver
     from orchestrator.scene import load_scene
 
-    scene = load_scene("scenes/steady_wing.toml", overrides=["aero.wake_length=inf"])
+    scene = load_scene(SCENES / "steady_wing.toml", overrides=["aero.wake_length=inf"])
     assert scene["aero"]["wake_length"] == np.inf
     structure = StructureSolver(scene)
     e, de = structure.e, structure.de

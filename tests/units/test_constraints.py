@@ -5,13 +5,14 @@ import pytest
 
 from orchestrator.scene import load_scene
 from structure_fmu.solver import StructureSolver
+from repository import SCENES
 
 
 @pytest.mark.parametrize("scene", ["deploy_rigid", "deploy_flexible", "rotating_beam"])
 def test_jacobian_rate_and_velocity_term_match_finite_differences(scene):
     # rotating_beam has fixed-plane rows and a prescribed (moving) root; deploy_* have unit and
     # orthogonality rows only
-    model = StructureSolver(load_scene(f"scenes/{scene}.toml")).model
+    model = StructureSolver(load_scene(SCENES / f"{scene}.toml")).model
     cons = model.constraints
     rng = np.random.default_rng(7)
     q0 = model.T.T @ model.top.initial_coordinates()

@@ -8,7 +8,6 @@ The case: scenes/deploy_rigid.toml with the uvlm-flat aero unit at 15 m/s (the w
 import csv
 import json
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,8 +19,9 @@ from orchestrator.master import run_scene
 from orchestrator.results import deployment_time, summarize, write_results
 from orchestrator.scene import load_scene
 from orchestrator.units import UnitError
+from repository import SCENES
 
-SCENE = Path(__file__).resolve().parents[1] / "scenes" / "deploy_rigid.toml"
+SCENE = SCENES / "deploy_rigid.toml"
 AERO = ["aero.model=uvlm-flat", "flow.speed=15"]
 TOLERANCE = 1e-6       # the default coupling.tolerance
 
@@ -285,13 +285,10 @@ def test_without_factorization_reuse_the_replay_is_bit_for_bit(monkeypatch):
 
 # --- the fmu backend ------------------------------------------------------------------------------
 
-def test_implicit_coupling_of_the_two_fmus_matches_the_direct_backend(tmp_path):
-    pytest.importorskip("fmpy")
-    from orchestrator.build import build_fmus
-
+def test_implicit_coupling_of_the_two_fmus_matches_the_direct_backend(built_fmus):
     implicit = scene("implicit", 1e-3, 0.02)
-    build_fmus(implicit, tmp_path)
-    runs = {b: run_scene(implicit, backend=b, fmu_dir=tmp_path) for b in ("fmu", "direct")}
+    fmu_dir = built_fmus("deploy_rigid", *AERO)
+    runs = {b: run_scene(implicit, backend=b, fmu_dir=fmu_dir) for b in ("fmu", "direct")}
     for r in runs.values():
         assert r.status == "ok", r.message
         assert np.all(r.series.column("coupling_residual")[1:] < TOLERANCE)

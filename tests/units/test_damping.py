@@ -1,5 +1,5 @@
-"""Damping (Otsuka et al. 2019, Sec. II.C with the velocity restored): of deformation only (zero for rigid motion, Otsuka et al. 2019, Sec. IV),
-or mass-proportional on all motion (structure.damping_model)."""
+"""Damping (Otsuka et al. 2019, Sec. II.C with the velocity restored): of deformation only (zero for rigid motion,
+Otsuka et al. 2019, Sec. IV), or mass-proportional on all motion (structure.damping_model)."""
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -63,9 +63,9 @@ def test_matrix_free_force_equals_the_tangent_matrix_form():
 @pytest.mark.parametrize("model", ["deformation", "mass-proportional"])
 def test_spinning_free_plate_keeps_or_loses_its_spin_as_the_damping_model_says(model):
     """A free flexible plate spinning in its own plane. Mass-proportional damping (-alpha M de on all
-    coordinates, Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 as written) is a drag -alpha v dm on every mass element, so the
-    angular momentum decays as exp(-alpha t) and so does the spin; deformation damping leaves the rigid spin
-    alone (Otsuka et al. 2019, Sec. IV)."""
+    coordinates, Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 as written) is a drag -alpha v dm on
+    every mass element, so the angular momentum decays as exp(-alpha t) and so does the spin; deformation
+    damping leaves the rigid spin alone (Otsuka et al. 2019, Sec. IV)."""
     omega0, alpha = 2.0, 1.5
     solver = StructureSolver(resolve_scene({"time": {"stop": 1.0}, "structure": {
         "fidelity": "flexible", "elements_per_body": 2, "integrator": "generalized-alpha", "step": 1e-3,

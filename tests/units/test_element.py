@@ -14,7 +14,8 @@ def straight(length):
 
 
 def paper_mass_matrix(A, Qz, Izz, l):
-    """Otsuka et al. 2019, Eq. (5) with its identity blocks restored (docs/references.md, known slips), scalar 6x6 part times rho = 1."""
+    """Otsuka et al. 2019, Eq. (5) with its identity blocks restored (docs/references.md, known slips), scalar
+    6x6 part times rho = 1."""
     upper = [
         [13 * A * l / 35, 11 * A * l**2 / 210, 7 * Qz * l / 20, 9 * A * l / 70, -13 * A * l**2 / 420, 3 * Qz * l / 20],
         [0, A * l**3 / 105, Qz * l**2 / 20, 13 * A * l**2 / 420, -A * l**3 / 140, Qz * l**2 / 30],
@@ -72,9 +73,11 @@ def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
     # a deformed element moved rigidly: same energy, force rotated with it
     deformed = straight(0.4)[None] + 0.02 * RNG.standard_normal((1, 18))
     moved = rigid_transform(deformed, R, np.array([0.3, 0.2, 0.1]))
-    assert element.elastic_energy(moved, l, stiffness) == pytest.approx(element.elastic_energy(deformed, l, stiffness), rel=1e-12)
+    energy = element.elastic_energy(deformed, l, stiffness)
+    assert element.elastic_energy(moved, l, stiffness) == pytest.approx(energy, rel=1e-12)
     rotated_force = (element.elastic_force(deformed, l, stiffness).reshape(6, 3) @ R.T).ravel()
-    np.testing.assert_allclose(element.elastic_force(moved, l, stiffness)[0], rotated_force, atol=1e-9 * np.abs(rotated_force).max())
+    np.testing.assert_allclose(element.elastic_force(moved, l, stiffness)[0], rotated_force,
+                               atol=1e-9 * np.abs(rotated_force).max())
 
 
 def test_force_is_gradient_of_energy_and_jacobian_is_its_derivative():

@@ -5,11 +5,9 @@ The case: deploy_flexible with one spanwise aero panel per body, coupled in-proc
 master does) up to t = 0.1708 s, just after the latch (0.1688 s). There the step's predictor is far from the
 solution, a matrix factorized at the predictor contracts Newton's corrections only by about 0.4-0.6 per
 iteration, and a matrix refreshed only once per step runs out of iterations ("Newton did not converge in 30
-iterations"). The reference is the root of the same step equations
-(Peng et al. 2019, Eqs. 23-24 with the index-3 constraints) found by scipy's hybrid Powell method from the same predictor:
-the step must agree with it.
+iterations"). The reference is the root of the same step equations (Peng et al. 2019, Eqs. 23-24 with the
+index-3 constraints) found by scipy's hybrid Powell method from the same predictor: the step must agree with it.
 """
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import root
@@ -17,8 +15,9 @@ from scipy.optimize import root
 from aero_fmu.solver import AeroSolver
 from orchestrator.scene import load_scene
 from structure_fmu.solver import StructureSolver
+from repository import SCENES
 
-SCENE = Path(__file__).resolve().parents[1] / "scenes" / "deploy_flexible.toml"
+SCENE = SCENES / "deploy_flexible.toml"
 
 
 def coupled_until(scene, stop):

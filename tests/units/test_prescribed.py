@@ -19,7 +19,8 @@ def heaving_scene(**motion):
 
 
 def test_heave_law_moves_every_point_rigidly():
-    """Z = A sin(omega t) along the section normal (Otsuka et al. 2019, Sec. VI.D), velocities consistent with positions."""
+    """Z = A sin(omega t) along the section normal (Otsuka et al. 2019, Sec. VI.D), velocities consistent with
+    positions."""
     solver = StructureSolver(heaving_scene(heave_amplitude=0.1, frequency=OMEGA))
     assert solver.state.q.size == 0          # no structural solver: a scene models only what it needs
     e0 = solver.e.copy()

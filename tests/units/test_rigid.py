@@ -5,9 +5,8 @@ from scipy.special import ellipk
 
 from orchestrator.scene import load_scene
 from fmu_common.scene_schema import resolve_scene
+from repository import SCENES
 from structure_fmu.solver import StructureSolver
-
-SCENES = "scenes"
 
 
 def tumbling_scene(integrator):
@@ -75,7 +74,7 @@ def energy_scale(scene):
 
 
 def test_rigid_pendulum_period_and_rk4_energy():
-    scene = load_scene(f"{SCENES}/pendulum_rigid.toml")
+    scene = load_scene(SCENES / "pendulum_rigid.toml")
     solver = StructureSolver(scene)
     energy0 = solver.monitors()["energy"]
     assert solver.monitors()["kinetic_energy"] == 0.0
@@ -90,7 +89,7 @@ def test_rigid_pendulum_period_and_rk4_energy():
 
 
 def test_rigid_pendulum_energy_bounded_with_generalized_alpha():
-    scene = load_scene(f"{SCENES}/pendulum_rigid.toml", ["structure.integrator=generalized-alpha",
+    scene = load_scene(SCENES / "pendulum_rigid.toml", ["structure.integrator=generalized-alpha",
                                                            "structure.step=0.005"])
     solver = StructureSolver(scene)
     energy0 = solver.monitors()["energy"]

@@ -7,48 +7,39 @@ coordinates (deploy_flexible), a central difference of positions (velocities) an
 driven with the master's call sequence.
 """
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
 
-fmpy = pytest.importorskip("fmpy")
-from fmpy import extract, read_model_description  # noqa: E402
-from fmpy.fmi2 import FMU2Slave  # noqa: E402
+import structure_fmu.structure_slave  # noqa: F401  (the host's copy, shared by the FMUs loaded here)
+from orchestrator.master import communication_times, new_series, run_scene
+from orchestrator.scene import load_scene
+from orchestrator.units import UnitError, make_unit
+from fmu_common.errors import SceneError
+from fmu_common.fmi_slave import fmi_name
+from fmu_common.shape_functions import shape_row
+from fmu_common.topology import Topology
+from repository import SCENES
 
-import structure_fmu.structure_slave  # noqa: E402,F401  (the host's copy, shared by the FMUs loaded here)
-from orchestrator.build import build_fmus  # noqa: E402
-from orchestrator.master import communication_times, new_series, run_scene  # noqa: E402
-from orchestrator.scene import load_scene  # noqa: E402
-from orchestrator.units import UnitError, make_unit  # noqa: E402
-from fmu_common.errors import SceneError  # noqa: E402
-from fmu_common.fmi_slave import fmi_name  # noqa: E402
-from fmu_common.shape_functions import shape_row  # noqa: E402
-from fmu_common.topology import Topology  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
-RIGID, FLEXIBLE = ROOT / "scenes" / "deploy_rigid.toml", ROOT / "scenes" / "deploy_flexible.toml"
+RIGID, FLEXIBLE = SCENES / "deploy_rigid.toml", SCENES / "deploy_flexible.toml"
 H = 1e-3   # communication step, s
+STILL_AIR = "aero.model=none"
 
 
 def still_air(path, *overrides):
-    return load_scene(path, ["aero.model=none", *overrides])
+    return load_scene(path, [STILL_AIR, *overrides])
 
 
 @pytest.fixture(scope="module")
-def rigid(tmp_path_factory):
-    scene = still_air(RIGID)
-    out = tmp_path_factory.mktemp("rigid")
-    build_fmus(scene, out)
-    return scene, out / "structure.fmu"
+def rigid(built_fmus):
+    return still_air(RIGID), built_fmus("deploy_rigid", STILL_AIR) / "structure.fmu"
 
 
 @pytest.fixture(scope="module")
-def flexible(tmp_path_factory):
-    scene = still_air(FLEXIBLE)
-    out = tmp_path_factory.mktemp("flexible")
-    build_fmus(scene, out)
-    return scene, out / "structure.fmu"
+def flexible(built_fmus):
+    return still_air(FLEXIBLE), built_fmus("deploy_flexible", STILL_AIR) / "structure.fmu"
 
 
 def drive(fmu, times, names):
@@ -130,8 +121,8 @@ def test_rigid_probes_follow_the_rigid_body_formula_and_its_rate(rigid):
         body = top.bodies[p["body"]]
         root = body.nodes[0]
         y = (p["chord"] - body.axis_position) * body.chord
-        combination = lambda c: (c[:, 9 * root:9 * root + 3] + p["span"] * c[:, 9 * root + 3:9 * root + 6]
-                                 + y * c[:, 9 * root + 6:9 * root + 9])
+        combination = lambda c: (c[:, 9 * root:9 * root + 3] + p["span"] * c[:, 9 * root + 3:9 * root + 6]  # noqa: B023
+                                 + y * c[:, 9 * root + 6:9 * root + 9])  # noqa: B023
         got = np.array([out[v] for v in probe_names(scene, p["name"])]).T
         np.testing.assert_allclose(got[:, :3], combination(e), rtol=0, atol=1e-14)
         np.testing.assert_allclose(got[:, 3:], combination(de), rtol=0, atol=1e-13)

@@ -5,6 +5,7 @@ import pytest
 from orchestrator.scene import load_scene
 from structure_fmu.motion import SpinUp
 from structure_fmu.solver import StructureSolver
+from repository import SCENES
 
 
 def transverse_tip_deflection(elements, stop=20.0, sample=0.01):
@@ -12,7 +13,7 @@ def transverse_tip_deflection(elements, stop=20.0, sample=0.01):
 
     The rigid line is rotated about Y by theta(t) of Otsuka et al. 2019, Eq. (27), computed here from the law itself.
     """
-    scene = load_scene("scenes/spin_up.toml", [f"structure.elements_per_body={elements}"])
+    scene = load_scene(SCENES / "spin_up.toml", [f"structure.elements_per_body={elements}"])
     joint = scene["structure"]["joints"][0]
     law = SpinUp([0, 1, 0], [0, 0, 0], joint["omega"], joint["ramp_time"])
     length = scene["structure"]["bodies"][0]["length"]

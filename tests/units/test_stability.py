@@ -9,8 +9,9 @@ import pytest
 
 from orchestrator import stability
 from orchestrator.scene import load_scene
+from repository import SCENES
 
-SCENE = "scenes/stability_wing.toml"
+SCENE = SCENES / "stability_wing.toml"
 
 
 @pytest.mark.parametrize("omega_h", [0.1, 1.0, 10.0, 100.0])

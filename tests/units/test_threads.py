@@ -3,11 +3,11 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+from repository import SCENES
+
 BLAS_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
 
 # A host that loads numpy and scipy's BLAS with their default pools, then instantiates a unit in-process

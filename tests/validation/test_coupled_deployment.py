@@ -2,7 +2,7 @@
 
 Every run is the scene as shipped (uvlm-flat, M = 2, N = 7 per body, L_w = 5, Gauss-Seidel at 1 ms) with the
 overrides named, through `run_scene(..., backend="direct")` (the FMU backend is the same code, checked
-bit-identical in tests/test_fmu_unit.py and tests/test_aero_fmu.py). References are the papers' numbers;
+bit-identical in tests/fmi/test_fmu_unit.py and tests/fmi/test_aero_fmu.py). References are the papers' numbers;
 docs/studies/deployment.md has the tables.
 """
 import pytest
@@ -11,8 +11,9 @@ from orchestrator import metrics
 from orchestrator.master import run_scene
 from orchestrator.results import summarize
 from orchestrator.scene import load_scene
+from repository import SCENES
 
-FLEXIBLE, RIGID = "scenes/deploy_flexible.toml", "scenes/deploy_rigid.toml"
+FLEXIBLE, RIGID = SCENES / "deploy_flexible.toml", SCENES / "deploy_rigid.toml"
 SPAN = 0.3   # m, both bodies deployed
 
 
@@ -28,12 +29,14 @@ def run(path, *overrides, scene_edit=None):
 
 
 def peak_bending(result):
-    """Largest |out-of-plane (global y) displacement| of probe bending_100mm over the run, m (Otsuka et al. 2019, Fig. 15)."""
+    """Largest |out-of-plane (global y) displacement| of probe bending_100mm over the run, m (Otsuka et al. 2019,
+    Fig. 15)."""
     return metrics.peak_displacement(result.series, "bending_100mm", "y")
 
 
 def tip_deflection(result, t):
-    """Distance of the tip probe from the undeformed span line (the z axis) at time t, m (Otsuka et al. 2022, Sec. 5)."""
+    """Distance of the tip probe from the undeformed span line (the z axis) at time t, m (Otsuka et al. 2022,
+    Sec. 5)."""
     series = result.series
     return metrics.tip_deflection(series.time, series.column("tip_x"), series.column("tip_y"), t)
 
@@ -46,7 +49,7 @@ def flexible_runs():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("speed, latched", [(0, 0.120), (10, 0.166), (20, 0.198)])
-def test_flexible_deployment_time_matches_003(flexible_runs, speed, latched):
+def test_flexible_deployment_time_matches_otsuka_2022(flexible_runs, speed, latched):
     """Otsuka et al. 2022, Sec. 5, Fig. 10: the fold angle reaches 0 at 0.120, 0.166 and 0.198 s at 0, 10 and 20 m/s."""
     _, summary = flexible_runs[speed]
     assert summary["deployment_time_s"] == pytest.approx(latched, rel=0.10)
@@ -61,8 +64,9 @@ def test_tip_deflection_at_10_ms_is_18_percent_of_the_span(flexible_runs):
 
 @pytest.mark.slow
 def test_peak_bending_and_strain_fall_with_flow_speed(flexible_runs):
-    """Otsuka et al. 2019, Fig. 15 (maximum bending displacement 100 mm from the root) and Otsuka et al. 2022, Fig. 12 (maximum strain
-    0.02 m from the root) both fall as the flow speed rises: the aerodynamic force damps the wing."""
+    """Otsuka et al. 2019, Fig. 15 (maximum bending displacement 100 mm from the root) and Otsuka et al. 2022,
+    Fig. 12 (maximum strain 0.02 m from the root) both fall as the flow speed rises: the aerodynamic force damps
+    the wing."""
     speeds = sorted(flexible_runs)
     bending = [peak_bending(flexible_runs[v][0]) for v in speeds]
     strain = [flexible_runs[v][1]["strain_gauges"]["strain_20mm"]["peak"] for v in speeds]

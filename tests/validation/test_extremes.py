@@ -9,8 +9,9 @@ from orchestrator.cli import main
 from orchestrator.scene import load_scene
 from structure_fmu.modes import natural_frequencies
 from structure_fmu.solver import StructureSolver
+from repository import SCENES
 
-CANTILEVER = "scenes/cantilever_static.toml"
+CANTILEVER = SCENES / "cantilever_static.toml"
 STIFFNESS_KEYS = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "torsional_rigidity")
 
 
@@ -27,7 +28,7 @@ def rk4_step_limit(overrides):
 
 
 def run(tmp_path, overrides):
-    args = ["run", CANTILEVER, "--backend", "direct", "--out", str(tmp_path)]
+    args = ["run", str(CANTILEVER), "--backend", "direct", "--out", str(tmp_path)]
     for item in overrides:
         args += ["--set", item]
     code = main(args)

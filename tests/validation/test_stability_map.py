@@ -13,7 +13,6 @@ Stable, as in the doc: status "ok", kinetic energy <= P delta_s, tip displacemen
 undamped linear structure can reach under the sudden load: P delta_s / 2 and 2 delta_s)."""
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,8 +20,9 @@ import pytest
 from orchestrator import stability
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
+from repository import SCENES
 
-SCENE = Path(__file__).resolve().parents[1] / "scenes" / "stability_wing.toml"
+SCENE = SCENES / "stability_wing.toml"
 AIR = 1.2      # kg/m^3
 
 
@@ -75,14 +75,14 @@ def test_gauss_seidel_is_reported_diverged_in_dense_air_where_implicit_coupling_
     section = load_scene(SCENE)["structure"]["bodies"][0]["section"]
     m_s = section["density"] * section["chord"] * section["thickness"]            # kg/m
     m_a = (3 + 1 / 2) * AIR * factor * math.pi * section["chord"] ** 2 / 4         # uvlm-flat's, M = 2, kg/m
-    assert m_a / m_s > 1.0     # beyond the added-mass limit of explicit coupling (0.5 to 1.4, docs/studies/stability.md)
+    assert m_a / m_s > 1.0   # beyond the added-mass limit of explicit coupling (0.5 to 1.4, docs/studies/stability.md)
     common = ["aero.model=uvlm-flat", "flow.speed=0", f"flow.density={AIR * factor!r}", "coupling.step=1e-3",
               "structure.step=2.5e-4", "time.stop=0.05"]
     explicit, _ = run(common + ["coupling.algorithm=gauss-seidel"])
     assert explicit.status == "diverged" and explicit.simulated_time_s < 0.05, explicit.message
     # the message points at the exchange: the lift's swing grew between the two windows before the failure
-    swings = re.search(r"lift swung over (\S+) N in the last (\d+) communication steps against (\S+) N in the \2 before",
-                       explicit.message)
+    swings = re.search(r"lift swung over (\S+) N in the last (\d+) communication steps "
+                       r"against (\S+) N in the \2 before", explicit.message)
     assert swings and float(swings.group(1)) > float(swings.group(3)), explicit.message
     assert 'try coupling.algorithm = "implicit"' in explicit.message
     implicit, bounded = run(common + ["coupling.algorithm=implicit"])
@@ -94,7 +94,7 @@ def test_a_run_that_fails_in_its_first_step_gets_no_coupling_hint():
     """The flexible aluminium wing under RK4 at 1 ms (far beyond its explicit limit) blows up in the first
     step, under the aero force of its initial state alone: no exchange happened, so the message names the
     structure's own remedy and not the coupling's."""
-    scene = load_scene("scenes/deploy_rigid.toml", ["structure.fidelity=flexible", "time.stop=0.01"])
+    scene = load_scene(SCENES / "deploy_rigid.toml", ["structure.fidelity=flexible", "time.stop=0.01"])
     result = run_scene(scene, backend="direct")
     assert result.status == "diverged" and result.simulated_time_s == 0.0, result.message
     assert "structure.integrator" in result.message and "coupling" not in result.message
