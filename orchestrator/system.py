@@ -3,10 +3,10 @@
 `coupled_system(scene, fmu_dir)` reads the model descriptions of the scene's FMUs (built by
 ``orchestrator.build`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and
 ``aero`` for an aero scene), every coupling connection (``e[k]`` and ``de[k]`` from the structure's output
-to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure's input, k = 1..n, DESIGN
-§3), each component's parameters with the values the FMU was built with (its start values, the scene's),
-the outputs a user reads (every Real output that is not a coupling variable: fold angles, latch times,
-probes, CL, lift, ...), and the experiment (start 0, stop ``time.stop``, communication step
+to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure's input, k = 1..n,
+docs/architecture.md), each component's parameters with the values the FMU was built with (its start
+values, the scene's), the outputs a user reads (every Real output that is not a coupling variable: fold
+angles, latch times, probes, CL, lift, ...), and the experiment (start 0, stop ``time.stop``, communication step
 ``coupling.step``, s). A structure-only scene is the structure alone, its Q inputs held at their start
 value 0, as ``wingsim run`` holds them.
 

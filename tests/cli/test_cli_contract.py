@@ -21,9 +21,9 @@ from subprocesses import wingsim
 from repository import ROOT, SCENES
 
 EXAMPLE = SCENES / "deploy_rigid.toml"
-DESIGN_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
+CONTRACT_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
                          "max_constraint_residual", "energy_drift", "probes"}
-SUMMARY_FIELDS = DESIGN_SUMMARY_FIELDS | {"stepping_wall_time_s"}   # ours: the communication steps' wall time
+SUMMARY_FIELDS = CONTRACT_SUMMARY_FIELDS | {"stepping_wall_time_s"}   # ours: the communication steps' wall time
 
 
 @pytest.fixture
