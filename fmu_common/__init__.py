@@ -9,7 +9,9 @@
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
                       unit maps panel points and forces to the exchanged coordinates (Eq. 12)
   vectors.py          3-vector kernels: cross product, rotation about an axis
-  fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave, UnitReal, units, scene resource)
+  fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave: layout, refusals, phases, states)
+  fmi_state.py        a unit's state as bytes, read back by an unpickler that builds nothing but the state
+  fmi_units.py        SI units of FMI variables (UnitReal) and the model description's UnitDefinitions
   threads.py          limit_blas_threads(), called where a process or a unit starts
 
 Both FMUs embed this package beside their own (structure.fmu: structure_fmu; aero.fmu: aero_fmu), the

@@ -23,7 +23,7 @@ answers fmi2OK (fmi2Discard for do_step) with the error logged, and a host must 
   * fmi2DoStep with a step size that is not finite and > 0, or a communication point that is not the
     unit's own time (FMI start time + solver time, within `TIME_TOLERANCE`): the message gives both;
   * fmi2SetFMUstate of anything but a complete state this unit saved, and fmi2DeSerializeFMUstate of bytes
-    that do not hold one (`_StateUnpickler` builds only numpy arrays and the solvers' state dataclasses, so
+    that do not hold one (`fmi_state.StateUnpickler` builds only numpy arrays and the solvers' state dataclasses, so
     foreign bytes never run code).
 A failure inside a step (non-finite input, `InputError`, `SolverDiverged`, any exception) is logged the
 same way, a `SolverDiverged` in the category `DIVERGED_CATEGORY` (declared in the model description's
@@ -44,12 +44,10 @@ Facts about pythonfmu 0.7.0 this encodes (measured, see docs/fmu.md):
     of the class; with several instances of the same FMU in one process it cannot tell which one called,
     and the refused state is then refused, with the same reason, by the fmi2SetFMUstate it is passed to;
   * log text is passed to the FMI logger as a printf format: '%' is doubled;
-  * pythonfmu has no unit attribute on variables: `UnitReal` adds one.
+  * pythonfmu has no unit attribute on variables: `fmi_units.UnitReal` adds one.
 """
 from __future__ import annotations
 
-import dataclasses
-import functools
 import gc
 import io
 import json
@@ -57,16 +55,16 @@ import math
 import os
 import pickle
 import re
-import sys
 import traceback
 import weakref
-from xml.etree.ElementTree import Element, SubElement
 
 import numpy as np
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 from .errors import InputError, SolverDiverged
+from .fmi_state import STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler
+from .fmi_units import UnitReal, unit_definitions
 from .threads import limit_blas_threads
 
 SCENE_RESOURCE = "scene.json"
@@ -102,51 +100,6 @@ def coordinate_description(topology, k: int) -> tuple[str, str, str]:
     return topology.node_names[k // 9], f"{vec}[{axis}]", vec
 
 
-class UnitReal(Real):
-    """pythonfmu Real with a declared SI unit (pythonfmu 0.7.0 has no unit attribute)."""
-
-    def __init__(self, name: str, unit: str | None = None, **kwargs):
-        super().__init__(name, **kwargs)
-        self.unit = unit
-
-    def to_xml(self):
-        node = super().to_xml()
-        if self.unit:
-            node.find("Real").set("unit", self.unit)
-        return node
-
-
-# Base-unit exponents (kg, m, s, A, K, mol, cd, rad) and factor of the symbols our units are made of.
-_SYMBOLS = {
-    "1": ({}, 1.0), "-": ({}, 1.0), "kg": ({"kg": 1}, 1.0), "m": ({"m": 1}, 1.0), "s": ({"s": 1}, 1.0),
-    "rad": ({"rad": 1}, 1.0), "deg": ({"rad": 1}, math.pi / 180.0), "N": ({"kg": 1, "m": 1, "s": -2}, 1.0),
-    "J": ({"kg": 1, "m": 2, "s": -2}, 1.0), "W": ({"kg": 1, "m": 2, "s": -3}, 1.0),
-    "Pa": ({"kg": 1, "m": -1, "s": -2}, 1.0), "Hz": ({"s": -1}, 1.0), "K": ({"K": 1}, 1.0),
-}
-
-
-def base_unit(unit: str) -> tuple[dict, float] | None:
-    """Exponents and factor of a unit string like 'N.m/rad', 'N m s/rad', 'm/s2', 'm/s^2', '1/s'.
-
-    Symbols are separated by spaces, '.' or '*', with at most one '/'; None if not understood.
-    """
-    parts = unit.split("/")
-    if len(parts) > 2:
-        return None
-    exps: dict[str, int] = {}
-    factor = 1.0
-    for sign, part in zip((1, -1), parts):
-        for token in part.replace("*", " ").replace(".", " ").split():
-            m = re.fullmatch(r"([A-Za-z]+|1|-)\^?(-?\d+)?", token)
-            if m is None or m.group(1) not in _SYMBOLS:
-                return None
-            p = sign * int(m.group(2) or 1)
-            for k, v in _SYMBOLS[m.group(1)][0].items():
-                exps[k] = exps.get(k, 0) + p * v
-            factor *= _SYMBOLS[m.group(1)][1] ** p
-    return {k: v for k, v in exps.items() if v}, factor
-
-
 TIME_TOLERANCE = 1e-9
 """Relative tolerance, of max(1 s, |t|), within which fmi2DoStep's communication point must equal the unit's
 time t. Both are sums of steps in double precision: the solver's time is the start time plus its internal
@@ -168,47 +121,6 @@ _ALLOWED = {
     "fmi2Terminate": (("stepping",), "only once, after fmi2ExitInitializationMode"),
     "fmi2SetReal": (("instantiated", "initialization", "stepping"), "only before fmi2Terminate"),
 }
-
-STATE_FORMAT = "wingsim unit state 1"
-_STATE_KEYS = frozenset({"format", "unit", "topology_hash", "solver", "real", "t0", "phase", "failure",
-                         "solver_parameters"})
-# what a pickled numpy array refers to (numpy 1.x and 2.x names)
-_NUMPY_GLOBALS = frozenset((module, name) for module in ("numpy.core.multiarray", "numpy._core.multiarray",
-                                                         "numpy.core.numeric", "numpy._core.numeric", "numpy")
-                           for name in ("_reconstruct", "_frombuffer", "scalar", "dtype", "ndarray"))
-
-
-class _StateUnpickler(pickle.Unpickler):
-    """Unpickles a unit state and nothing else: the only globals it resolves are numpy's array and dtype
-    constructors and the dataclasses of `packages` (the units' solver packages, already imported), so bytes
-    that are not our state raise UnpicklingError instead of running code."""
-
-    def __init__(self, file, packages):
-        super().__init__(file)
-        self.packages = packages
-
-    def find_class(self, module, name):
-        if (module, name) in _NUMPY_GLOBALS:
-            return super().find_class(module, name)
-        if module.split(".")[0] in self.packages and module in sys.modules and "." not in name:
-            obj = getattr(sys.modules[module], name, None)
-            if isinstance(obj, type) and dataclasses.is_dataclass(obj):
-                return obj
-        raise pickle.UnpicklingError(f"it refers to {module}.{name}, which no unit state holds")
-
-
-class _ClassOrInstanceMethod:
-    """A method called as f(cls, instance, *args) whether it is looked up on an instance or on the class
-    (instance None): pythonfmu 0.7.0 calls the state (de)serialization on the slave class, the direct
-    backend on the instance."""
-
-    def __init__(self, func):
-        self.func = func
-        functools.update_wrapper(self, func)
-
-    def __get__(self, obj, objtype=None):
-        return functools.partial(self.func, objtype if objtype is not None else type(obj), obj)
-
 
 _LIVE: "weakref.WeakKeyDictionary[type, weakref.WeakSet]" = weakref.WeakKeyDictionary()
 """Slave class -> its instances, to log a refusal made in a call on the class (see `_log_on`)."""
@@ -280,19 +192,8 @@ class SolverSlave(Fmi2Slave):
     def to_xml(self, model_options: dict | None = None):
         """pythonfmu's model description plus the UnitDefinitions of every declared unit."""
         root = super().to_xml({} if model_options is None else model_options)
-        units = sorted({v.unit for v in self.vars.values() if getattr(v, "unit", None)})
-        defs = Element("UnitDefinitions")
-        for unit in units:
-            node = SubElement(defs, "Unit", name=unit)
-            parsed = base_unit(unit)
-            if parsed is not None:
-                exps, factor = parsed
-                attrib = {k: str(v) for k, v in exps.items()}
-                if factor != 1.0:
-                    attrib["factor"] = repr(factor)
-                SubElement(node, "BaseUnit", attrib)
         at = next(i for i, c in enumerate(list(root)) if c.tag == "CoSimulation") + 1
-        root.insert(at, defs)
+        root.insert(at, unit_definitions(v.unit for v in self.vars.values() if getattr(v, "unit", None)))
         return root
 
     # ---- logging --------------------------------------------------------------------------------
@@ -564,7 +465,7 @@ class SolverSlave(Fmi2Slave):
             return f"not a state of this unit (a {type(state).__name__})"
         if "error" in state:
             return str(state["error"])
-        if state.keys() != _STATE_KEYS or not isinstance(state["format"], str) or state["format"] != STATE_FORMAT:
+        if state.keys() != STATE_KEYS or not isinstance(state["format"], str) or state["format"] != STATE_FORMAT:
             return "not a state saved by this version of the unit"
         if not isinstance(state["unit"], str) or state["unit"] != cls.label:
             return f"a state of the {state['unit']}, not of the {cls.label}"
@@ -593,7 +494,7 @@ class SolverSlave(Fmi2Slave):
             return f"it cannot be read ({type(exc).__name__}: {exc})"
         return None
 
-    @_ClassOrInstanceMethod
+    @ClassOrInstanceMethod
     def _fmu_state_to_bytes(cls, slave, state) -> bytes:
         try:
             return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
@@ -602,12 +503,12 @@ class SolverSlave(Fmi2Slave):
             cls._log_on(slave, f"{cls.label}: fmi2SerializeFMUstate failed: {reason}")
             return pickle.dumps({"error": reason})
 
-    @_ClassOrInstanceMethod
+    @ClassOrInstanceMethod
     def _fmu_state_from_bytes(cls, slave, data):
         """The state serialized in `data`; for bytes that hold none, the refusal is logged (`_log_on`) and
         an {"error": reason} entry returned, which fmi2SetFMUstate refuses with the same reason."""
         try:
-            state = _StateUnpickler(io.BytesIO(data), cls._state_packages()).load()
+            state = StateUnpickler(io.BytesIO(data), cls._state_packages()).load()
             problem = cls._state_form_problem(state)
         except Exception as exc:  # noqa: BLE001 - garbage may fail in any way
             problem = f"the bytes do not hold a state of this unit ({type(exc).__name__}: {exc})"
