@@ -7,7 +7,9 @@ Modules (one concept each):
 - ``build``       build the FMUs a scene needs, and tell whether built ones are up to date
 - ``native_binary`` the FMU's Linux binary: a C shim (``fmi_shim.c``) that starts the build's Python
                   in a host without one and forwards every FMI call to pythonfmu's binary
-- ``units``       structure/aero units behind one interface (FMU through fmpy, or in-process)
+- ``units``       structure/aero units behind one interface, over a port:
+- ``fmu_port``    the FMU through fmpy
+- ``direct_port`` the same slave class in-process
 - ``master``      step the units from 0 to ``time.stop`` and record what the scene asks for
 - ``timeseries``  the recorded samples (time, probe positions, fold angles, monitors)
 - ``results``     ``timeseries.csv`` and ``summary.json`` (README, Outputs)

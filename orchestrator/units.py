@@ -25,29 +25,23 @@
                                 when the object is garbage collected or the unit terminated)
     unit.terminate()            end the simulation and free the instance (idempotent, never raises)
 
-Backends: "fmu" loads `fmu_dir/<kind>.fmu` with fmpy (FMU2Slave), every get/set batched over precomputed
-value-reference arrays and ctypes buffers, every status checked, log messages captured; "direct"
-instantiates the same slave class (`StructureSlave`, `AeroSlave`) in-process and drives it through the
-same calls. Both start at t = 0 (FMI start time) and are initialized by `make_unit`.
+Backends (a port each, behind `Unit`): "fmu" (`orchestrator.fmu_port`) loads `fmu_dir/<kind>.fmu` with
+fmpy (FMU2Slave), every get/set batched over precomputed value-reference arrays and ctypes buffers, every
+status checked, log messages captured; "direct" (`orchestrator.direct_port`) instantiates the same slave
+class (`StructureSlave`, `AeroSlave`) in-process and drives it through the same calls. Both start at t = 0
+(FMI start time) and are initialized by `make_unit`.
 """
 from __future__ import annotations
 
 import importlib
-import json
-import os
 import re
-import shutil
-import sys
-import tempfile
-import weakref
-from ctypes import byref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from fmu_common.fmi_slave import DIVERGED_CATEGORY, SCENE_RESOURCE
+from fmu_common.fmi_slave import DIVERGED_CATEGORY
 from structure_fmu.sensors import output_names as sensor_output_names
 from structure_fmu.structure_slave import LATCH_PENDING
 
@@ -72,7 +66,7 @@ class LogEntry(NamedTuple):
     text: str
 
 
-def _reported_divergence(entries) -> bool:
+def reported_divergence(entries) -> bool:
     """True when one of the log entries is the unit's divergence signal (its category, not its text)."""
     return any(entry.category == DIVERGED_CATEGORY for entry in entries)
 
@@ -100,8 +94,8 @@ KINDS = {
                      ("CL", "lift", "wake_panels"), ("structure", "aero", "flow"), extra_monitors=True),
 }
 FMU_FILES = {kind: spec.fmu_file for kind, spec in KINDS.items()}
-_ERROR = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
-_INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
+ERROR_STATUS = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
+INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
@@ -123,9 +117,13 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
         raise UnitError(f"the {kind} unit cannot be loaded: {spec.slave[0]} does not import ({exc})") from exc
     name = instance_name or kind
     if backend == "fmu":
-        port = _FmuPort(Path(fmu_dir) / spec.fmu_file, scene, name, spec)
+        from orchestrator.fmu_port import FmuPort
+
+        port = FmuPort(Path(fmu_dir) / spec.fmu_file, scene, name, spec)
     elif backend == "direct":
-        port = _DirectPort(scene, name, spec)
+        from orchestrator.direct_port import DirectPort
+
+        port = DirectPort(scene, name, spec)
     else:
         raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
     try:
@@ -148,7 +146,7 @@ class Unit:
         self._spec = spec = KINDS[kind]
         self.backend = port.backend
         vr = port.value_references()
-        idx = {(m.group(1), int(m.group(2))): v for name, v in vr.items() if (m := _INDEXED.match(name))}
+        idx = {(m.group(1), int(m.group(2))): v for name, v in vr.items() if (m := INDEXED.match(name))}
         self.n = n = sum(1 for (block, _) in idx if block == spec.outputs[0])
         try:
             block_vr = {b: [idx[(b, i)] for i in range(1, n + 1)] for b in (*spec.outputs, *spec.inputs)}
@@ -257,314 +255,8 @@ class Unit:
 
 
 # ---- fmpy backend -----------------------------------------------------------------------------------
-class _FmuState:
-    """An fmi2FMUstate of one instance, freed when collected (or when the instance goes away first)."""
-
-    def __init__(self, port: "_FmuPort", handle):
-        self._port, self.handle = weakref.ref(port), handle
-        port._live_states.add(self)
-
-    def free(self):
-        port = self._port()
-        if self.handle is not None and port is not None and port._fmu is not None:
-            try:
-                port._fmu.fmi2FreeFMUstate(port._fmu.component, byref(self.handle))
-            except Exception:  # noqa: BLE001 - freeing is best effort
-                pass
-        self.handle = None
-
-    def __del__(self):
-        self.free()
 
 
-class _FmuPort:
-    backend = "fmu"
-
-    def __init__(self, fmu_path: Path, scene: dict, instance_name: str, spec: UnitKind = KINDS["structure"]):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi1 import calloc, free
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-
-        self.label = f"{instance_name} ({fmu_path.name}, fmu)"
-        self._fmu = None
-        self._dir = None
-        self._live_states = weakref.WeakSet()
-        self._initialized = False
-        self.log: list[LogEntry] = []
-        if not fmu_path.is_file():
-            raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
-        try:
-            md = read_model_description(str(fmu_path))
-            self._dir = extract(str(fmu_path))
-        except Exception as exc:
-            self.close()
-            raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
-        try:
-            self._check_scene(scene, spec.scene_sections)
-            self._check_layout(md, spec)
-        except UnitError:
-            self.close()
-            raise
-        self._vr = {v.name: v.valueReference for v in md.modelVariables}
-        self._scalar_outputs = [v.name for v in md.modelVariables if v.causality == "output"
-                                and v.type == "Real" and not _INDEXED.match(v.name)]
-
-        def logger(env, inst, status, category, message):
-            # The FMU's printf-style message arrives unformatted: fmpy's formatting proxy (addLoggerProxy) is
-            # not used, as it keeps ONE logger for the whole process (messages of every instance would go to
-            # the last one registered, and into freed memory once that one is gone). The slave doubles '%'.
-            text = message.decode("utf-8", "replace") if message else ""
-            self.log.append(LogEntry(int(status), category.decode("utf-8", "replace") if category else "",
-                                     text.replace("%%", "%")))
-
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance_name)
-        try:
-            self._call("fmi2Instantiate", fmu.instantiate, callbacks=self._callbacks, loggingOn=True)
-        except UnitError:
-            self.close()
-            raise
-        self._fmu = fmu
-
-    def _check_scene(self, scene: dict, sections: tuple[str, ...]) -> None:
-        """Refuse an FMU built from a different scene than `scene` in `sections` (stale build)."""
-        try:
-            built = json.loads(Path(self._dir, "resources", "scene.json").read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise UnitError(f"{self.label}: resources/scene.json missing ({exc}); rebuild the FMU") from exc
-        keys = []
-        for section in sections:
-            want = json.loads(json.dumps(scene.get(section)))
-            if built.get(section) != want:
-                keys += _differing_keys(built.get(section), want, section)
-        if keys:
-            raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
-                            "rebuild it (wingsim build SCENE)")
-
-    def _check_layout(self, md, spec: UnitKind) -> None:
-        """Refuse an FMU whose model description declares its variables otherwise than its unit's code
-        registers them (names, value references, causality, variability, type, unit: `orchestrator.layout`)."""
-        from orchestrator.layout import check
-
-        kind = next(k for k, s in KINDS.items() if s == spec)
-        problems = check(md, kind, Path(self._dir, "resources"))
-        if problems:
-            raise UnitError(f"{self.label}: refused: " + "; ".join(problems))
-
-    def _reasons(self, since: int) -> str:
-        msgs = [" ".join(m.split()) for s, _, m in self.log[since:] if s >= 1 and m]
-        return "; ".join(msgs) if msgs else "no reason logged by the unit"
-
-    def _call(self, what: str, fn, *args, **kwargs):
-        """fn(*args); UnitError if it fails (fmpy raises on a status above warning) or logs an error."""
-        mark = len(self.log)
-        try:
-            result = fn(*args, **kwargs)
-        except Exception as exc:
-            raise UnitError(f"{self.label}: {what} failed ({exc}): {self._reasons(mark)}",
-                            diverged=_reported_divergence(self.log[mark:])) from None
-        if any(entry.status >= _ERROR for entry in self.log[mark:]):
-            raise UnitError(f"{self.label}: {what} failed: {self._reasons(mark)}",
-                            diverged=_reported_divergence(self.log[mark:]))
-        return result
-
-    def value_references(self) -> dict[str, int]:
-        return dict(self._vr)
-
-    def scalar_outputs(self) -> list[str]:
-        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
-        return list(self._scalar_outputs)
-
-    def reader(self, vrs: list[int]):
-        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
-        n = len(vrs)
-        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
-        view = np.ctypeslib.as_array(buf)
-
-        def read() -> np.ndarray:
-            self._call("fmi2GetReal", self._fmu.fmi2GetReal, self._fmu.component, vr_arr, n, buf)
-            return view.copy()
-        return read
-
-    def writer(self, vrs: list[int]):
-        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
-        n = len(vrs)
-        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
-        view = np.ctypeslib.as_array(buf)
-
-        def write(values: np.ndarray) -> None:
-            view[:] = values
-            self._call("fmi2SetReal", self._fmu.fmi2SetReal, self._fmu.component, vr_arr, n, buf)
-        return write
-
-    def get_string(self, vr: int) -> str:
-        return self._call("fmi2GetString", self._fmu.getString, [vr])[0].decode("utf-8")
-
-    def setup(self) -> None:
-        self._call("fmi2SetupExperiment", self._fmu.setupExperiment, startTime=0.0)
-        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
-
-    def initialize(self) -> None:
-        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
-        self._initialized = True
-
-    def do_step(self, t: float, h: float) -> None:
-        from fmpy.fmi2 import fmi2False
-        self._call(f"fmi2DoStep(t = {t:.6g} s, h = {h:.6g} s)", self._fmu.fmi2DoStep,
-                   self._fmu.component, t, h, fmi2False)
-
-    def get_state(self) -> _FmuState:
-        return _FmuState(self, self._call("fmi2GetFMUstate", self._fmu.getFMUstate))
-
-    def set_state(self, state: _FmuState) -> None:
-        if not isinstance(state, _FmuState) or state._port() is not self or state.handle is None:
-            raise UnitError(f"{self.label}: set_state needs a live state from this unit's get_state()")
-        self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state.handle)
-
-    def serialize_state(self, state: _FmuState) -> bytes:
-        return bytes(self._call("fmi2SerializeFMUstate", self._fmu.serializeFMUstate, state.handle))
-
-    def deserialize_state(self, data: bytes) -> _FmuState:
-        return _FmuState(self, self._call("fmi2DeSerializeFMUstate", self._fmu.deSerializeFMUstate, data))
-
-    def close(self) -> None:
-        if self._fmu is not None:
-            for s in list(self._live_states):  # states are freed while the instance still exists
-                s.free()
-            fmu, self._fmu = self._fmu, None
-            for fn in ((fmu.terminate,) if self._initialized else ()) + (fmu.freeInstance,):
-                try:
-                    fn()
-                except Exception:  # noqa: BLE001 - e.g. terminate after a fatal status; free anyway
-                    pass
-        if self._dir is not None:
-            # pythonfmu put <dir>/resources first on sys.path at instantiation: take it out with the folder
-            resources = os.path.normpath(os.path.join(self._dir, "resources"))
-            sys.path[:] = [p for p in sys.path if os.path.normpath(p) != resources]
-            shutil.rmtree(self._dir, ignore_errors=True)
-            self._dir = None
-
-
-# ---- in-process backend -----------------------------------------------------------------------------
-class _DirectPort:
-    backend = "direct"
-
-    def __init__(self, scene: dict, instance_name: str, spec: UnitKind = KINDS["structure"]):
-        module = importlib.import_module(spec.slave[0])
-        slave_class = getattr(module, spec.slave[1])
-
-        self.label = f"{instance_name} (direct)"
-        self._slave = None
-        self._tmp = tempfile.TemporaryDirectory(prefix="wingsim_direct_")
-        Path(self._tmp.name, SCENE_RESOURCE).write_text(json.dumps(scene), encoding="utf-8")
-        self.log: list[LogEntry] = []
-        self._slave = self._call("instantiate", slave_class, instance_name=instance_name,
-                                 resources=self._tmp.name)
-
-    def _call(self, what: str, fn, *args, ok_on_false: bool = True, **kwargs):
-        slave = self._slave
-        try:
-            result = fn(*args, **kwargs)
-        except Exception as exc:  # noqa: BLE001 - as fmi2Fatal through the FMU: report, never crash
-            reasons = _warnings_and_errors(self._drain(slave))
-            raise UnitError(f"{self.label}: {what} failed ({type(exc).__name__}: {exc})"
-                            + (f": {reasons}" if reasons else "")) from exc
-        new = self._drain(slave)
-        if any(entry.status >= _ERROR for entry in new) or (result is False and not ok_on_false):
-            reasons = _warnings_and_errors(new) or "no reason logged by the unit"
-            raise UnitError(f"{self.label}: {what} failed: {reasons}", diverged=_reported_divergence(new))
-        return result
-
-    def _drain(self, slave) -> list[LogEntry]:
-        """Move the slave's queued log messages to self.log; returns them."""
-        if slave is None:
-            return []
-        # the slave doubles '%' for the FMI logger's printf formatting: undo it as that logger would
-        new = [LogEntry(int(m.status), m.category or "", m.msg.replace("%%", "%")) for m in slave.log_queue]
-        slave.log_queue.clear()
-        self.log += new
-        return new
-
-    def value_references(self) -> dict[str, int]:
-        return {v.name: vr for vr, v in self._slave.vars.items()}
-
-    def scalar_outputs(self) -> list[str]:
-        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
-        from pythonfmu import Fmi2Causality, Real
-        return [v.name for _, v in sorted(self._slave.vars.items()) if isinstance(v, Real)
-                and v.causality == Fmi2Causality.output and not _INDEXED.match(v.name)]
-
-    def reader(self, vrs: list[int]):
-        vrs = list(vrs)
-
-        def read() -> np.ndarray:
-            return np.array(self._call("get_real", self._slave.get_real, vrs))
-        return read
-
-    def writer(self, vrs: list[int]):
-        vrs = list(vrs)
-
-        def write(values: np.ndarray) -> None:
-            self._call("set_real", self._slave.set_real, vrs, np.asarray(values, float).tolist())
-        return write
-
-    def get_string(self, vr: int) -> str:
-        return self._call("get_string", self._slave.get_string, [vr])[0]
-
-    def setup(self) -> None:
-        self._call("setup_experiment", self._slave.setup_experiment, 0.0, None, None)
-        self._call("enter_initialization_mode", self._slave.enter_initialization_mode)
-
-    def initialize(self) -> None:
-        self._call("exit_initialization_mode", self._slave.exit_initialization_mode)
-
-    def do_step(self, t: float, h: float) -> None:
-        self._call(f"do_step(t = {t:.6g} s, h = {h:.6g} s)", self._slave.do_step, t, h, ok_on_false=False)
-
-    def get_state(self):
-        return self._call("get_fmu_state", self._slave._get_fmu_state)
-
-    def set_state(self, state) -> None:
-        self._call("set_fmu_state", self._slave._set_fmu_state, state)
-
-    def serialize_state(self, state) -> bytes:
-        return self._call("fmu_state_to_bytes", self._slave._fmu_state_to_bytes, state)
-
-    def deserialize_state(self, data: bytes):
-        return self._call("fmu_state_from_bytes", self._slave._fmu_state_from_bytes, data)
-
-    def close(self) -> None:
-        slave, self._slave = self._slave, None
-        if slave is not None:
-            try:
-                slave.terminate()
-            except Exception:  # noqa: BLE001
-                pass
-        if self._tmp is not None:
-            self._tmp.cleanup()
-            self._tmp = None
-
-
-def _warnings_and_errors(entries: list[LogEntry]) -> str:
+def warnings_and_errors(entries: list[LogEntry]) -> str:
     """The texts of the warnings and errors among `entries`, joined by '; '."""
     return "; ".join(entry.text for entry in entries if entry.status >= 1)
-
-
-def _differing_keys(a, b, prefix: str) -> list[str]:
-    """Dotted keys at which two JSON-like values differ."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = []
-        for k in list(a) + [k for k in b if k not in a]:
-            out += _differing_keys(a.get(k), b.get(k), f"{prefix}.{k}")
-        return out
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        out = []
-        for i, (x, y) in enumerate(zip(a, b)):
-            out += _differing_keys(x, y, f"{prefix}[{i}]")
-        return out
-    return [] if a == b else [prefix]
