@@ -231,9 +231,15 @@ def failure(out):
     return "-" if "rows" not in out or out.get("unstable") is None else how(grid_probe(out, "unstable"))
 
 
+def results(res, part, ok=False, **fields):
+    """The results of the tasks of `part` with `fields` (if `ok`, those without an error), in task order."""
+    return [res[t] for t in part
+            if all(getattr(t, k) == v for k, v in fields.items()) and not (ok and "error" in res[t])]
+
+
 def find(res, part, **fields):
     """The result of the task of `part` with `fields`, or None."""
-    return next((res[t] for t in part if all(getattr(t, k) == v for k, v in fields.items())), None)
+    return next(iter(results(res, part, **fields)), None)
 
 
 def onset(res, part, algorithm, V):
@@ -268,63 +274,6 @@ def check_named(message):
 
 
 # ---- tables (markdown text) -----------------------------------------------------------------------------------
-def table_stiffness(res, part):
-    """Part 1: per E the modes, the RK4 estimate and the measured limits of every integrator."""
-    rhos = list(dict.fromkeys(t.rho for t in part if t.rho is not None))
-    rows = []
-    for E in sorted({t.E for t in part}):
-        first = next((res[t] for t in part if t.E == E and "error" not in res[t]), None)
-        if first is None:
-            rows.append([f"{E:.0e}", "error"] + [""] * (4 + len(rhos)))
-            continue
-        estimate = stability.rk4_step_limit(first["omega_max"])
-        rk4 = find(res, part, E=E, rho=None)
-        rk4 = None if rk4 is None or "error" in rk4 else rk4
-        measured = step_of(rk4, "stable") if rk4 else None
-        row = [f"{E:.0e}", f"{first['omega_1']:.4g}", f"{first['omega_max']:.4g}", f"{estimate:.3g}",
-               f"{fmt(measured, '.3g')} / {fmt(step_of(rk4, 'unstable') if rk4 else None, '.3g')}",
-               fmt(None if measured is None else measured / estimate, ".3f")]
-        for rho in rhos:
-            out = find(res, part, E=E, rho=rho)
-            ga = None if "error" in out else step_of(out, "stable")
-            row.append(f"{search_cell(out)} ({fmt(ga / measured if ga and measured else None, '.0f')}x)")
-        rows.append(row)
-    return table(["E (Pa)", "omega_1 (rad/s)", "omega_max (rad/s)", "2 sqrt(2) / omega_max (s)",
-                  "RK4 stable / unstable (s)", "RK4 / estimate",
-                  *(f"gen-alpha rho_inf = {r:g} (s, x RK4)" for r in rhos)], rows)
-
-
-def table_failures(res, part):
-    """Part 1: how the smallest unstable grid step failed, per search."""
-    return table(["E (Pa)", "integrator", "smallest unstable step (s)", "how it failed", "runs"],
-                 [[f"{t.E:.0e}", integrator_label(t.rho), fmt(step_of(res[t], "unstable"), ".3g"), failure(res[t]),
-                   str(len(res[t]["rows"]))] for t in part if "error" not in res[t]])
-
-
-def table_map(res, part, algorithm):
-    """Part 2 for one algorithm: density factor x speed, one symbol per run ("." not run)."""
-    speeds = sorted({t.V for t in part})
-    rows = [[f"{f:g} ({AIR * f:.3g})"] + ["." if c is None else cell(c) for c in
-                                          (find(res, part, algorithm=algorithm, V=V, factor=f) for V in speeds)]
-            for f in sorted({t.factor for t in part})]
-    return table(["density x 1.2 (kg/m^3) \\ speed (m/s)"] + [f"{V:g}" for V in speeds], rows)
-
-
-def table_modal(res, part, est, V):
-    """Part 2 at speed V: each algorithm's predicted peak kinetic energy (modal_growth) against the measured run."""
-    rows = []
-    for f in sorted({t.factor for t in part}):
-        row = [f"{f:g}"]
-        for a in EXPLICIT:
-            energy, mode = modal_growth(est, a, f)
-            out = find(res, part, algorithm=a, V=V, factor=f)
-            hertz = est["modes"]["omega"][mode] / (2 * math.pi)
-            row += [f"{energy:.3g} ({hertz:.0f} Hz)", "-" if out is None else cell(out)]
-        rows.append(row)
-    return table(["density x 1.2 (kg/m^3)", "gauss-seidel predicted (mode)", "gauss-seidel measured",
-                  "jacobi predicted (mode)", "jacobi measured"], rows)
-
-
 def table_run_on(res, part):
     """Part 2's runs the units did not report, run on to RUN_ON_STOP: per algorithm, how many the units
     reported "diverged", when (s), how long after the response left the bounds (ms), the largest kinetic
@@ -346,50 +295,6 @@ def table_run_on(res, part):
     return table(["algorithm", "runs", "reported \"diverged\"", "at t (s)", "after the response left the bounds (ms)",
                   "largest KE (x P delta_s)", "stopped by", f"not reported by {RUN_ON_STOP:g} s"], rows), \
         sum(int(r[2]) for r in rows)
-
-
-def table_line(res, part):
-    """Part 3: density factor, largest stable coupling step per algorithm, and how the next one failed."""
-    rows = []
-    for f in sorted({t.factor for t in part}):
-        row = [f"{f:g} ({AIR * f:.3g})"]
-        for a in ("gauss-seidel", "implicit"):
-            out = find(res, part, algorithm=a, factor=f)
-            row += ["not run", "-"] if out is None else [search_cell(out), failure(out)]
-        rows.append(row)
-    return table(["density x 1.2 (kg/m^3)", "gauss-seidel: largest stable coupling step (s)",
-                  "smallest unstable step tried", "implicit: largest stable coupling step (s)",
-                  "smallest unstable step tried"], rows)
-
-
-def table_substeps(res, part, est):
-    """Part 4: structure steps per coupling step, the predicted onset, the outcome per density."""
-    factors = sorted({t.factor for t in part})
-    rows = []
-    for k in sorted({t.substeps for t in part}):
-        cells = [cell(find(res, part, factor=f, substeps=k)) for f in factors]
-        mu = est["mu_crit_substeps"][k]
-        stable = [f for f, c in zip(factors, cells) if c == "S"]
-        unstable = [f for f, c in zip(factors, cells) if c != "S"]
-        measured = (f"> {factors[-1]:g}" if not unstable else f"<= {factors[0]:g}" if not stable
-                    else f"{max(stable):g} to {min(unstable):g}")
-        rows.append([str(k), f"{mu:.3f}", f"{est['onset_factor'](mu):.3g}", measured] + cells)
-    return table(["structure steps per coupling step", "mu_crit", "predicted onset (x air)", "measured onset (x air)"]
-                 + [f"{f:g} x air" for f in factors], rows)
-
-
-def table_flutter(res, part):
-    """Part 5: coupling step, then per algorithm the outcome, KE max (J) and largest tip twist (deg)."""
-    rows = []
-    for h in sorted({t.step for t in part}, reverse=True):
-        row = [f"{h * 1e3:g}"]
-        for a in ("gauss-seidel", "implicit"):
-            out = find(res, part, algorithm=a, step=h) or {"error": "not run"}
-            row += ([out["error"], "-", "-"] if "error" in out else
-                    [cell(out), f"{out['ke_max']:.3g}", f"{out['twist_max']:.3g}"])
-        rows.append(row)
-    return table(["coupling step (ms)"] + ["gauss-seidel", "KE max (J)", "tip twist max (deg)", "implicit",
-                                           "KE max (J)", "tip twist max (deg)"], rows)
 
 
 # ---- the facts the report words -------------------------------------------------------------------------------
@@ -567,15 +472,14 @@ def main(argv=None):
         plot_coupling(res, p2, est)
         plot_line(res, p3)
     constants = {k: v for k, v in globals().items() if k.isupper()}     # the case, as the template names it
-    REPORT.render(**constants, tasks=len(res), runs=sum(len(r["rows"]) if "rows" in r else 1 for r in res.values()),
-                  est=est, RK4_REAL=stability.RK4_REAL, RK4_IMAGINARY=stability.RK4_IMAGINARY,
-                  algorithms=list(dict.fromkeys(t.algorithm for t in p2)), res=res, reason=reason,
+    helpers = {f.__name__: f for f in (results, find, cell, search_cell, failure, integrator_label, modal_growth,
+                                       reason)} | {"step_of": step_of}
+    REPORT.render(**constants, **helpers, tasks=len(res), est=est, parts=parts, res=res, stability=stability,
+                  runs=sum(len(r["rows"]) if "rows" in r else 1 for r in res.values()),
+                  RK4_REAL=stability.RK4_REAL, RK4_IMAGINARY=stability.RK4_IMAGINARY,
+                  algorithms=list(dict.fromkeys(t.algorithm for t in p2)),
                   divergence_speed=est["divergence_speed"], onset_factor=est["onset_factor"],
-                  table_stiffness=table_stiffness(res, p1), table_failures=table_failures(res, p1),
-                  p1=stiffness_facts(res, p1), maps={a: table_map(res, p2, a) for a in ALGORITHMS},
-                  table_modal=table_modal(res, p2, est, min(t.V for t in p2)), p2=coupling_facts(res, p2, est),
-                  table_line=table_line(res, p3), p3=line_facts(res, p3, p1),
-                  table_substeps=table_substeps(res, p4, est), table_flutter=table_flutter(res, p5),
+                  p1=stiffness_facts(res, p1), p2=coupling_facts(res, p2, est), p3=line_facts(res, p3, p1),
                   p5=flutter_trends(res, p5))
 
 
