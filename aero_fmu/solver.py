@@ -164,7 +164,8 @@ class AeroSolver:
     # ---------------------------------------------------------------- outputs
     @property
     def Q(self) -> np.ndarray:
-        """Generalized aerodynamic force (n,), N on r slots, N.m on r_x, r_y slots (000 Eq. 12); a copy."""
+        """Generalized aerodynamic force (n,), N on r slots, N.m on r_x, r_y slots (Otsuka et al. 2019, Eq. 12);
+        a copy."""
         return self.state.loads.Q.copy()
 
     def outputs(self) -> dict:

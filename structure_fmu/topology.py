@@ -1,15 +1,15 @@
 """The structure unit's topology: the shared one (fmu_common.topology) plus joints, sections, motions,
 masses and loads, and the map to reduced coordinates.
 
-Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (000 Eq. 3). Each 3-vector "slot"
+Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (Otsuka et al. 2019, Eq. 3). Each 3-vector "slot"
 s = 3 node + k (k = 0 r, 1 r_x, 2 r_y) occupies E[3s:3s+3].
 
 Joints are not Lagrange constraints here but shared or prescribed coordinates (the master/slave
-elimination of 004 Sec. 3): a slot is a linear combination of free vectors q_j and prescribed vectors
+elimination of Peng et al. 2019, Sec. 3): a slot is a linear combination of free vectors q_j and prescribed vectors
 p_j(t), so E = (T kron I3) q + (P kron I3) p(t). A hinge shares r and r_y between the parent's tip node
 and the child's root node; a rigid body (one element) has r^B = r^A + l r_x^A, r_x^B = r_x^A,
-r_y^B = r_y^A, the linear rows of 000 Eq. (17); a clamp or driven root is prescribed. What remains as
-Lagrange constraints is nonlinear: unit length and orthogonality (000 Eqs. 6, 17), see constraints.py.
+r_y^B = r_y^A, the linear rows of Otsuka et al. 2019, Eq. (17); a clamp or driven root is prescribed. What remains as
+Lagrange constraints is nonlinear: unit length and orthogonality (Otsuka et al. 2019, Eqs. 6, 17), see constraints.py.
 """
 from dataclasses import dataclass, field
 
@@ -168,7 +168,7 @@ class StructureTopology(topology.Topology):
             if self.fidelity == "flexible":
                 r_i, x_i, y_i = self.node_initial[node]
                 self.slots += [self._new_free(r_i), self._new_free(x_i), self._new_free(y_i)]
-            else:   # rigid or prescribed: linear rows of 000 Eq. (17)
+            else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17)
                 self.slots += [root[R].plus(root[RX], body.length), root[RX], root[RY]]
 
     def _prescribed_motion(self, spec, r0, x0, y0, body):
@@ -196,7 +196,7 @@ class StructureTopology(topology.Topology):
                                  line.initial_angle, stiffness, damping, torque, stop, latch))
 
     def _add_constraints(self):
-        """Nonlinear internal constraints, each once per distinct slot combination (000 Eqs. 6, 17)."""
+        """Nonlinear internal constraints, each once per distinct slot combination (Otsuka et al. 2019, Eqs. 6, 17)."""
         seen = set()
 
         def add(kind, slots):
