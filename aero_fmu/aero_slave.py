@@ -83,7 +83,7 @@ class AeroSlave(SolverSlave):
         self.scene = read_scene(self.resources, self.label)
         self.modelName = "aero"
         tunables = AeroSolver.tunable_parameters(self.scene)
-        self._start(tunables, solver_parameters={name: float(v[0]) for name, v in tunables.items()})
+        self._start(tunables)
         self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)
         n = self.n = int(self.topology.n_coordinates)
@@ -91,6 +91,7 @@ class AeroSlave(SolverSlave):
 
         k, npar = len(self.output_names), len(self.tunables)
         self.sl_e, self.sl_de, self.sl_q = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
+        self.input_blocks = [("e", self.sl_e, ""), ("de", self.sl_de, "rate of")]
         self.sl_out = slice(3 * n, 3 * n + k)
         self.sl_par = slice(3 * n + k, 3 * n + k + npar)
         self._real = np.zeros(self.sl_par.stop)
@@ -128,18 +129,6 @@ class AeroSlave(SolverSlave):
             unit, text = _OUTPUT_UNITS[name]
             self._reg(fmi_name(name), self.sl_out.start + j, unit, text, **out)
         self._register_parameters_and_hash("structure unit")
-
-    def do_step(self, current_time, step_size):
-        if self._step_refused(current_time, step_size):
-            return False
-        reason = (self._non_finite("e", self.sl_e, "", current_time)
-                  or self._non_finite("de", self.sl_de, "rate of", current_time))
-        if reason is not None:
-            self._error(reason)
-            return False
-        e, de = self._real[self.sl_e].copy(), self._real[self.sl_de].copy()
-        return self._advance(current_time,
-                             lambda: self._solver.advance(current_time + step_size - self._t0, e, de))
 
     def _publish(self):
         """Copy the solver's Q and scalar outputs into the output slots of the value buffer."""

@@ -17,20 +17,19 @@ Errors: SceneError (bad scene value or parameter, naming it), InputError (e or d
 with NaN/inf, naming the first bad entry by its FMI name e[k], de[k], 1-based; t_end before the current
 time), SolverDiverged (a singular influence matrix from degenerate panels, or a non-finite result).
 """
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
 from fmu_common.topology import Topology
+from fmu_common.scene_bounds import substep_count
 
 from .strip import StripTheory
 from .uvlm import UVLM
 from .wake import MAX_WAKE_ROWS
 
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
-_STEP_SLACK = 1e-9      # relative: an interval within rounding of aero.step (or of k aero.steps) is not split
 
 
 @dataclass
@@ -53,14 +52,6 @@ class AeroState:
 
 def _copied(inputs):
     return None if inputs is None else tuple(a.copy() for a in inputs)
-
-
-def substep_count(interval: float, step) -> int:
-    """Number k of equal aero steps over a communication interval (s) for the internal aero step `step`
-    (s; None: 1): ceil(interval / step), with a 1e-9 relative slack so that rounding never adds a step."""
-    if step is None or not interval > step * (1 + _STEP_SLACK):
-        return 1
-    return math.ceil(interval / step - _STEP_SLACK)
 
 
 def interpolated_inputs(previous, e, de, k: int):

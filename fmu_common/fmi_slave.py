@@ -57,6 +57,7 @@ import pickle
 import re
 import traceback
 import weakref
+from abc import abstractmethod
 
 import numpy as np
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
@@ -132,9 +133,10 @@ def _fmi_type(var) -> str:
 
 class SolverSlave(Fmi2Slave):
     """Abstract slave over a solver. Subclasses set `label` and `solver_class`, lay out `self._real`
-    (with `self._settable` and `self.sl_par`, the parameters' slice), register their variables with `_reg`
-    and `_register_parameters_and_hash`, and implement `_publish` and `do_step` (starting with
-    `_step_refused`, then stepping with `_advance`)."""
+    (with `self._settable` and `self.sl_par`, the parameters' slice), set `input_blocks` (label, slice, what,
+    e.g. ("Q", sl_q, "generalized force on"): the inputs `do_step` checks and hands to the solver's
+    `advance(t_end, *inputs)`), register their variables with `_reg` and `_register_parameters_and_hash`,
+    and implement `_publish`."""
 
     label = "unit"
     solver_class = None
@@ -152,11 +154,11 @@ class SolverSlave(Fmi2Slave):
         return frozenset(sub.solver_class.__module__.split(".")[0] for sub in SolverSlave.__subclasses__()
                          if sub.solver_class is not None)
 
-    def _start(self, tunables: dict, solver_parameters: dict | None = None):
+    def _start(self, tunables: dict):
         """Common construction: the tunables, a solver with the defaults, the bookkeeping of a run."""
         self.tunables = tunables
         self.defaults = {name: float(v[0]) for name, v in tunables.items()}
-        self._solver = self.solver_class(self.scene, parameters=solver_parameters)
+        self._solver = self.solver_class(self.scene)
         self._solver_parameters = dict(self.defaults)
         self._t0 = 0.0                                  # FMI start time; solver time = t - t0
         self._phase = "instantiated"                    # one of PHASES
@@ -372,6 +374,25 @@ class SolverSlave(Fmi2Slave):
     def terminate(self):
         if not self._refused_in_phase("fmi2Terminate"):
             self._phase = "terminated"
+
+    @abstractmethod
+    def _publish(self) -> None:
+        """Copy the solver's outputs into the output slots of the value buffer."""
+
+    def do_step(self, current_time, step_size):
+        """fmi2DoStep: refused (logged, False) out of phase, for a step size or a communication point it cannot
+        take (`_step_refused`) or a non-finite input; else the solver advances to current_time + step_size
+        with the inputs held over the step."""
+        if self._step_refused(current_time, step_size):
+            return False
+        for label, block, what in self.input_blocks:
+            reason = self._non_finite(label, block, what, current_time)
+            if reason is not None:
+                self._error(reason)
+                return False
+        inputs = [self._real[block].copy() for _, block, _ in self.input_blocks]
+        t_end = current_time + step_size - self._t0
+        return self._advance(current_time, lambda: self._solver.advance(t_end, *inputs))
 
     def _step_refused(self, current_time, step_size) -> bool:
         """True, with the reason logged at error status, when fmi2DoStep(current_time, step_size) must be

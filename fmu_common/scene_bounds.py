@@ -121,11 +121,20 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     return parts
 
 
+_STEP_SLACK = 1e-9      # relative: an interval within rounding of aero.step (or of k aero.steps) is not split
+
+
+def substep_count(interval: float, step) -> int:
+    """Number k of equal aero steps over a communication interval (s) for the internal aero step `step`
+    (s; None: 1): ceil(interval / step), with a 1e-9 relative slack so that rounding never adds a step."""
+    if step is None or not interval > step * (1 + _STEP_SLACK):
+        return 1
+    return math.ceil(interval / step - _STEP_SLACK)
+
+
 def aero_steps_per_communication(scene: dict) -> int:
-    """Aero steps in one communication step: 1 without aero.step, else about coupling.step / aero.step
-    (aero_fmu.solver.substep_count)."""
-    step = scene["aero"]["step"]
-    return 1 if step is None else max(1, math.ceil(scene["coupling"]["step"] / step - 1e-9))
+    """Aero steps in one communication step (`substep_count` of coupling.step)."""
+    return substep_count(scene["coupling"]["step"], scene["aero"]["step"])
 
 
 def check_sizes(scene: dict) -> None:

@@ -130,16 +130,17 @@ def scene_digest(scene: dict) -> str:
 
 
 def _build_info(kind: str, scene: dict) -> dict:
-    h = hashlib.sha256()
-    for name, f in _sources(kind):
-        h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
-    return {"unit": kind, "sources_sha256": h.hexdigest(), "scene_sha256": scene_digest(scene),
+    return {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": scene_digest(scene),
             "native_binary_sha256": native_binary.source_digest()}
 
 
 def source_digest(kind: str) -> str:
-    """The `sources_sha256` an FMU of `kind` built now from the installed sources would carry."""
-    return _build_info(kind, {})["sources_sha256"]
+    """The `sources_sha256` an FMU of `kind` built now from the installed sources carries: SHA-256 of the
+    slave script and the embedded packages' *.py files, names and contents."""
+    h = hashlib.sha256()
+    for name, f in _sources(kind):
+        h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.units import ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, UnitKind, reported_divergence
+from orchestrator.units import (ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, reported_divergence,
+                                warnings_and_errors)
 
 
 class FmuState:
@@ -40,13 +41,15 @@ class FmuState:
 class FmuPort:
     backend = "fmu"
 
-    def __init__(self, fmu_path: Path, scene: dict, instance_name: str, spec: UnitKind = KINDS["structure"]):
+    def __init__(self, fmu_path: Path, scene: dict, instance_name: str, kind: str = "structure",
+                 check_layout: bool = True):
         from fmpy import extract, read_model_description
         from fmpy.fmi1 import calloc, free
         from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                                fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
         self.label = f"{instance_name} ({fmu_path.name}, fmu)"
+        self.kind, spec = kind, KINDS[kind]
         self._fmu = None
         self._dir = None
         self._live_states = weakref.WeakSet()
@@ -62,7 +65,8 @@ class FmuPort:
             raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
         try:
             self._check_scene(scene, spec.scene_sections)
-            self._check_layout(md, spec)
+            if check_layout:
+                self._check_layout(md)
         except UnitError:
             self.close()
             raise
@@ -106,19 +110,18 @@ class FmuPort:
             raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
                             "rebuild it (wingsim build SCENE)")
 
-    def _check_layout(self, md, spec: UnitKind) -> None:
+    def _check_layout(self, md) -> None:
         """Refuse an FMU whose model description declares its variables otherwise than its unit's code
         registers them (names, value references, causality, variability, type, unit: `orchestrator.layout`)."""
         from orchestrator.layout import check
 
-        kind = next(k for k, s in KINDS.items() if s == spec)
-        problems = check(md, kind, Path(self._dir, "resources"))
+        problems = check(md, self.kind, Path(self._dir, "resources"))
         if problems:
             raise UnitError(f"{self.label}: refused: " + "; ".join(problems))
 
     def _reasons(self, since: int) -> str:
-        msgs = [" ".join(m.split()) for s, _, m in self.log[since:] if s >= 1 and m]
-        return "; ".join(msgs) if msgs else "no reason logged by the unit"
+        entries = [entry._replace(text=" ".join(entry.text.split())) for entry in self.log[since:] if entry.text]
+        return warnings_and_errors(entries) or "no reason logged by the unit"
 
     def _call(self, what: str, fn, *args, **kwargs):
         """fn(*args); UnitError if it fails (fmpy raises on a status above warning) or logs an error."""
@@ -208,9 +211,6 @@ class FmuPort:
             sys.path[:] = [p for p in sys.path if os.path.normpath(p) != resources]
             shutil.rmtree(self._dir, ignore_errors=True)
             self._dir = None
-
-
-# ---- in-process backend -----------------------------------------------------------------------------
 
 
 def differing_keys(a, b, prefix: str) -> list[str]:

@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from orchestrator.coupling import SCHEMES, AeroInputs, CouplingDiverged, make_scheme
+from orchestrator.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.progress import Progress
 from orchestrator.scene import hinge_joints
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
@@ -58,7 +58,6 @@ from fmu_common.errors import SolverDiverged
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error")
-ALGORITHMS = tuple(SCHEMES)
 
 
 class CouplingError(RuntimeError):
@@ -190,10 +189,6 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     phase = "starting the structure unit"
     try:
-        algorithm = scene["coupling"]["algorithm"]
-        if has_aero(scene) and algorithm not in ALGORITHMS:
-            raise CouplingError(f"coupling.algorithm = {algorithm!r} is not implemented; use one of "
-                                f"{', '.join(ALGORITHMS)}")
         structure = units.make_unit(kind="structure", scene=scene, backend=backend, fmu_dir=fmu_dir)
         if structure.n != topology.n_coordinates:
             raise RuntimeError(f"the unit has {structure.n} coordinates but the scene's topology has "

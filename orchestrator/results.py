@@ -253,7 +253,7 @@ def check_out_dir(path: Path, option: str = "--out") -> Path:
     return path
 
 
-def _write_file(path: Path, write: Callable[[Path], None]) -> None:
+def write_file(path: Path, write: Callable[[Path], None]) -> None:
     """``write(temporary path)``, then rename it to ``path``: ``path`` is either complete or untouched."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -276,7 +276,7 @@ def write_timeseries(series: TimeSeries, path: Path) -> None:
 def write_summary(result: RunResult, path: Path, summary: dict | None = None) -> None:
     """``summary`` (default ``summarize(result)``) as strict JSON; WriteError naming the file."""
     text = json.dumps(summary if summary is not None else summarize(result), indent=2, allow_nan=False) + "\n"
-    _write_file(Path(path), lambda tmp: tmp.write_text(text))
+    write_file(Path(path), lambda tmp: tmp.write_text(text))
 
 
 def write_started(scene: dict, out_dir: Path, message: str = "the run has started") -> Path:
@@ -300,7 +300,7 @@ def write_results(result: RunResult, out_dir: Path) -> list[Path]:
     summary = summarize(result)
     write_summary(result, summary_path, summary)
     try:
-        _write_file(csv_path, lambda tmp: write_timeseries(result.series, tmp))
+        write_file(csv_path, lambda tmp: write_timeseries(result.series, tmp))
     except WriteError as err:
         summary["message"] = f"{summary['message']} ({TIMESERIES_FILE} not written: {err.cause.strerror or err.cause})"
         try:

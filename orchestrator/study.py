@@ -105,10 +105,10 @@ class Study:
                 text, wall = future.result()
                 finished = time.time()
                 self._spans.append((finished - wall, finished))
-                record.write(json.dumps({"task": repr(task), "result": json.loads(text), "wall_s": wall,
+                result = self.results[repr(task)] = json.loads(text)
+                record.write(json.dumps({"task": repr(task), "result": result, "wall_s": wall,
                                          "finished": finished}) + "\n")
                 record.flush()
-                result = self.results[repr(task)] = json.loads(text)
                 outcome = result["error"] if "error" in result else describe(task, result) if describe else "done"
                 print(f"[{k}/{len(todo)} {time.perf_counter() - start:7.1f} s] {getattr(task, 'label', task)}: "
                       f"{outcome} ({wall:.1f} s)", file=self.stream, flush=True)

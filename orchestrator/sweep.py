@@ -283,7 +283,7 @@ class SweepTable:
     def close(self) -> None:
         """Rewrite the file with every row so far, sorted by index, with the union of all columns;
         WriteError naming the file if that fails (the file appended so far stays)."""
-        from orchestrator.results import WriteError
+        from orchestrator.results import write_file
 
         if self._file is not None:
             try:
@@ -292,17 +292,15 @@ class SweepTable:
                 pass   # the rewrite below writes every row again
             self._file = self._writer = None
         rows = [self.rows[i] for i in sorted(self.rows)]
-        tmp = self.path.with_suffix(".csv.tmp")
-        try:
+
+        def write(tmp: Path) -> None:
             with tmp.open("w", newline="") as handle:
                 writer = csv.DictWriter(handle, _columns(self.grid_keys, rows))
                 writer.writeheader()
                 for row in rows:
                     writer.writerow({k: _cell(v) for k, v in row.items()})
-            tmp.replace(self.path)
-        except OSError as err:
-            tmp.unlink(missing_ok=True)
-            raise WriteError(self.path, err) from err
+
+        write_file(self.path, write)
 
 
 # --- the sweep --------------------------------------------------------------------------------------

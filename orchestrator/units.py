@@ -99,12 +99,14 @@ INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
-              instance_name: str | None = None) -> "Unit":
+              instance_name: str | None = None, check_layout: bool = True) -> "Unit":
     """Create, set up and initialize a unit of `kind` ("structure" or "aero") for `scene`.
 
     backend: "fmu" (fmu_dir/<kind>.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
     unused). parameters: optional {tunable name: value} set before initialization (names as in
-    StructureSolver / AeroSolver.tunable_parameters). Raises UnitError on any failure, naming what was wrong.
+    StructureSolver / AeroSolver.tunable_parameters). check_layout=False skips the fmu backend's layout check
+    (`orchestrator.layout`) for a caller that has just made it. Raises UnitError on any failure, naming what
+    was wrong.
     """
     if kind not in KINDS:
         raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(KINDS)}")
@@ -119,7 +121,7 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     if backend == "fmu":
         from orchestrator.fmu_port import FmuPort
 
-        port = FmuPort(Path(fmu_dir) / spec.fmu_file, scene, name, spec)
+        port = FmuPort(Path(fmu_dir) / spec.fmu_file, scene, name, kind, check_layout)
     elif backend == "direct":
         from orchestrator.direct_port import DirectPort
 
@@ -139,7 +141,7 @@ class Unit:
 
     def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure"):
         from fmu_common.fmi_slave import fmi_name
-        from fmu_common.topology import Topology
+        from orchestrator.scene import hinge_joints
 
         self._port = port
         self.kind = kind
@@ -153,7 +155,7 @@ class Unit:
         except KeyError as exc:
             raise UnitError(f"{port.label}: variable {exc.args[0][0]}[{exc.args[0][1]}] missing "
                             f"(n = {n} from {spec.outputs[0]}[...])") from None
-        self.hinges = list(Topology.from_scene(scene).hinge_names) if spec.hinge_monitors else []
+        self.hinges = [j["name"] for j in hinge_joints(scene)] if spec.hinge_monitors else []
         missing = [f"{kind}_{h}" for h in self.hinges for kind in ("fold_angle", "latch_time")
                    if fmi_name(f"{kind}_{h}") not in vr]
         if missing:
@@ -252,9 +254,6 @@ class Unit:
 
     def terminate(self) -> None:
         self._port.close()
-
-
-# ---- fmpy backend -----------------------------------------------------------------------------------
 
 
 def warnings_and_errors(entries: list[LogEntry]) -> str:

@@ -57,7 +57,6 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variabi
 # Fmi2Slave subclass of this module. Absolute imports: inside the FMU this script sits at the top of
 # resources/, which pythonfmu puts on sys.path, beside the embedded packages.
 from fmu_common.fmi_slave import COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name, read_scene
-from fmu_common.topology import Topology
 from structure_fmu.solver import StructureSolver
 
 LATCH_PENDING = -1.0
@@ -75,14 +74,15 @@ class StructureSlave(SolverSlave):
         super().__init__(**kwargs)
         self.scene = read_scene(self.resources, self.label)
         self.modelName = "structure"
-        self.topology = Topology.from_scene(self.scene)
+        self._start(StructureSolver.tunable_parameters(self.scene))
+        self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)
         n = self.n = int(self.topology.n_coordinates)
         self.hinges = list(self.topology.hinge_names)
-        self._start(StructureSolver.tunable_parameters(self.scene))
 
         nh, npar = len(self.hinges), len(self.tunables)
         self.sl_e, self.sl_de, self.sl_q = slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n)
+        self.input_blocks = [("Q", self.sl_q, "generalized force on")]
         self.sl_fold = slice(3 * n, 3 * n + nh)
         self.i_energy, self.i_kinetic, self.i_residual = 3 * n + nh, 3 * n + nh + 1, 3 * n + nh + 2
         self.sl_latch = slice(3 * n + nh + 3, 3 * n + 2 * nh + 3)
@@ -127,16 +127,6 @@ class StructureSlave(SolverSlave):
         for j, (name, unit, text) in enumerate(self._solver.sensors.output_declarations()):
             self._reg(fmi_name(name), self.sl_sensor.start + j, unit, text, **out)
         self._register_parameters_and_hash("aero unit")
-
-    def do_step(self, current_time, step_size):
-        if self._step_refused(current_time, step_size):
-            return False
-        reason = self._non_finite("Q", self.sl_q, "generalized force on", current_time)
-        if reason is not None:
-            self._error(reason)
-            return False
-        q = self._real[self.sl_q].copy()
-        return self._advance(current_time, lambda: self._solver.advance(current_time + step_size - self._t0, q))
 
     def _publish(self):
         """Copy the solver's state and monitors into the output slots of the value buffer."""

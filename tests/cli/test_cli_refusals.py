@@ -155,14 +155,14 @@ def test_a_full_disk_loses_the_timeseries_not_the_summary(tmp_path, capsys, monk
 
 def test_a_disk_full_from_the_start_keeps_the_started_summary(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
-    real_write = orchestrator.results._write_file
+    real_write = orchestrator.results.write_file
     writes = []
 
     def fill_after_first(path, write):   # the disk fills up after the summary written before the run
         writes.append(Path(path).name)
         real_write(path, write if len(writes) == 1 else no_space)
 
-    monkeypatch.setattr(orchestrator.results, "_write_file", fill_after_first)
+    monkeypatch.setattr(orchestrator.results, "write_file", fill_after_first)
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(out)]) == 1
     assert f"error: cannot write {out / 'summary.json'}: No space left on device" in capsys.readouterr().err
@@ -173,8 +173,8 @@ def test_a_disk_full_from_the_start_keeps_the_started_summary(tmp_path, capsys, 
 
 def test_a_summary_that_cannot_be_written_stops_before_the_run(tmp_path, capsys, monkeypatch):
     ran = []
-    real_write = orchestrator.results._write_file
-    monkeypatch.setattr(orchestrator.results, "_write_file", lambda path, write: real_write(path, no_space))
+    real_write = orchestrator.results.write_file
+    monkeypatch.setattr(orchestrator.results, "write_file", lambda path, write: real_write(path, no_space))
     monkeypatch.setattr(orchestrator.master, "run_scene", lambda *a, **k: ran.append(a))
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(tmp_path / "out")]) == 1
@@ -344,7 +344,9 @@ def test_sigterm_to_a_sweep_writes_what_it_has_and_leaves_no_process(tmp_path):
     assert "Traceback" not in err
     wait_for(lambda: not marked(marker), "the workers and the resource tracker to exit")
     assert (tmp_path / "sweep" / "sweep.csv").read_text().startswith("index,flow.speed,status,")
-    for run in (tmp_path / "sweep" / "runs").iterdir():   # killed while running: the started summary stays
+    runs = list((tmp_path / "sweep" / "runs").iterdir())
+    assert len(runs) == 2
+    for run in runs:   # killed while running: the started summary stays
         assert json.loads((run / "summary.json").read_text())["status"] == "running"
 
 

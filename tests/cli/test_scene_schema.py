@@ -275,10 +275,13 @@ def _check_filled(spec, raw, resolved, key):
 
 
 def test_default_of_a_hinge_child_follows_its_parent():
+    """The child's chord axis defaults to its parent's, whatever that is (not to a fixed default)."""
     raw = read_scene_file(SCENES / "deploy_rigid.toml")
     del raw["structure"]["bodies"][1]["chord_axis"]
     outer = resolve_scene(raw, "x")["structure"]["bodies"][1]
     assert outer["chord_axis"] == [1.0, 0.0, 0.0] and outer["root"] is None and outer["span_axis"] is None
+    raw["structure"]["bodies"][0]["chord_axis"] = [0.0, 1.0, 0.0]
+    assert resolve_scene(raw, "x")["structure"]["bodies"][1]["chord_axis"] == [0.0, 1.0, 0.0]
 
 
 def test_load_case_defaults_are_its_body_tip_and_axis():

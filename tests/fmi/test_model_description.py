@@ -17,6 +17,7 @@ SI = {
     "N": ({"kg": 1, "m": 1, "s": -2}, 1.0), "N.m": ({"kg": 1, "m": 2, "s": -2}, 1.0),
     "J": ({"kg": 1, "m": 2, "s": -2}, 1.0), "deg": ({"rad": 1}, math.pi / 180), "kg/m3": ({"kg": 1, "m": -3}, 1.0),
     "m/s2": ({"m": 1, "s": -2}, 1.0), "1": ({}, 1.0),
+    "N.m/rad": ({"kg": 1, "m": 2, "s": -2, "rad": -1}, 1.0), "N.m.s/rad": ({"kg": 1, "m": 2, "s": -1, "rad": -1}, 1.0),
 }
 
 
@@ -36,6 +37,7 @@ def test_every_variable_described_and_every_real_has_a_defined_unit(built):
         unitless = [v.name for v in md.modelVariables if v.type == "Real" and v.unit not in units]
         assert undescribed == [] and unitless == [], fmu.name
         assert next(v for v in md.modelVariables if v.name == "topology_hash").description
+        assert set(units) <= set(SI), f"{fmu.name}: units without a definition to check: {set(units) - set(SI)}"
         for name, (exponents, factor) in SI.items():
             if name in units:
                 base = units[name].baseUnit
