@@ -77,12 +77,17 @@ def wing_panels(scene: dict) -> int:
     return bodies * chordwise * aero["spanwise_panels"]
 
 
+def body_elements(structure: dict) -> int:
+    """Elements per body of the resolved `structure` table: elements_per_body for the flexible and strain-based
+    fidelities, one for a rigid or prescribed body (Otsuka et al. 2019, Sec. IV)."""
+    return structure["elements_per_body"] if structure["fidelity"] in ("flexible", "strain-based") else 1
+
+
 def structure_coordinates(scene: dict) -> int:
     """Exchanged coordinates: 9 per node, elements + 1 nodes per body (one element for a rigid or prescribed
     body)."""
     structure = scene["structure"]
-    elements = structure["elements_per_body"] if structure["fidelity"] == "flexible" else 1
-    return 9 * (elements + 1) * len(structure["bodies"])
+    return 9 * (body_elements(structure) + 1) * len(structure["bodies"])
 
 
 def communication_steps(scene: dict) -> int:
@@ -103,7 +108,7 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     refined (structure: 50 and 100 elements per body; aero: 1024 and 2048 panels).
     """
     steps = communication_steps(scene)
-    hinges = sum(1 for j in scene["structure"]["joints"] if j["type"] == "hinge")
+    hinges = sum(1 for j in scene["structure"]["joints"] if j["type"] == "revolute")
     columns = 1 + 3 * len(scene["probes"]) + hinges + len(scene["strain_gauges"]) + 3 + 4
     n = structure_coordinates(scene)
     parts = {"time series": ("time.stop", steps * (8.0 * columns + ROW_BYTES)),

@@ -30,7 +30,9 @@ ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
 ACCELERATIONS = ("aitken", "iqn-ils")
 AERO_MODELS = ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
 SPAN_CORRECTIONS = ("helmbold", "none")
-FIDELITIES = ("prescribed", "rigid", "flexible")
+FIDELITIES = ("prescribed", "rigid", "flexible", "strain-based")
+PARENT_JOINTS = ("revolute", "ball", "universal")
+"""The joint types that may join a parent body's tip to a child's root (the others hold a root to the ground)."""
 INTEGRATORS = ("rk4", "generalized-alpha")
 DAMPING_MODELS = ("deformation", "mass-proportional")
 
@@ -96,6 +98,9 @@ SECTION = Table({
                                         Absent("E h c^3 / 12 of the plate")),
     "mass_per_length": positive("kg/m", "rho A, spread uniformly over the chord; overrides the plate's",
                                 Absent("rho c h of the plate")),
+    "rotary_inertia": non_negative("kg m", "rho I_yy: rotary inertia of the section about its chord axis per unit "
+                                           "length (Otsuka et al. 2022, Table 4), kinetic energy 1/2 rho I_yy "
+                                           "|dr'/dt|^2 (a thin plate's rho c h^3 / 12 is negligible)", 0.0),
 }, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
        "properties, which override the plate's", rules=(_section_rule,))
 
@@ -118,6 +123,15 @@ BODY = Table({
        "`section = { ... }` of the body")
 
 _BODY_REF = "name of a body of structure.bodies"
+_JOINT_BODIES = {
+    "parent": Name("-", Absent("the ground: the child's root stays at its `root`, its frame from its own axes"),
+                   "the body at whose tip the joint sits"),
+    "child": Name("-", REQUIRED, "the body whose root the joint carries"),
+}
+_ORIENTATION = Vector("deg", [0.0, 0.0, 0.0], "the child's initial orientation relative to the parent's tip frame, "
+                                              "a rotation vector (axis x angle) in that frame's span, chord, normal "
+                                              "components; with the ground it must stay 0 (the child's span_axis "
+                                              "and chord_axis give it)")
 JOINT = Variants("type", {
     "clamp": Table({"body": Name("-", REQUIRED, _BODY_REF)}, doc="the root node of `body` is fixed"),
     "pin": Table({
@@ -131,11 +145,14 @@ JOINT = Variants("type", {
         "omega": Number("rad/s", REQUIRED, "final angular speed"),
         "ramp_time": positive("s", "time to reach omega"),
     }, doc="the root of `body` is a clamp rotating about its chord axis r_y by the angle law"),
-    "hinge": Table({
-        "name": Name("-", REQUIRED, "hinge name: the `fold_angle_<name>` column and the `<name>.stiffness`, "
+    "revolute": Table({
+        "name": Name("-", REQUIRED, "joint name: the `fold_angle_<name>` column and the `<name>.stiffness`, "
                                     "`<name>.damping`, `<name>.torque` parameters"),
-        "parent": Name("-", REQUIRED, "the body at whose tip the hinge sits"),
-        "child": Name("-", REQUIRED, "the body whose root the hinge carries"),
+        **_JOINT_BODIES,
+        "axis": Vector("-", [0.0, 1.0, 0.0], "rotation axis: components along the parent's tip span, chord and "
+                                             "normal (with the ground: global); the default is the chord",
+                       nonzero=True),
+        "orientation_deg": _ORIENTATION,
         "initial_angle_deg": angle("fold angle at t = 0 (in (-180, 180) like the fold angle, which wraps at "
                                    "+-180)", 0.0),
         "stiffness": non_negative("N m/rad", "actuator stiffness K", 0.0),
@@ -145,8 +162,27 @@ JOINT = Variants("type", {
                                 "by latch_factor (Otsuka et al. 2022, Sec. 5); the fold angle wraps at +-180, so "
                                 "a stop outside (-180, 180) would never be reached", Absent("no latch")),
         "latch_factor": Number("-", 1e4, "factor on K once latched", low=1.0),
-    }, doc="revolute joint between the tip of `parent` and the root of `child`, about the chord r_y; the "
-           "actuator torque K theta + C dtheta/dt + T_const acts to decrease the fold angle theta"),
+    }, doc="revolute joint (Otsuka et al. 2022, Sec. 3.1) between the tip of `parent` (or the ground) and the root "
+           "of `child`, about `axis`; the fold angle theta turns the child about the axis (right hand), and the "
+           "actuator torque K theta + C dtheta/dt + T_const acts to decrease it"),
+    "ball": Table({
+        "name": Name("-", REQUIRED, "joint name: its `<name>_point_mismatch` monitor"),
+        **_JOINT_BODIES,
+        "orientation_deg": _ORIENTATION,
+    }, doc="ball joint (Otsuka et al. 2022, Sec. 3.3): the child's root shares the point of the parent's tip (or "
+           "stays at its root position on the ground) and turns freely"),
+    "universal": Table({
+        "name": Name("-", REQUIRED, "joint name: its `<name>_point_mismatch` and `<name>_axis_product` monitors"),
+        **_JOINT_BODIES,
+        "parent_axis": Vector("-", [0.0, 1.0, 0.0], "the cross's axis fixed in the parent: components along its "
+                                                    "tip span, chord and normal (with the ground: global)",
+                              nonzero=True),
+        "child_axis": Vector("-", [0.0, 0.0, 1.0], "the cross's axis fixed in the child: components along its root "
+                                                   "span, chord and normal; perpendicular to parent_axis at t = 0",
+                             nonzero=True),
+        "orientation_deg": _ORIENTATION,
+    }, doc="universal joint (Otsuka et al. 2022, Sec. 3.2, Eq. 18): shared point, and parent_axis stays "
+           "perpendicular to child_axis"),
 }, doc="what holds a body's root, at most one joint per root")
 
 MASS = Table({
@@ -254,9 +290,10 @@ SCENE = Table({
                                                    "strips", options=SPAN_CORRECTIONS),
     }),
     "structure": Table({
-        "fidelity": Choice("-", "flexible", "prescribed (rigid motion by a law), rigid (one element per body, "
-                                            "Otsuka et al. 2019, Eq. 17) or flexible", options=FIDELITIES),
-        "elements_per_body": Integer("-", 4, "ANCF elements per body (flexible fidelity)", low=1,
+        "fidelity": Choice("-", "flexible", "prescribed (rigid motion by a law), rigid (one ANCF element per body, "
+                                            "Otsuka et al. 2019, Eq. 17), flexible (ANCF) or strain-based (constant "
+                                            "strains per element, Otsuka et al. 2022)", options=FIDELITIES),
+        "elements_per_body": Integer("-", 4, "elements per body (flexible and strain-based fidelities)", low=1,
                                      high=MAX_ELEMENTS_PER_BODY, why=DENSE_STRUCTURE),
         "integrator": Choice("-", "generalized-alpha", "time integrator", options=INTEGRATORS),
         "step": positive("s", "internal time step; the last one in a communication step is shortened to land "
@@ -322,27 +359,25 @@ def _body_of(scene: dict, key: str, name: str) -> dict:
     return bodies[name]
 
 
-def hinge_children(scene: dict) -> set[str]:
-    """Names of the bodies whose root a hinge carries."""
-    return {j["child"] for j in scene["structure"]["joints"] if j["type"] == "hinge"}
+def joint_parents(scene: dict) -> dict[str, str]:
+    """child body -> parent body of every joint that joins two bodies."""
+    return {j["child"]: j["parent"] for j in scene["structure"]["joints"]
+            if j["type"] in PARENT_JOINTS and j["parent"] is not None}
 
 
 def fill_derived_defaults(scene: dict) -> None:
-    """Fill, in place, the defaults that depend on another table (the `Absent` texts of SCENE say which)."""
+    """Fill, in place, the defaults that depend on another table (the `Absent` texts of SCENE say which). A
+    jointed child's frame is its parent's tip frame turned by the joint (`fmu_common.topology`): its
+    chord_axis stays None unless given, and the topology checks a given one."""
     structure = scene["structure"]
-    children = hinge_children(scene)
+    children = joint_parents(scene)
     for body in structure["bodies"]:
         if body["name"] not in children:
             for key, default in (("root", [0.0, 0.0, 0.0]), ("span_axis", [1.0, 0.0, 0.0]),
                                  ("chord_axis", [0.0, 1.0, 0.0])):
                 if body[key] is None:
                     body[key] = default
-    parents = {j["child"]: j["parent"] for j in structure["joints"] if j["type"] == "hinge"}
     bodies = _bodies_by_name(scene)
-    for _ in bodies:        # down the hinge tree; a loop or an unknown parent is the topology's to report
-        for child, parent in parents.items():
-            if child in bodies and parent in bodies and bodies[child]["chord_axis"] is None:
-                bodies[child]["chord_axis"] = copy.deepcopy(bodies[parent]["chord_axis"])
     roots = [b for b in structure["bodies"] if b["name"] not in children]
     if scene["flow"]["direction"] is None and roots:
         scene["flow"]["direction"] = list(roots[0]["chord_axis"])

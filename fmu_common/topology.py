@@ -4,10 +4,10 @@ Each body is a beam of ANCF elements along its reference line (`structure.elemen
 for a rigid or prescribed body: Otsuka et al. 2019, Sec. IV), with its chord c (m) and the reference line at
 a fraction a of the chord from the leading edge. A node carries r (m), r_x and r_y (-) in the global frame
 (Otsuka et al. 2019, Eq. 3); the exchanged coordinates E (9 n_nodes,) stack them node after node. A body
-starts at its `root` along `span_axis` with the chord along `chord_axis`, or, hinged, at its parent's tip
-node, its span turned by the hinge's initial angle about the parent's chord vector.
+starts at its `root` along `span_axis` with the chord along `chord_axis`, or, jointed to a parent, at its
+parent's tip node in the parent's tip frame turned by the joint (`JointLine`).
 
-The units compare `topology_hash`: the same hash, the same nodes, elements, lengths, chords and hinges.
+The units compare `topology_hash`: the same hash, the same nodes, elements, lengths, chords and joints.
 What only the structure needs (sections' stiffness and mass, joints as shared or prescribed coordinates,
 motions, masses, loads) is the structure unit's `StructureTopology`, which extends this class.
 """
@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import SceneError
+from .scene_bounds import body_elements
+from .scene_schema import PARENT_JOINTS
 from .schema import item_label
 from .shape_functions import hermite, shape_row
 from .vectors import rotation_about
@@ -44,14 +46,31 @@ class Body:
 
 
 @dataclass(frozen=True)
-class HingeLine:
-    """A hinge between the tip node of body `parent` and the root node of body `child`, about the parent's
-    tip chord vector r_y; the child's span starts turned by `initial_angle` (rad) from the parent's."""
+class JointLine:
+    """A revolute, ball or universal joint between the tip node of body `parent` (None: the ground) and the root
+    node of body `child` (Otsuka et al. 2022, Sec. 3), in frames F = [span, chord, normal] (columns, the
+    normal = span x chord):
+
+    the child's root frame is F_child = F_parent R(axis, theta) orientation, with R(axis, theta) the rotation
+    by the fold angle theta about the unit `axis` (revolute; parent-frame components) and `orientation` (3, 3)
+    the child's frame relative to the parent's at theta = 0; with the ground, F_parent = I (global
+    components). `child_axis` (universal) is the cross's axis in the child's frame; `initial_angle` (rad) the
+    revolute's theta at t = 0."""
 
     name: str
-    parent: str
+    kind: str
+    parent: str | None
     child: str
+    axis: np.ndarray
+    child_axis: np.ndarray
+    orientation: np.ndarray
     initial_angle: float
+
+    def child_frame(self, parent_frame: np.ndarray, angle: float | None = None) -> np.ndarray:
+        """F_child (3, 3) for the parent's tip frame (3, 3) and the fold angle (rad; None: the initial)."""
+        theta = self.initial_angle if angle is None else angle
+        turn = rotation_about(self.axis, theta) if self.kind == "revolute" else np.eye(3)
+        return parent_frame @ turn @ self.orientation
 
 
 class Topology:
@@ -64,7 +83,7 @@ class Topology:
         self.node_initial: list[np.ndarray] = []      # (3, 3) r, r_x, r_y per node at t = 0
         self.element_nodes: list[tuple[int, int]] = []
         self.element_body: list[str] = []
-        self.hinge_lines: list[HingeLine] = []
+        self.joint_lines: list[JointLine] = []
         self.root_joints: dict[str, tuple[str, dict]] = {}   # body -> (dotted key, table) of its root joint
         self.fidelity = "flexible"
 
@@ -72,12 +91,11 @@ class Topology:
     @classmethod
     def from_scene(cls, scene: dict):
         """The topology of the resolved scene's `structure` (fmu_common.scene_schema); raises SceneError naming
-        the key for a relation between tables the schema does not check (joints' bodies, hinge tree)."""
+        the key for a relation between tables the schema does not check (joints' bodies, joint tree)."""
         top = cls()
         structure = scene["structure"]
         top.fidelity = structure["fidelity"]
-        # Otsuka et al. 2019, Sec. IV: one element per rigid body
-        n_el = structure["elements_per_body"] if top.fidelity == "flexible" else 1
+        n_el = body_elements(structure)
         specs = {spec["name"]: (body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
         parent_of = top._parse_joints(structure["joints"], specs)
         for name in _body_order(specs, parent_of):
@@ -85,26 +103,28 @@ class Topology:
         return top
 
     def _parse_joints(self, joints, specs) -> dict:
-        """Fill `root_joints`; return child body -> parent body of every hinge."""
+        """Fill `root_joints`; return child body -> parent body of every joint that joins two bodies."""
         parent_of = {}
         for i, spec in enumerate(joints):
             key = f"structure.joints.{item_label(i, spec)}"
             kind = spec["type"]
-            fields = ("parent", "child") if kind == "hinge" else ("body",)
+            jointed = kind in PARENT_JOINTS
+            fields = ("parent", "child") if jointed else ("body",)
             for field_name in fields:
-                if spec[field_name] not in specs:
+                if spec[field_name] is not None and spec[field_name] not in specs:
                     raise SceneError(f"{key}.{field_name}", spec[field_name], f"one of the bodies {sorted(specs)}")
-            target = spec["child"] if kind == "hinge" else spec["body"]
+            target = spec["child"] if jointed else spec["body"]
             if target in self.root_joints:
-                raise SceneError(key, target, "a body root can carry only one clamp, pin, driven or hinge joint")
+                raise SceneError(key, target, "a body root can carry only one joint")
             self.root_joints[target] = (key, spec)
-            if kind == "hinge":
+            if jointed:
                 if spec["name"] in specs:     # <name>.damping would be the parameter of both
-                    raise SceneError(f"{key}.name", spec["name"], "a hinge name that is not a body's: both name "
+                    raise SceneError(f"{key}.name", spec["name"], "a joint name that is not a body's: both name "
                                      "parameters of the structure unit (<name>.damping)")
                 if spec["parent"] == spec["child"]:
                     raise SceneError(f"{key}.child", spec["child"], "a body other than the parent")
-                parent_of[spec["child"]] = spec["parent"]
+                if spec["parent"] is not None:
+                    parent_of[spec["child"]] = spec["parent"]
         return parent_of
 
     def _new_body(self, key: str, spec: dict, name: str, length: float) -> Body:
@@ -116,28 +136,30 @@ class Topology:
         length = spec["length"]
         body = self._new_body(key, spec, name, length)
         joint_key, joint = self.root_joints.get(name, (None, None))
-        if joint is not None and joint["type"] == "hinge":
-            tip = self.bodies[joint["parent"]].nodes[-1]
-            r0, x_parent, y0 = self.node_initial[tip]
-            hinge = self._hinge_line(joint_key, joint)
-            x0 = rotation_about(y0 / np.linalg.norm(y0), hinge.initial_angle) @ x_parent
+        line = None
+        if joint is not None and joint["type"] in PARENT_JOINTS:
+            line = self._joint_line(joint_key, joint, spec)
+            self.joint_lines.append(line)
+        if line is not None and line.parent is not None:
+            tip = self.bodies[line.parent].nodes[-1]
+            r0, x_parent, y_parent = self.node_initial[tip]
+            frame = line.child_frame(_frame(x_parent, y_parent))
+            x0, y0 = frame[:, 0], frame[:, 1]
             for field_name in ("root", "span_axis"):
                 if spec[field_name] is not None:
                     raise SceneError(f"{key}.{field_name}", spec[field_name],
-                                     "not allowed: a hinged body starts at its parent's tip, along its parent's span "
-                                     "turned by the hinge's initial angle")
-            given, shared = spec["chord_axis"], y0 / np.linalg.norm(y0)
-            if given is not None and np.linalg.norm(_unit(given) - shared) > 1e-9:
-                raise SceneError(f"{key}.chord_axis", given, f"the direction of the parent's chord axis "
-                                 f"{[round(float(v), 12) for v in shared]}: the hinge shares it")
-            self.hinge_lines.append(hinge)
+                                     "not allowed: a jointed child starts at its parent's tip, in its parent's tip "
+                                     "frame turned by the joint (orientation_deg, initial_angle_deg)")
+            given = spec["chord_axis"]
+            if given is not None and np.linalg.norm(_unit(given) - y0) > 1e-9:
+                raise SceneError(f"{key}.chord_axis", given, f"the chord axis the joint gives the child, "
+                                 f"{[round(float(v), 12) for v in y0]}, or none")
         else:
             r0 = np.array(spec["root"], dtype=float)
             x0 = _unit(spec["span_axis"])
             y0 = _unit(spec["chord_axis"])
             if abs(x0 @ y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", spec["chord_axis"], "a direction perpendicular to span_axis")
-        x0 = x0 / np.linalg.norm(x0)
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
         first_node = len(self.node_names)
         for i in range(n_el + 1):
@@ -150,8 +172,30 @@ class Topology:
             self.element_body.append(name)
         self.bodies[name] = body
 
-    def _hinge_line(self, key, spec) -> HingeLine:
-        return HingeLine(spec["name"], spec["parent"], spec["child"], np.radians(spec["initial_angle_deg"]))
+    def _joint_line(self, key, spec, child_spec) -> JointLine:
+        """The JointLine of the joint table `spec` at dotted key `key`; SceneError naming the key for an
+        orientation with the ground or a universal joint whose axes are not perpendicular at t = 0."""
+        kind, parent = spec["type"], spec["parent"]
+        rotation = np.radians(np.asarray(spec["orientation_deg"], dtype=float))
+        if parent is None and np.any(rotation):
+            raise SceneError(f"{key}.orientation_deg", spec["orientation_deg"], "[0, 0, 0] with the ground: the "
+                             "child's span_axis and chord_axis give its orientation")
+        angle = np.linalg.norm(rotation)
+        orientation = rotation_about(rotation / angle, angle) if angle > 0 else np.eye(3)
+        axis = child_axis = np.zeros(3)
+        initial = 0.0
+        if kind == "revolute":
+            axis, initial = _unit(spec["axis"]), np.radians(spec["initial_angle_deg"])
+        elif kind == "universal":
+            axis, child_axis = _unit(spec["parent_axis"]), _unit(spec["child_axis"])
+        if parent is None:      # the ground: the child's own axes give its frame at t = 0
+            start = _frame(_unit(child_spec["span_axis"]), _unit(child_spec["chord_axis"]))
+            turn = rotation_about(axis, initial) if kind == "revolute" else np.eye(3)
+            orientation = turn.T @ start
+        if kind == "universal" and abs(axis @ orientation @ child_axis) > 1e-9:
+            raise SceneError(f"{key}.child_axis", spec["child_axis"], "an axis perpendicular to parent_axis at "
+                             f"t = 0 (their product is {float(axis @ orientation @ child_axis):.3g})")
+        return JointLine(spec["name"], kind, parent, spec["child"], axis, child_axis, orientation, initial)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -164,7 +208,8 @@ class Topology:
 
     @property
     def hinge_names(self):
-        return [h.name for h in self.hinge_lines]
+        """Names of the revolute joints: each has a fold angle."""
+        return [j.name for j in self.joint_lines if j.kind == "revolute"]
 
     def element_lengths(self):
         """Length (m) of each element, (n_elements,)."""
@@ -211,12 +256,13 @@ class Topology:
 
     @property
     def topology_hash(self):
-        """Hex digest of what both units must agree on: nodes, elements, lengths, chords, axes, hinges."""
+        """Hex digest of what both units must agree on: nodes, elements, lengths, chords, axes, joints."""
         data = {
             "nodes": self.node_names,
             "elements": self.element_nodes,
             "bodies": {n: [b.length, b.chord, b.axis_position, len(b.elements)] for n, b in self.bodies.items()},
             "hinges": self.hinge_names,
+            "joints": [[j.name, j.kind, j.parent, j.child] for j in self.joint_lines],
         }
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -226,13 +272,18 @@ def body_key(index: int, spec: dict) -> str:
     return f"structure.bodies.{item_label(index, spec)}"
 
 
+def _frame(span, chord) -> np.ndarray:
+    """[span, chord, normal] (3, 3), columns, normal = span x chord."""
+    return np.column_stack([span, chord, np.cross(span, chord)])
+
+
 def _unit(vector) -> np.ndarray:
     v = np.asarray(vector, dtype=float)
     return v / np.linalg.norm(v)
 
 
 def _body_order(specs, parent_of):
-    """Body names, every parent before its children; SceneError for a closed loop of hinges."""
+    """Body names, every parent before its children; SceneError for a closed loop of joints."""
     order, placed = [], set()
     while len(order) < len(specs):
         progress = False
@@ -244,5 +295,5 @@ def _body_order(specs, parent_of):
                 progress = True
         if not progress:
             loop = sorted(set(specs) - placed)
-            raise SceneError("structure.joints", loop, "hinges must form a tree (no closed loops)")
+            raise SceneError("structure.joints", loop, "joints must form a tree (no closed loops)")
     return order

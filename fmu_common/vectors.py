@@ -1,4 +1,5 @@
-"""Kernels on 3-vectors both units use: the cross product on stacks of vectors, a rotation about an axis."""
+"""Kernels on 3-vectors both units use: the cross product on stacks of vectors, the cross-product matrix, a
+rotation about an axis."""
 import numpy as np
 
 
@@ -14,8 +15,16 @@ def cross(a, b):
     return out
 
 
+def skew(v):
+    """[v]_x (..., 3, 3) of vectors v (..., 3): [v]_x u = v x u."""
+    v = np.asarray(v, dtype=float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
+
+
 def rotation_about(axis, angle):
     """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
-    a = np.asarray(axis, dtype=float)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    k = skew(axis)
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)

@@ -51,7 +51,7 @@ import numpy as np
 
 from orchestrator.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.progress import Progress
-from orchestrator.scene import hinge_joints
+from orchestrator.scene import hinge_joints, joint_monitor_names
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
 from fmu_common.errors import SolverDiverged
 
@@ -104,7 +104,7 @@ def new_series(scene: dict) -> TimeSeries:
     scene, and coupling_iterations, coupling_residual for an implicit one)."""
     return TimeSeries([p["name"] for p in scene["probes"]], [j["name"] for j in hinge_joints(scene)],
                       aero=has_aero(scene), coupling=is_implicit(scene),
-                      strain_names=[g["name"] for g in scene["strain_gauges"]])
+                      strain_names=[g["name"] for g in scene["strain_gauges"]], joint_names=joint_monitor_names(scene))
 
 
 def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
@@ -126,7 +126,7 @@ def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
                   coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
-                  strains=strains)
+                  strains=strains, joints=monitors.get("joints", {}))
     return monitors.get("latch_times", {})
 
 

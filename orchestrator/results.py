@@ -30,6 +30,8 @@ Summary fields (SI units, angles in degrees):
   ``min_displacement`` / ``max_displacement`` [dx, dy, dz] (m) relative to the initial position;
 - ``strain_gauges`` (only for a scene with strain gauges): per gauge ``min``, ``max`` (-), ``peak`` (the
   largest |strain|, -) and ``peak_time_s`` (s) over the samples;
+- ``joint_monitors`` (only for a scene with joints between bodies): per joint monitor column the largest
+  |value| over the samples (m for ``_point_mismatch``, - for ``_axis_product`` and ``_axis_error``);
 - ``aero`` (only for a scene with an aero unit): ``model``, ``CL_final``, ``CL_min``, ``CL_max`` (-) and
   ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet);
 - ``coupling`` (only for an implicitly coupled aero scene): ``algorithm``, ``acceleration``,
@@ -105,6 +107,12 @@ def energy_drift(energy: np.ndarray, kinetic_energy: np.ndarray | None = None) -
         if kinetic.size:
             scale = max(scale, float(kinetic.max()))
     return float((e[-1] - e[0]) / scale)
+
+
+def largest_magnitude(values: np.ndarray) -> float | None:
+    """The largest finite |value|, or None without one."""
+    finite = np.abs(values[np.isfinite(values)])
+    return float(finite.max()) if finite.size else None
 
 
 def max_constraint_residual(residual: np.ndarray) -> float | None:
@@ -192,6 +200,8 @@ def summarize(result: RunResult) -> dict[str, Any]:
     }
     if series.strain_names:
         summary[STRAIN_FIELD] = strain_summary(series)
+    if series.joint_names:
+        summary["joint_monitors"] = {name: largest_magnitude(series.column(name)) for name in series.joint_names}
     if series.has_aero:
         summary[AERO_FIELD] = aero_summary(series, result.scene)
     if series.has_coupling:

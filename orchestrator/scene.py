@@ -31,11 +31,12 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from fmu_common.errors import SceneError
-from fmu_common.scene_schema import SCENE
+from fmu_common.scene_schema import PARENT_JOINTS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import MISSING, is_number
 from orchestrator.overrides import apply_overrides
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS
+from structure_fmu.joint_monitors import monitor_names
 
 __all__ = ["MISSING", "SceneFileError", "read_scene_file", "resolve_scene", "load_scene", "check_physics",
            "hinge_joints"]
@@ -249,6 +250,13 @@ def _check_sensor_outputs(scene: dict) -> None:
             owner[output] = f"an output of {kind} {sensor}"
 
 
+def joint_monitor_names(scene: dict) -> list[str]:
+    """The structure unit's joint monitor outputs (`structure_fmu.joint_monitors`) of the scene's joints with a
+    parent body, in the scene's order."""
+    return [name for j in scene["structure"]["joints"] if j["type"] in PARENT_JOINTS and j["parent"] is not None
+            for name in monitor_names(j["name"], j["type"])]
+
+
 def hinge_joints(scene: dict) -> list[dict]:
     """The scene's hinge joint tables, in order (each has ``name``; ``stop_angle_deg`` if latched)."""
-    return [j for j in scene["structure"]["joints"] if j.get("type") == "hinge"]
+    return [j for j in scene["structure"]["joints"] if j.get("type") == "revolute"]

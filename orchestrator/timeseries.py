@@ -1,7 +1,9 @@
 """The samples a run records at each communication point.
 
 One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
-each strain gauge's surface strain (-, a column named as the gauge), the structure's energy (J), its kinetic
+each strain gauge's surface strain (-, a column named as the gauge), each joint monitor
+(``<joint>_point_mismatch`` in m, ``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a
+parent), the structure's energy (J), its kinetic
 energy (J) and its constraint residual (-), and, for a scene with an aero unit, the lift coefficient ``CL``
 (-) and the ``lift`` (N), and, for implicit coupling, the iterations ``coupling_iterations`` the master took
 in the communication step ending at that sample and the relative interface residual ``coupling_residual``
@@ -31,10 +33,11 @@ class TimeSeries:
     """Recorded samples; append during the run, read as numpy arrays afterwards."""
 
     def __init__(self, probe_names: Sequence[str], hinge_names: Sequence[str], aero: bool = False,
-                 coupling: bool = False, strain_names: Sequence[str] = ()):
+                 coupling: bool = False, strain_names: Sequence[str] = (), joint_names: Sequence[str] = ()):
         self.probe_names = list(probe_names)
         self.hinge_names = list(hinge_names)
         self.strain_names = list(strain_names)
+        self.joint_names = list(joint_names)
         self.aero_names = list(AERO_COLUMNS) if aero else []
         self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
         self._rows: list[np.ndarray] = []
@@ -43,8 +46,9 @@ class TimeSeries:
         self._positions = slice(1, 1 + k)
         self._folds = slice(1 + k, 1 + k + len(self.hinge_names))
         self._strains = slice(self._folds.stop, self._folds.stop + len(self.strain_names))
-        self._monitor = {name: self._strains.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
-        start = self._strains.stop + len(MONITOR_COLUMNS)
+        self._joints = slice(self._strains.stop, self._strains.stop + len(self.joint_names))
+        self._monitor = {name: self._joints.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
+        start = self._joints.stop + len(MONITOR_COLUMNS)
         self._monitor.update({name: start + i for i, name in enumerate(self.aero_names)})
         start += len(self.aero_names)
         self._monitor.update({name: start + i for i, name in enumerate(self.coupling_names)})
@@ -64,15 +68,16 @@ class TimeSeries:
                     fold_angles_deg, energy, constraint_residual, kinetic_energy=None,
                     aero: Mapping[str, Sequence[float]] | None = None,
                     coupling: Mapping[str, Sequence[float]] | None = None,
-                    strains: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
+                    strains: Mapping[str, Sequence[float]] | None = None,
+                    joints: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
         energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN.
         ``aero``: {"CL": (m,), "lift": (m,)} for a series with the aero columns (a missing one is NaN);
         ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise; ``strains``:
-        {gauge name: (m,)} for a series with strain gauge columns."""
-        strains = strains or {}
+        {gauge name: (m,)} for a series with strain gauge columns; ``joints`` {joint monitor: (m,)} likewise."""
+        strains, joints = strains or {}, joints or {}
         series = cls(probe_names, hinge_names, aero=aero is not None, coupling=coupling is not None,
-                     strain_names=list(strains))
+                     strain_names=list(strains), joint_names=list(joints))
         m = len(time)
         kinetic = np.full(m, np.nan) if kinetic_energy is None else kinetic_energy
         monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual}
@@ -82,6 +87,7 @@ class TimeSeries:
             np.asarray(positions, float).reshape(m, 3 * len(series.probe_names)),
             np.asarray(fold_angles_deg, float).reshape(m, len(series.hinge_names)),
             *(np.asarray(strains[name], float).reshape(m) for name in series.strain_names),
+            *(np.asarray(joints[name], float).reshape(m) for name in series.joint_names),
             *(np.asarray(monitors[name], float).reshape(m) for name in MONITOR_COLUMNS),
             *(np.asarray(aero.get(name, np.full(m, np.nan)), float).reshape(m) for name in series.aero_names),
             *(np.asarray(coupling.get(name, np.full(m, np.nan)), float).reshape(m)
@@ -93,17 +99,19 @@ class TimeSeries:
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
                energy: float, constraint_residual: float, kinetic_energy: float = np.nan,
                aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None,
-               strains: Mapping[str, float] | None = None) -> None:
+               strains: Mapping[str, float] | None = None, joints: Mapping[str, float] | None = None) -> None:
         """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
         energies are in J; ``aero`` {"CL": -, "lift": N}, ``coupling`` {"coupling_iterations": -,
-        "coupling_residual": -} and ``strains`` {gauge name: -} (missing values, or no dict, give NaN)."""
+        "coupling_residual": -}, ``strains`` {gauge name: -} and ``joints`` {joint monitor: m or -} (missing
+        values, or no dict, give NaN)."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
-        strains = strains or {}
+        strains, joints = strains or {}, joints or {}
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
         aero, coupling = aero or {}, coupling or {}
         self._rows.append(np.concatenate((
             [time], np.asarray(positions, float).reshape(-1), angles,
             [strains.get(n, np.nan) for n in self.strain_names],
+            [joints.get(n, np.nan) for n in self.joint_names],
             [monitors[n] for n in MONITOR_COLUMNS],
             [aero.get(n, np.nan) for n in self.aero_names], [coupling.get(n, np.nan) for n in self.coupling_names],
         )).astype(float))
@@ -116,7 +124,7 @@ class TimeSeries:
         """Column names in ``timeseries.csv`` order, ``time`` first."""
         probes = [f"{p}_{axis}" for p in self.probe_names for axis in "xyz"]
         hinges = [f"fold_angle_{h}" for h in self.hinge_names]
-        return ["time", *probes, *hinges, *self.strain_names, *MONITOR_COLUMNS, *self.aero_names,
+        return ["time", *probes, *hinges, *self.strain_names, *self.joint_names, *MONITOR_COLUMNS, *self.aero_names,
                 *self.coupling_names]
 
     def table(self) -> np.ndarray:

@@ -17,9 +17,10 @@
                                             "latch_times": {hinge: s, for the hinges latched so far},
                                             "probe_positions": {probe: (3,) m, global frame},
                                             "probe_velocities": {probe: (3,) m/s, global frame},
-                                            "strains": {gauge: surface strain, -}}
+                                            "strains": {gauge: surface strain, -},
+                                            "joints": {<joint>_point_mismatch: m, <joint>_axis_...: -}}
                                 (the structure unit's outputs <probe>_x.., <probe>_vx.., <gauge> of the
-                                scene's probes and strain gauges)
+                                scene's probes and strain gauges, and its joint monitors)
                                 aero: {"CL": -, "lift": N, "wake_panels": count, ...every scalar output}
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
@@ -82,7 +83,7 @@ class UnitKind:
     monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
     scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale)
     hinge_monitors: bool = False      # fold_angle_<hinge> and latch_time_<hinge> outputs, per hinge of the scene
-    sensor_monitors: bool = False     # <probe>_x.._vz and <gauge> outputs, per probe and gauge of the scene
+    sensor_monitors: bool = False     # <probe>_x.._vz, <gauge> and joint monitor outputs of the scene
     extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
 
 
@@ -141,7 +142,7 @@ class Unit:
 
     def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure"):
         from fmu_common.fmi_slave import fmi_name
-        from orchestrator.scene import hinge_joints
+        from orchestrator.scene import hinge_joints, joint_monitor_names
 
         self._port = port
         self.kind = kind
@@ -163,7 +164,8 @@ class Unit:
                             "the FMU)")
         self.probes = [p["name"] for p in scene["probes"]] if spec.sensor_monitors else []
         self.gauges = [g["name"] for g in scene["strain_gauges"]] if spec.sensor_monitors else []
-        sensor_names = sensor_output_names(self.probes, self.gauges)
+        self.joint_monitors = joint_monitor_names(scene) if spec.sensor_monitors else []
+        sensor_names = sensor_output_names(self.probes, self.gauges) + self.joint_monitors
         absent = [m for m in (*spec.monitors, *sensor_names) if fmi_name(m) not in vr]
         if absent:
             raise UnitError(f"{port.label}: no output {absent[0]}; the unit does not match the scene (rebuild "
@@ -234,7 +236,9 @@ class Unit:
             positions, velocities = m[k:k + p].reshape(-1, 3).copy(), m[k + p:k + 2 * p].reshape(-1, 3).copy()
             out["probe_positions"] = dict(zip(self.probes, positions))
             out["probe_velocities"] = dict(zip(self.probes, velocities))
-            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 2 * p:])}
+            g = k + 2 * p + len(self.gauges)
+            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 2 * p:g])}
+            out["joints"] = {name: float(v) for name, v in zip(self.joint_monitors, m[g:])}
         return out
 
     def get_state(self):

@@ -1,4 +1,5 @@
-"""Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV) and its FMI 2.0 slave.
+"""Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV), the strain-based beam with
+joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
 
   solver.py          StructureSolver, the API of docs/solver_api.md (scene, parameters, inputs Q, state, outputs)
   structure_slave.py the FMI slave over StructureSolver
@@ -6,9 +7,12 @@
                      loads, and the map E = T q + P p(t) to reduced coordinates
   section.py         beam cross-section properties from a plate or explicit stiffnesses
   element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
-  model.py           mass, forces, constraints and energy of the assembled structure (Eq. 4)
-  constraints.py     the nonlinear internal constraints (Eqs. 6, 17)
-  joints.py          hinges: fold angle, spring actuator, latch
+  model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4)
+  constraints.py     the nonlinear internal constraints (Eqs. 6, 17) and the joints' axis rows
+  joints.py          revolute joints: fold angle, spring actuator, latch
+  joint_monitors.py  per-joint constraint monitors (point mismatch, axis products) on E
+  strain_kinematics.py  the strain-based recursion: nodal vectors from strains and joint parameters, derivatives
+  strain_model.py    the strain-based model (Otsuka et al. 2022, Eq. 9) over the ANCF model's inertia and forces
   motion.py          prescribed rigid motions: clamps, driven roots (Eq. 27), heave/pitch laws
   damping.py         damping of deformation
   integrators.py     RK4 and generalized-alpha with projection on the constraints

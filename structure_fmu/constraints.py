@@ -1,14 +1,145 @@
-"""Internal constraint equations on the exchanged coordinates E (Otsuka et al. 2019, Eqs. 6 and 17).
+"""Internal and joint constraint equations on the exchanged coordinates E (Otsuka et al. 2019, Eqs. 6 and 17;
+Otsuka et al. 2022, Sec. 3).
 
-All remaining constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c_i:
+The internal constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c_i:
   unit length   (|v|^2 - 1) / 2 = 0        (Otsuka et al. 2019, Eq. 6 row 1 for r_y; Eq. 17 rows 1-2)
   orthogonality a . b = 0                  (Otsuka et al. 2019, Eq. 6 row 2; Eq. 17 row 3)
   fixed plane   v . n = 0                  (a pin about the section normal)
-so the constraint Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap.
-The linear rows of Eq. (17) are eliminated by the coordinate map E = T q + P p (topology.py); the
-integrators need the Jacobian on the free coordinates q, G_q = G T (Otsuka et al. 2019, Eq. 4's Phi_q).
+so their Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap. The joints'
+axis products (`AxisProduct`: universal and revolute joints whose axis is not a shared chord) are quartic in E
+at most. The linear rows of Eq. (17) and the shared joint points are eliminated by the coordinate map
+E = T q + P p (topology.py); the integrators need the Jacobian on the free coordinates q, G_q = G T
+(Otsuka et al. 2019, Eq. 4's Phi_q).
 """
+from dataclasses import dataclass
+
 import numpy as np
+
+from fmu_common.vectors import cross, skew
+
+
+@dataclass(frozen=True)
+class AxisProduct:
+    """A joint row Phi = v_A(a) . v_B(b) = 0 between the parent's tip node A and the child's root node B.
+
+    At a node with gradients r_x, r_y, the body-fixed direction of frame components c = (span, chord, normal) is
+    v(c) = c_x r_x + c_y r_y + c_z (r_x x r_y), bilinear in E, so Phi is at most quartic. With the ground
+    (`parent` None) v_A(a) = a, global components. A universal joint has one row (a = parent_axis,
+    b = child_axis, Otsuka et al. 2022, Eq. 18's last row); a revolute joint about an axis a that is not a shared
+    chord has two, b = p_1, p_2 perpendicular to the axis in the child's frame.
+
+    On a rigid body |r_x| = 1 and v is the body's frame. In the flexible fidelity |r_x| = 1 + eps_x (axial
+    strain) while |r_y| = 1 and r_x . r_y = 0, so v(c) = (1 + eps_x)(c_x x + c_z z) + c_y y in the unit frame
+    (x, y, z): an axis that mixes the chord with the span or the normal is turned by O(eps_x); it is exact
+    when the axis lies along one frame direction or in the span-normal plane.
+
+    parent, child: slot (`StructureTopology.slots`) of r_x at node A (None: the ground) and at node B; the
+    slot of r_y is the next one. parent_axis, child_axis: a and b, (3,), dimensionless.
+    """
+
+    parent: int | None
+    parent_axis: np.ndarray
+    child: int
+    child_axis: np.ndarray
+
+
+class AxisProducts:
+    """Vectorized evaluation of the `AxisProduct` rows on E (n,), with their Jacobian on q for E = T q + P p.
+
+    Each row gathers the four 3-vectors [r_x^A, r_y^A, r_x^B, r_y^B] (twelve E entries: r_x and r_y of a node
+    are contiguous), so that every row has the same form u . w with u = v_A(a) and w = v_B(b); a row with the
+    ground has u = a: zero coefficients on the gathered r_x^A, r_y^A (the child's, as placeholders: their
+    derivatives vanish) and the constant a.
+    """
+
+    def __init__(self, rows, T, n):
+        self.count = len(rows)
+        self.n = n
+        node = lambda slot: list(range(3 * slot, 3 * slot + 6))
+        self._index = np.array([node(r.child if r.parent is None else r.parent) + node(r.child) for r in rows],
+                               dtype=int).reshape(-1, 12)
+        self._a = np.array([np.zeros(3) if r.parent is None else r.parent_axis for r in rows]).reshape(-1, 3)
+        self._ground = np.array([r.parent_axis if r.parent is None else np.zeros(3) for r in rows]).reshape(-1, 3)
+        self._b = np.array([r.child_axis for r in rows]).reshape(-1, 3)
+        # coefficients of the gradient's four blocks: [a_x, a_y, b_x, b_y] on w, w, u, u and [a_z, a_z, b_z, b_z]
+        self._linear = np.concatenate([self._a[:, :2], self._b[:, :2]], axis=1)[:, :, None]
+        self._normal = np.repeat(np.stack([self._a[:, 2], self._b[:, 2]], axis=1), 2, axis=1)[:, :, None]
+        self._T = np.asarray(T, dtype=float)[self._index]                              # (m, 12, n_q)
+        self._hessian_entries = (self._index[:, :, None] * n + self._index[:, None, :]).ravel()
+
+    def _gather(self, E):
+        """[r_x^A, r_y^A, r_x^B, r_y^B] of each row, (m, 4, 3)."""
+        return E[self._index].reshape(-1, 4, 3)
+
+    def _vectors(self, X):
+        """u = v_A(a) (+ a with the ground) and w = v_B(b), each (m, 3), of the gathered X (m, 4, 3)."""
+        a, b = self._a, self._b
+        normals = cross(X[:, 0::2], X[:, 1::2])                 # r_x x r_y at A and B
+        u = a[:, :1] * X[:, 0] + a[:, 1:2] * X[:, 1] + a[:, 2:] * normals[:, 0] + self._ground
+        w = b[:, :1] * X[:, 2] + b[:, 1:2] * X[:, 3] + b[:, 2:] * normals[:, 1]
+        return u, w
+
+    def residual(self, E):
+        """Phi (m,)."""
+        u, w = self._vectors(self._gather(E))
+        return np.einsum("mi,mi->m", u, w)
+
+    def gradient(self, E):
+        """dPhi/dE on each row's twelve entries [r_x^A, r_y^A, r_x^B, r_y^B], (m, 12):
+        d(u . w) = w . du + u . dw with d(r_x x r_y) . c = dr_x . (r_y x c) + dr_y . (c x r_x)."""
+        X = self._gather(E)
+        u, w = self._vectors(X)
+        uw = np.stack([w, w, u, u], axis=1)
+        turned = cross(np.stack([X[:, 1], w, X[:, 3], u], axis=1), np.stack([w, X[:, 0], u, X[:, 2]], axis=1))
+        return (self._linear * uw + self._normal * turned).reshape(-1, 12)
+
+    def jacobian(self, E):
+        """G_q = dPhi/dq (m, n_q)."""
+        return np.einsum("mk,mkj->mj", self.gradient(E), self._T)
+
+    def rate(self, E, dE):
+        """dPhi/dt (m,) for the rate dE (n,)."""
+        return np.einsum("mk,mk->m", self.gradient(E), dE[self._index])
+
+    def velocity_quadratic(self, dE, E):
+        """The part of d2Phi/dt2 quadratic in dE (m,), at E:
+        2 u'.w' + 2 a_z (r_x^A' x r_y^A') . w + 2 b_z (r_x^B' x r_y^B') . u."""
+        X = self._gather(E)
+        u, w = self._vectors(X)
+        V = self._gather(dE)
+        a, b = self._a, self._b
+        # the normals' rates r_x' x r_y + r_x x r_y' at A and B, and the products r_x' x r_y' at A and B
+        products = cross(np.concatenate([V[:, 0::2], X[:, 0::2], V[:, 0::2]], axis=1),
+                         np.concatenate([X[:, 1::2], V[:, 1::2], V[:, 1::2]], axis=1))
+        rates = products[:, 0:2] + products[:, 2:4]
+        du = a[:, :1] * V[:, 0] + a[:, 1:2] * V[:, 1] + a[:, 2:] * rates[:, 0]
+        dw = b[:, :1] * V[:, 2] + b[:, 1:2] * V[:, 3] + b[:, 2:] * rates[:, 1]
+        return 2.0 * (np.einsum("mi,mi->m", du, dw) + a[:, 2] * np.einsum("mi,mi->m", products[:, 4], w)
+                      + b[:, 2] * np.einsum("mi,mi->m", products[:, 5], u))
+
+    def hessian(self, E):
+        """d2Phi/dE2 on each row's twelve entries, exact, (m, 12, 12), at E."""
+        X = self._gather(E)
+        xa, ya, xb, yb = X[:, 0], X[:, 1], X[:, 2], X[:, 3]
+        u, w = self._vectors(X)
+        a, b = self._a, self._b
+        eye = np.eye(3)
+        # du/d[r_x^A, r_y^A] (m, 3, 6): d(x x y) = -[y]_x dx + [x]_x dy
+        du = np.concatenate([a[:, 0, None, None] * eye - a[:, 2, None, None] * skew(ya),
+                             a[:, 1, None, None] * eye + a[:, 2, None, None] * skew(xa)], axis=2)
+        dw = np.concatenate([b[:, 0, None, None] * eye - b[:, 2, None, None] * skew(yb),
+                             b[:, 1, None, None] * eye + b[:, 2, None, None] * skew(xb)], axis=2)
+        H = np.zeros((self.count, 12, 12))
+        H[:, :6, 6:] = np.swapaxes(du, 1, 2) @ dw
+        # d2 [(x x y) . c] / dx dy = [c]_x^T = -[c]_x
+        H[:, 0:3, 3:6] = -a[:, 2, None, None] * skew(w)
+        H[:, 6:9, 9:12] = -b[:, 2, None, None] * skew(u)
+        return H + np.swapaxes(H, 1, 2)
+
+    def hessian_sum(self, multipliers, E):
+        """sum_i lambda_i d2Phi_i/dE2, dense (n, n)."""
+        values = (np.asarray(multipliers)[:, None, None] * self.hessian(E)).ravel()
+        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
 
 
 class Constraints:
@@ -17,16 +148,21 @@ class Constraints:
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
     X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane
-    rows are X_s . n; rows are ordered unit, orthogonality, plane. Every evaluation gathers E through
-    flat index arrays built once (these run several times per time step on small arrays)."""
+    rows are X_s . n; the joints' `AxisProduct` rows (`AxisProducts`) come last: rows are ordered unit,
+    orthogonality, plane, axis. Every evaluation gathers E through flat index arrays built once (these run
+    several times per time step on small arrays).
+
+    The axis rows are quartic: their velocity term and Hessian depend on E as well as on dE and the
+    multipliers: `velocity_quadratic` and `hessian_sum` take E."""
 
     def __init__(self, topology, T):
         self.unit = np.array(topology.unit_slots, dtype=int)
         self.ortho = np.array(topology.orthogonal_slots, dtype=int).reshape(-1, 2)
         self.plane = np.array([s for s, _ in topology.fixed_directions], dtype=int)
         self.plane_normal = np.array([n for _, n in topology.fixed_directions]).reshape(-1, 3)
-        self.count = len(self.unit) + len(self.ortho) + len(self.plane)
         self.n = topology.n_coordinates
+        self.axes = AxisProducts(topology.axis_products, T, self.n)
+        self.count = len(self.unit) + len(self.ortho) + len(self.plane) + self.axes.count
         nu, no = len(self.unit), len(self.ortho)
         a, b = np.concatenate([self.unit, self.ortho[:, 0]]), np.concatenate([self.unit, self.ortho[:, 1]])
         components = np.arange(3)
@@ -56,29 +192,50 @@ class Constraints:
     def residual(self, E):
         """Phi(E), shape (count,)."""
         products = (E[self._ia] * E[self._ib]).reshape(-1, 3).sum(axis=1) * self._coefficient + self._constant
-        if not len(self.plane):
-            return products
-        return np.concatenate([products, (E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1)])
+        parts = [products]
+        if len(self.plane):
+            parts.append((E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1))
+        if self.axes.count:
+            parts.append(self.axes.residual(E))
+        return np.concatenate(parts) if len(parts) > 1 else products
 
     def jacobian(self, E):
         """G_q = dPhi/dq = (dPhi/dE) T at E, dense (count, n_q)."""
         pairs = E[self._pair].reshape(-1, 1, 6) @ self._pair_rows
         products = pairs.reshape(len(self._pair_rows), self._n_free)
-        return np.concatenate([products, self._plane_jacobian]) if len(self.plane) else products
+        parts = [products]
+        if len(self.plane):
+            parts.append(self._plane_jacobian)
+        if self.axes.count:
+            parts.append(self.axes.jacobian(E))
+        return np.concatenate(parts) if len(parts) > 1 else products
 
     def rate(self, E, dE):
         """dPhi/dt = (dPhi/dE) dE at E for a rate dE (n,) on the exchanged coordinates, shape (count,)."""
         pairs = (E[self._pair] * dE[self._swapped]).reshape(-1, 6).sum(axis=1) * self._coefficient
-        if not len(self.plane):
-            return pairs
-        return np.concatenate([pairs, (dE[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1)])
+        parts = [pairs]
+        if len(self.plane):
+            parts.append((dE[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1))
+        if self.axes.count:
+            parts.append(self.axes.rate(E, dE))
+        return np.concatenate(parts) if len(parts) > 1 else pairs
 
-    def velocity_quadratic(self, dE):
-        """dE^T H_i dE for each constraint: the term of d2Phi/dt2 that is not G d2E/dt2."""
+    def velocity_quadratic(self, dE, E):
+        """The term of d2Phi/dt2 that is not G d2E/dt2, quadratic in dE (count,): dE^T H_i dE for the
+        quadratic rows; the axis rows' term also depends on E."""
         products = self._velocity_coefficient * (dE[self._ia] * dE[self._ib]).reshape(-1, 3).sum(axis=1)
-        return np.concatenate([products, self._plane_zeros]) if len(self.plane) else products
+        parts = [products]
+        if len(self.plane):
+            parts.append(self._plane_zeros)
+        if self.axes.count:
+            parts.append(self.axes.velocity_quadratic(dE, E))
+        return np.concatenate(parts) if len(parts) > 1 else products
 
-    def hessian_sum(self, multipliers):
-        """sum_i lambda_i H_i, dense (n, n): the constraint part of the tangent stiffness (on E)."""
-        values = np.asarray(multipliers)[self._hessian_multiplier]
-        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
+    def hessian_sum(self, multipliers, E):
+        """sum_i lambda_i d2Phi_i/dE2, dense (n, n): the constraint part of the tangent stiffness at E, exact."""
+        multipliers = np.asarray(multipliers)
+        values = multipliers[self._hessian_multiplier]
+        out = np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
+        if self.axes.count:
+            out += self.axes.hessian_sum(multipliers[self.count - self.axes.count:], E)
+        return out

@@ -9,15 +9,7 @@ r_x/|r_x|, r_y, their cross product). The force F = -alpha (I - P)^T M (I - P) d
 """
 import numpy as np
 
-from fmu_common.vectors import cross
-
-
-def _skew(v):
-    """(..., 3) -> (..., 3, 3) with skew(v) w = v x w."""
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return out
+from fmu_common.vectors import cross, skew
 
 
 def frame_angular_velocity_map(root):
@@ -30,11 +22,11 @@ def frame_angular_velocity_map(root):
     e1, e2 = x / nx, y
     e3 = np.cross(e1, e2)
     de1 = (np.eye(3) - np.outer(e1, e1)) / nx             # d e1 / d r_x
-    de3_dx = -_skew(e2) @ de1                             # d(e1 x e2)/d r_x = -[e2]x de1
-    de3_dy = _skew(e1)
+    de3_dx = -skew(e2) @ de1                             # d(e1 x e2)/d r_x = -[e2]x de1
+    de3_dy = skew(e1)
     W = np.zeros((3, 9))
-    W[:, 3:6] = 0.5 * (_skew(e1) @ de1 + _skew(e3) @ de3_dx)
-    W[:, 6:9] = 0.5 * (_skew(e2) + _skew(e3) @ de3_dy)
+    W[:, 3:6] = 0.5 * (skew(e1) @ de1 + skew(e3) @ de3_dx)
+    W[:, 6:9] = 0.5 * (skew(e2) + skew(e3) @ de3_dy)
     return W
 
 
@@ -45,7 +37,7 @@ def rigid_velocity_projector(E_body):
     W = frame_angular_velocity_map(E_body[:9])
     P = np.zeros((m, 3, 3, 9))
     arms = _arms(nodes)
-    P[:, :, :, :] = -np.einsum("mkij,jc->mkic", _skew(arms), W)                      # omega x arm
+    P[:, :, :, :] = -np.einsum("mkij,jc->mkic", skew(arms), W)                      # omega x arm
     P[:, 0, :, 0:3] += np.eye(3)                                                     # + dr_root/dt
     out = np.zeros((9 * m, 9 * m))
     out[:, :9] = P.reshape(9 * m, 9)

@@ -84,14 +84,19 @@ def flap_curvature(derivatives):
     return -np.linalg.det(derivatives) / (np.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1)
 
 
-def mass_matrix(length, mass_per_length, first_moment, chord_inertia):
-    """Constant element mass matrix (Otsuka et al. 2019, Eq. 5) by exact quadrature of rho * int S^T S dA dx.
+def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_inertia=None):
+    """Constant element mass matrix (Otsuka et al. 2019, Eq. 5) by exact quadrature of rho * int S^T S dA dx,
+    plus the section's rotary inertia rho I_yy int S'^T S' dx.
 
     length l (m), mass_per_length rho A (kg/m), first_moment rho Q_z (kg), chord_inertia rho I_zz (kg m),
-    all shape (n,), the section moments taken about the reference line (y = 0).
-    Returns (n, 18, 18). Exact: the integrand is a polynomial of degree 6 in x and 5 points integrate 9.
+    rotary_inertia rho I_yy (kg m; None: 0), all shape (n,), the section moments taken about the reference
+    line (y = 0). S' = dS/dx on the reference line (the Hermite shape on r and r_x), so that the rotary term is
+    the Rayleigh beam's kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit length (Otsuka et al. 2022, Table 4's
+    rho I_yy): a rigid turn of the line at rate omega about an axis across it adds rho I_yy l omega^2 / 2
+    (whether the turn is about the chord or about the section normal).
+    Returns (n, 18, 18). Exact: the integrands are polynomials of degree 6 in x at most and 5 points integrate 9.
     """
-    N, _, _, L = gauss_basis(length)  # (n, g, 4), (n, g, 2)
+    N, dN, _, L = gauss_basis(length)  # (n, g, 4), (n, g, 2)
     zero = np.zeros_like(L[..., :1])
     n_row = np.concatenate([N[..., :2], zero, N[..., 2:], zero], axis=-1)   # y^0 part of s
     m_row = np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]], axis=-1)  # y^1 part
@@ -101,6 +106,9 @@ def mass_matrix(length, mass_per_length, first_moment, chord_inertia):
     mm = np.einsum("ng,nga,ngb->nab", w, m_row, m_row)
     m6 = (mass_per_length[:, None, None] * nn + first_moment[:, None, None] * (nm + nm.transpose(0, 2, 1))
           + chord_inertia[:, None, None] * mm)
+    if rotary_inertia is not None:
+        d_row = np.concatenate([dN[..., :2], zero, dN[..., 2:], zero], axis=-1)    # r' on the six vectors
+        m6 = m6 + np.asarray(rotary_inertia)[:, None, None] * np.einsum("ng,nga,ngb->nab", w, d_row, d_row)
     return np.einsum("nab,ij->naibj", m6, np.eye(3)).reshape(-1, 18, 18)
 
 

@@ -1,4 +1,8 @@
-"""Time integrators for M q'' + Phi_q^T lambda = F(q, q', t), Phi(q, t) = 0.
+"""Time integrators for M(q) q'' + Phi_q^T lambda = F(q, q', t), Phi(q, t) = 0.
+
+The model (structure_fmu.model.StructureModel, constant M; structure_fmu.strain_model.StrainBasedModel,
+configuration-dependent M) gives the mass (`mass_matrix`, `solve_mass`), the force (`force_q`), the
+constraints (`constraint_*`) and generalized-alpha's iteration matrix (`iteration_matrix`).
 
 * RK4: explicit 4th-order Runge-Kutta on the index-1 (acceleration level) equations, the scheme of Otsuka et al. 2019
   Sec. VI, with constraint stabilization by mass-weighted projection of q and q' onto the constraint
@@ -47,39 +51,35 @@ def _schur_solve(S, b):
 
 
 def constrained_accelerations(model, t, q, dq, Q, latched):
-    """q'' and lambda from the index-1 equations by a Schur complement on the factorized mass."""
+    """q'' and lambda from the index-1 equations by a Schur complement on the mass matrix."""
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
-    cons = model.constraints
-    if cons.count == 0:
-        return model.mass_inverse @ F, np.zeros(0)
-    Gq = cons.jacobian(E)
-    gamma = -cons.velocity_quadratic(dE)
-    if ddp is not None:
-        gamma -= cons.rate(E, model.P @ ddp)
-    MinvF = model.mass_inverse @ F
-    MinvGt = model.mass_inverse @ Gq.T
+    if model.constraint_count == 0:
+        return model.solve_mass(q, F), np.zeros(0)
+    Gq = model.constraint_jacobian(q, E)
+    gamma = model.constraint_gamma(q, dq, E, dE, ddp)
+    MinvF = model.solve_mass(q, F)
+    MinvGt = model.solve_mass(q, Gq.T)
     lam = _schur_solve(Gq @ MinvGt, Gq @ MinvF - gamma)
     return MinvF - MinvGt @ lam, lam
 
 
 def project(model, t, q, dq, iterations=4, tol=1e-13):
     """Mass-weighted projection of q onto Phi = 0 and of q' onto dPhi/dt = 0."""
-    cons = model.constraints
-    if cons.count == 0:
+    if model.constraint_count == 0:
         return q, dq
     for _ in range(iterations):
         E, dE, _ = model.coordinates(q, dq, t)
-        phi = cons.residual(E)
+        phi = model.constraint_residual(q, E)
         if np.abs(phi).max() < tol:
             break
-        Gq = cons.jacobian(E)
-        MinvGt = model.mass_inverse @ Gq.T
+        Gq = model.constraint_jacobian(q, E)
+        MinvGt = model.solve_mass(q, Gq.T)
         q = q - MinvGt @ _schur_solve(Gq @ MinvGt, phi)
     else:
         E, dE, _ = model.coordinates(q, dq, t)
-    Gq = cons.jacobian(E)
-    MinvGt = model.mass_inverse @ Gq.T
-    dphi = cons.rate(E, dE)            # dPhi/dt = G (T q' + P p')
+    Gq = model.constraint_jacobian(q, E)
+    MinvGt = model.solve_mass(q, Gq.T)
+    dphi = model.constraint_rate(q, dq, E, dE)
     return q, dq - MinvGt @ _schur_solve(Gq @ MinvGt, dphi)
 
 
@@ -146,18 +146,12 @@ class GeneralizedAlpha:
     def _factor(self, model, t, q, dq, latched, lam, h):
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
-        E, dE, _ = model.coordinates(q, dq, t)
-        K, C = model.tangent_E(E, dE, latched)
-        cons = model.constraints
-        if cons.count:
-            K = K + cons.hessian_sum(lam)
-        T = model.T_sparse
-        S = beta_p * model.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T
-        n, m = len(q), cons.count
+        S, E = model.iteration_matrix(t, q, dq, latched, lam, beta_p, gamma_p)
+        n, m = len(q), model.constraint_count
         A = np.zeros((n + m, n + m))
         A[:n, :n] = S
         if m:
-            Gq = cons.jacobian(E)
+            Gq = model.constraint_jacobian(q, E)
             A[:n, n:] = beta_p * Gq.T
             A[n:, :n] = beta_p * Gq
         self._matrix = (h, lu_factor(A))
@@ -199,7 +193,6 @@ class GeneralizedAlpha:
         t = state.t + h
         q, dq, ddq, a_known = self._predictor(state, h, predictor)
         lam = state.multipliers.copy()
-        cons = model.constraints
         n = len(q)
         # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
         # would leave velocity errors of gamma' tol per step, growing as h shrinks)
@@ -217,12 +210,12 @@ class GeneralizedAlpha:
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
         for _ in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            residual = model.mass_q @ ddq - F
+            residual = model.mass_matrix(q) @ ddq - F
             phi = np.zeros(0)
-            if cons.count:
-                Gq = cons.jacobian(E)
+            if model.constraint_count:
+                Gq = model.constraint_jacobian(q, E)
                 residual += Gq.T @ lam
-                phi = cons.residual(E)
+                phi = model.constraint_residual(q, E)
             if not (np.all(np.isfinite(residual)) and np.all(np.isfinite(phi))):
                 raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
             delta = lu_solve(self._matrix[1], -np.concatenate([residual, beta_p * phi]), check_finite=False)

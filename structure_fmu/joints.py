@@ -1,9 +1,19 @@
-"""Revolute hinge with its axis along the chord: fold angle, spring actuator and latch (Otsuka et al. 2019,
-Sec. II.C; Otsuka et al. 2022, Sec. 5).
+"""Revolute joints: fold angle, spring actuator and latch (Otsuka et al. 2019, Sec. II.C; Otsuka et al. 2022,
+Secs. 3.1 and 5).
 
-The fold angle theta is the angle from the parent's tip gradient a = r_x (parent) to the child's root
-gradient b = r_x (child), positive about the shared chord vector n = r_y:
-theta = atan2((a x b) . n, a . b). It is independent of |a| and |b| (axial strain), in (-pi, pi].
+The fold angle theta of a revolute joint is the signed angle (right hand about the joint axis) of the child
+relative to the parent, as in `fmu_common.topology.JointLine`: F_child = F_parent R(a, theta) O, with F the
+[span, chord, normal] frames of the parent's tip node and of the child's root node, a the axis (parent
+components) and O the child's orientation at theta = 0. It lies in (-pi, pi]. Two forms:
+
+* chord axis (a along the chord of both frames, O = I: the folding wings' chordwise hinge, r_y shared): the
+  angle from the parent's tip gradient p = r_x (parent) to the child's root gradient q = r_x (child) about the
+  shared chord vector n = r_y, theta = atan2((p x q) . n, p . q), independent of |p| and |q| (axial strain);
+* any other axis: with the unit frames F = [x, y, z] of the two nodes (x = r_x / |r_x|, y = r_y,
+  z = x x r_y), a unit p perpendicular to a (parent components) and Q = F_child O^T p (the child's material
+  line that lies along F_parent p at theta = 0): theta = atan2(Q . F_parent (a x p), Q . F_parent p), with
+  F_parent = I for the ground. While the joint holds, Q = F_parent R(a, theta) p, so that this is theta for
+  any p, and it does not depend on the stretch |r_x| of either node.
 """
 import functools
 import math
@@ -19,13 +29,13 @@ def _sine_cosine(a0, a1, a2, b0, b1, b2, n0, n1, n2):
 
 
 def fold_angle(x):
-    """theta (rad) for x = [a, b, n] (9,), the stacked 3-vectors."""
+    """theta (rad) of a chord-axis hinge for x = [a, b, n] (9,), the stacked 3-vectors."""
     _, s, c = _sine_cosine(*x.tolist())
     return math.atan2(s, c)
 
 
 def fold_angle_gradient(x):
-    """(theta, d theta/dx (9,)) for x = [a, b, n] (9,), the stacked 3-vectors."""
+    """(theta, d theta/dx (9,)) of a chord-axis hinge for x = [a, b, n] (9,), the stacked 3-vectors."""
     a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
     axb, s, c = _sine_cosine(*values)
     w = 1.0 / (s * s + c * c)
@@ -35,6 +45,80 @@ def fold_angle_gradient(x):
     dc = (b0, b1, b2, a0, a1, a2)
     grad = np.array([cw * x - sw * y for x, y in zip(ds, dc)] + [cw * x for x in axb])   # d s / d n = a x b
     return math.atan2(s, c), grad
+
+
+# Plain float arithmetic on 3-tuples below: on single 3-vectors it is several times faster than numpy calls.
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _unit_frame(rx, ry):
+    """(x = r_x / |r_x|, |r_x|, z = x x r_y) of a node with gradients r_x, r_y."""
+    length = math.sqrt(_dot(rx, rx))
+    x = (rx[0] / length, rx[1] / length, rx[2] / length)
+    return x, length, _cross(x, ry)
+
+
+def _direction(c, x, y, z):
+    """c_x x + c_y y + c_z z."""
+    return tuple(c[0] * x[k] + c[1] * y[k] + c[2] * z[k] for k in range(3))
+
+
+def _direction_gradient(x, length, ry, c, g):
+    """d(g . v(c)) / d[r_x, r_y] (6 floats) of the unit-frame direction v(c) = c_x x + c_y r_y + c_z (x x r_y),
+    x = r_x / |r_x|, for frame components c and a fixed vector g."""
+    ry_g, g_x = _cross(ry, g), _cross(g, x)
+    d_x = [c[0] * g[k] + c[2] * ry_g[k] for k in range(3)]
+    along = _dot(d_x, x)
+    return [(d_x[k] - along * x[k]) / length for k in range(3)] + [c[1] * g[k] + c[2] * g_x[k] for k in range(3)]
+
+
+def axis_angle_gradient(x, hinge):
+    """(theta, d theta/dx) of a revolute joint about any axis (module docstring, second form) for
+    x = [r_x^A, r_y^A, r_x^B, r_y^B] (12,) of the parent's tip node A and the child's root node B, or
+    x = [r_x^B, r_y^B] (6,) with the ground."""
+    values = x.tolist()
+    ground = hinge.parent_slot is None
+    rxb, ryb = values[-6:-3], values[-3:]
+    xb, lb, zb = _unit_frame(rxb, ryb)
+    q, p = hinge.child_reference.tolist(), hinge.reference.tolist()
+    binormal = _cross(hinge.axis.tolist(), p)                    # a x p
+    Q = _direction(q, xb, ryb, zb)
+    if ground:
+        C, S = p, binormal
+    else:
+        rxa, rya = values[:3], values[3:6]
+        xa, la, za = _unit_frame(rxa, rya)
+        C, S = _direction(p, xa, rya, za), _direction(binormal, xa, rya, za)
+    s, c = _dot(Q, S), _dot(Q, C)
+    ds, dc = _direction_gradient(xb, lb, ryb, q, S), _direction_gradient(xb, lb, ryb, q, C)
+    if not ground:
+        ds = _direction_gradient(xa, la, rya, binormal, Q) + ds
+        dc = _direction_gradient(xa, la, rya, p, Q) + dc
+    w = 1.0 / (s * s + c * c)
+    return math.atan2(s, c), np.array([(c * a - s * b) * w for a, b in zip(ds, dc)])
+
+
+def hinge_angle_gradient(hinge, E):
+    """(theta (rad), idx, d theta/dE[idx]) of a hinge at E: idx the distinct E indices theta depends on."""
+    if hinge.axis_slot is not None:
+        idx = hinge_coordinates(hinge)
+        theta, grad = fold_angle_gradient(E[idx])
+        return theta, idx, grad
+    full, idx, where = _axis_coordinates(hinge.parent_slot, hinge.child_slot)
+    theta, grad = axis_angle_gradient(E[full], hinge)
+    return theta, idx, np.bincount(where, grad, len(idx))
+
+
+def hinge_angle(hinge, E):
+    """theta (rad) of a hinge at E."""
+    if hinge.axis_slot is not None:
+        return fold_angle(E[hinge_coordinates(hinge)])
+    return hinge_angle_gradient(hinge, E)[0]
 
 
 def actuator_torque(hinge, theta, dtheta, latched):
@@ -54,11 +138,10 @@ def actuator_terms(hinges, E, dE, latched):
     """Per hinge, what the generalized actuator force on E is made of (Otsuka et al. 2019, Sec. II.C, virtual work
     -torque * delta theta: the force is -torque * grad on the coordinates idx):
 
-    (idx (9,) into E, torque N m, its stiffness d torque / d theta N m/rad, its damping
-    d torque / d theta' N m s/rad, grad = d theta / dE[idx] (9,))."""
+    (idx (k,) distinct indices into E, torque N m, its stiffness d torque / d theta N m/rad, its damping
+    d torque / d theta' N m s/rad, grad = d theta / dE[idx] (k,))."""
     for h in hinges:
-        idx = hinge_coordinates(h)
-        theta, grad = fold_angle_gradient(E[idx])
+        theta, idx, grad = hinge_angle_gradient(h, E)
         torque, stiffness = actuator_torque(h, theta, float(grad @ dE[idx]), latched.get(h.name, False))
         yield idx, torque, stiffness, h.damping, grad
 
@@ -68,6 +151,19 @@ def _coordinates_of(parent_slot, child_slot, axis_slot):
     return np.concatenate([np.arange(3 * s, 3 * s + 3) for s in (parent_slot, child_slot, axis_slot)])
 
 
+@functools.cache
+def _axis_coordinates(parent_slot, child_slot):
+    """(full, idx, where): the E indices of [r_x^A, r_y^A, r_x^B, r_y^B] (r_x^B, r_y^B with the ground), their
+    distinct values idx, and full = idx[where] (a revolute may share r_y between the two nodes)."""
+    slots = (child_slot,) if parent_slot is None else (parent_slot, child_slot)
+    full = np.concatenate([np.arange(3 * s, 3 * s + 6) for s in slots])
+    idx, where = np.unique(full, return_inverse=True)
+    return full, idx, where
+
+
 def hinge_coordinates(hinge):
-    """Indices (9,) into E of the parent's r_x, the child's r_x and the axis r_y of a hinge."""
-    return _coordinates_of(hinge.parent_slot, hinge.child_slot, hinge.axis_slot)
+    """Indices into E of the coordinates the hinge's fold angle depends on: the parent's r_x, the child's r_x
+    and the axis r_y (9,) of a chord-axis hinge, the distinct ones of [r_x^A, r_y^A, r_x^B, r_y^B] otherwise."""
+    if hinge.axis_slot is not None:
+        return _coordinates_of(hinge.parent_slot, hinge.child_slot, hinge.axis_slot)
+    return _axis_coordinates(hinge.parent_slot, hinge.child_slot)[1]

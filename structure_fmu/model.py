@@ -34,10 +34,12 @@ class StructureModel:
         mu = np.array([s.mass_per_length for s in sections])
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
-        self.flexible = topology.fidelity == "flexible"
+        self.flexible = topology.fidelity == "flexible"      # the ANCF elastic force (strain-based: K q instead)
+        deformable = topology.fidelity in ("flexible", "strain-based")
         # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
-        element_mass = element.mass_matrix(self.lengths, mu, mu1, mu2)
+        rotary = np.array([s.rotary_inertia for s in sections])
+        element_mass = element.mass_matrix(self.lengths, mu, mu1, mu2, rotary)
         for dofs, m in zip(self.dofs, element_mass):
             self.mass_E[np.ix_(dofs, dofs)] += m
         gravity = np.asarray(gravity, float)
@@ -59,7 +61,7 @@ class StructureModel:
         # literal Otsuka et al. 2019, Sec. II.C / Otsuka et al. 2022, Sec. 5 force, which also damps the bodies'
         # rigid motion (a constant matrix, `mass_damping`)
         self.mass_damping = None
-        if self.flexible:
+        if deformable:
             for name, body in topology.bodies.items():
                 alpha = (body_damping or {}).get(name, body.damping)
                 if alpha > 0:
@@ -162,8 +164,63 @@ class StructureModel:
             F -= self.mass_prescribed @ ddp
         return F, E, dE, ddp
 
+    # ---------------------------------------------------------------- the integrators' interface
+    def initial_coordinates(self):
+        """q at t = 0 (n_q,)."""
+        return self.top.initial_free()
+
+    def mass_matrix(self, q):
+        """M_q (n_q, n_q), constant here."""
+        return self.mass_q
+
+    def solve_mass(self, q, b):
+        """M_q^-1 b for b (n_q,) or (n_q, k)."""
+        return self.mass_inverse @ b
+
+    @property
+    def constraint_count(self):
+        return self.constraints.count
+
+    def constraint_residual(self, q, E):
+        """Phi (count,) at the state whose exchanged coordinates are E."""
+        return self.constraints.residual(E)
+
+    def constraint_jacobian(self, q, E):
+        """Phi_q (count, n_q)."""
+        return self.constraints.jacobian(E)
+
+    def constraint_rate(self, q, dq, E, dE):
+        """dPhi/dt (count,)."""
+        return self.constraints.rate(E, dE)
+
+    def constraint_gamma(self, q, dq, E, dE, ddp):
+        """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints (count,)."""
+        gamma = -self.constraints.velocity_quadratic(dE, E)
+        if ddp is not None:
+            gamma -= self.constraints.rate(E, self.P @ ddp)
+        return gamma
+
+    def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
+        """(beta' M_q + gamma' C_t + K_t (n_q, n_q), E): generalized-alpha's iteration matrix without the
+        constraint rows (Peng et al. 2019, Fig. 3), with the constraint Hessian in K_t."""
+        E, dE, _ = self.coordinates(q, dq, t)
+        K, C = self.tangent_E(E, dE, latched)
+        if self.constraints.count:
+            K = K + self.constraints.hessian_sum(lam, E)
+        T = self.T_sparse
+        return beta_p * self.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T, E
+
+    def rates_of(self, q, dE, t):
+        """The q' whose exchanged rates come closest to dE (least squares; exact when dE is reachable)."""
+        _, dp, _ = self.prescribed(t)
+        return np.linalg.lstsq(self.T, dE - self.P @ dp, rcond=None)[0]
+
+    def fold_angles(self, q, E):
+        """{revolute: fold angle, rad} at the state whose exchanged coordinates are E."""
+        return self.top.fold_angles(E)
+
     # ---------------------------------------------------------------- monitors
-    def potential_energy(self, E, latched, angles):
+    def potential_energy(self, q, E, latched, angles):
         """Elastic + gravity potential + actuator spring potential, J, at E with the fold angles
         {hinge: rad} of E (`StructureTopology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
         elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \

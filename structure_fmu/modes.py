@@ -18,7 +18,7 @@ def natural_modes(solver):
     E, dE, _ = model.coordinates(state.q, np.zeros_like(state.q), state.t)
     K, _ = model.tangent_E(E, np.zeros_like(dE), state.latched)
     if model.constraints.count:
-        K = K + model.constraints.hessian_sum(state.multipliers)
+        K = K + model.constraints.hessian_sum(state.multipliers, E)
         N = null_space(model.constraints.jacobian(E))
     else:
         N = np.eye(len(state.q))

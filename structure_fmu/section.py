@@ -13,7 +13,9 @@ class Section:
     axial (EA, N), flap (EI_yy, N m^2, out of the wing plane), chordwise (EI_zz, N m^2),
     torsion (GJ, N m^2), mass_per_length (rho A, kg/m), first_moment (rho Q_z, kg),
     chord_inertia (rho I_zz, kg m), chord (m), axis_position (reference line, fraction of chord from the
-    leading edge), thickness (h, m; None for a section given by explicit stiffnesses).
+    leading edge), thickness (h, m; None for a section given by explicit stiffnesses), rotary_inertia (rho I_yy,
+    kg m: the rotary inertia of the section about its chord axis, kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit
+    length, Otsuka et al. 2022, Table 4; element.mass_matrix).
     """
 
     axial: float
@@ -26,6 +28,7 @@ class Section:
     chord: float
     axis_position: float
     thickness: float | None = None
+    rotary_inertia: float = 0.0
 
     @property
     def stiffness(self):
@@ -58,4 +61,4 @@ def section_from_scene(key: str, table: dict) -> Section:
                    chordwise=values["bending_stiffness_chord"], torsion=table["torsional_rigidity"],
                    mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
-                   thickness=h)
+                   thickness=h, rotary_inertia=table["rotary_inertia"])

@@ -11,7 +11,9 @@ import numpy as np
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
 
 from .integrators import RK4, GeneralizedAlpha, State, project
+from .joint_monitors import joint_monitors
 from .model import StructureModel
+from .strain_model import StrainBasedModel
 from .sensors import Sensors
 from .topology import StructureTopology
 
@@ -47,12 +49,13 @@ class StructureSolver:
                 raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
         body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
         gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
-        self.model = StructureModel(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
+        model = StrainBasedModel if structure["fidelity"] == "strain-based" else StructureModel
+        self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
         self.step_size = values["structure.step"]
         self.integrator = RK4() if structure["integrator"] == "rk4" else GeneralizedAlpha(structure["rho_inf"])
-        q0 = self.topology.initial_free()
+        q0 = self.model.initial_coordinates()
         n_q = len(q0)
-        n_c = self.model.constraints.count
+        n_c = self.model.constraint_count
         self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
         self._initialized = False
@@ -70,12 +73,10 @@ class StructureSolver:
             block = E.reshape(-1, 3, 3)[nodes]
             arms = np.stack([block[:, 0] - block[0, 0], block[:, 1], block[:, 2]], axis=1)
             dE.reshape(-1, 3, 3)[nodes] = np.cross(omega, arms)
-        q0 = top.initial_free()
+        q0 = model.initial_coordinates()
         if not q0.size:
             return np.zeros(0)
-        _, dp, _ = model.prescribed(0.0)
-        dq, *_ = np.linalg.lstsq(model.T, dE - model.P @ dp, rcond=None)
-        return project(model, 0.0, q0, dq)[1]
+        return project(model, 0.0, q0, model.rates_of(q0, dE, 0.0))[1]
 
     @staticmethod
     def tunable_parameters(scene: dict) -> dict:
@@ -91,7 +92,7 @@ class StructureSolver:
                                               "mass-proportional damping alpha (of deformation, or of all motion: "
                                               "structure.damping_model)")
         for joint in structure["joints"]:
-            if joint["type"] == "hinge":
+            if joint["type"] == "revolute":
                 name = joint["name"]
                 out[f"{name}.stiffness"] = (joint["stiffness"], "N.m/rad", "actuator stiffness K")
                 out[f"{name}.damping"] = (joint["damping"], "N.m.s/rad", "actuator damping C")
@@ -99,10 +100,10 @@ class StructureSolver:
         return out
 
     def _check_initial_constraints(self):
-        if self.model.constraints.count == 0:
+        if self.model.constraint_count == 0:
             return
         E, _, _ = self.model.coordinates(self.state.q, self.state.dq, 0.0)
-        G = self.model.constraints.jacobian(E)
+        G = self.model.constraint_jacobian(self.state.q, E)
         rank = np.linalg.matrix_rank(G)
         if rank < G.shape[0]:
             raise SceneError("structure.joints", None,
@@ -175,8 +176,9 @@ class StructureSolver:
             if cached is state:
                 return values
         E, dE, _ = self.model.coordinates(state.q, state.dq, state.t)
-        residual = float(np.abs(self.model.constraints.residual(E)).max()) if self.model.constraints.count else 0.0
-        values = (E, dE, self.topology.fold_angles(E), residual)
+        residual = float(np.abs(self.model.constraint_residual(state.q, E)).max()) if self.model.constraint_count \
+            else 0.0
+        values = (E, dE, self.model.fold_angles(state.q, E), residual)
         self._cache = ((state, values), self._cache[0])
         return values
 
@@ -201,10 +203,19 @@ class StructureSolver:
         E, dE, _, _ = self._evaluated(self.state)
         return self.sensors.outputs(E, dE)
 
+    def joint_monitor_names(self) -> list[str]:
+        """Names of the joints' constraint monitors (`structure_fmu.joint_monitors`), in output order."""
+        top = self.topology
+        return list(joint_monitors(top.joint_lines, top.bodies, top.initial_coordinates()))
+
+    def joint_monitors(self) -> dict:
+        """{<joint>_point_mismatch (m), <joint>_axis_product / _axis_error (-)} at the current state."""
+        return joint_monitors(self.topology.joint_lines, self.topology.bodies, self._evaluated(self.state)[0])
+
     def monitors(self) -> dict:
         E, dE, angles, residual = self._evaluated(self.state)
         kinetic = 0.5 * float(dE @ (self.model.mass_E @ dE))
-        return {"energy": kinetic + self.model.potential_energy(E, self.state.latched, angles),
+        return {"energy": kinetic + self.model.potential_energy(self.state.q, E, self.state.latched, angles),
                 "kinetic_energy": kinetic,
                 "constraint_residual": residual,
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},

@@ -21,7 +21,8 @@ s = 3n+2H+3, the first sensor output):
 | s .. s+3P-1       | <probe>_x, _y, _z         | output, continuous       | m (global frame)                  |
 | s+3P .. s+6P-1    | <probe>_vx, _vy, _vz      | output, continuous       | m/s (global frame)                |
 | s+6P .. s+6P+G-1  | <gauge>                   | output, continuous       | 1 (surface strain)                |
-| s+6P+G ..         | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
+| then              | <joint>_point_mismatch, <joint>_axis_product, <joint>_axis_error | output, continuous | m, 1, 1 |
+| then              | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
 | last              | topology_hash (String)    | output, constant         | -                                 |
 
 Per node the 9 coordinates are r (3), r_x (3), r_y (3) in the global frame; Q is work-conjugate to e,
@@ -66,7 +67,7 @@ which wingsim's master sets to 0."""
 
 class StructureSlave(SolverSlave):
     author = "wingsim"
-    description = "Structure unit: ANCF wing bodies, hinges, actuators and latches (wingsim)"
+    description = "Structure unit: ANCF or strain-based wing bodies, joints, actuators and latches (wingsim)"
     label = "structure unit"
     solver_class = StructureSolver
 
@@ -88,7 +89,9 @@ class StructureSlave(SolverSlave):
         self.sl_latch = slice(3 * n + nh + 3, 3 * n + 2 * nh + 3)
         self.sensor_names = self._solver.sensors.output_names()
         self.sl_sensor = slice(self.sl_latch.stop, self.sl_latch.stop + len(self.sensor_names))
-        self.sl_par = slice(self.sl_sensor.stop, self.sl_sensor.stop + npar)
+        self.joint_monitor_names = self._solver.joint_monitor_names()
+        self.sl_joint = slice(self.sl_sensor.stop, self.sl_sensor.stop + len(self.joint_monitor_names))
+        self.sl_par = slice(self.sl_joint.stop, self.sl_joint.stop + npar)
         self._real = np.zeros(self.sl_par.stop)
         self._real[self.sl_par] = list(self.defaults.values())
         self._settable = np.zeros(self._real.size, dtype=bool)
@@ -126,6 +129,11 @@ class StructureSlave(SolverSlave):
                       **{**out, "variability": Fmi2Variability.discrete})
         for j, (name, unit, text) in enumerate(self._solver.sensors.output_declarations()):
             self._reg(fmi_name(name), self.sl_sensor.start + j, unit, text, **out)
+        for j, name in enumerate(self.joint_monitor_names):
+            point = name.endswith("_point_mismatch")
+            text = ("distance between the parent's tip and the child's root" if point else
+                    "axis condition of the joint, 0 while it holds")
+            self._reg(fmi_name(name), self.sl_joint.start + j, "m" if point else "1", text, **out)
         self._register_parameters_and_hash("aero unit")
 
     def _publish(self):
@@ -143,3 +151,5 @@ class StructureSlave(SolverSlave):
         self._real[self.sl_latch] = [self._t0 + m["latch_times"][h] if h in m["latch_times"] else LATCH_PENDING
                                      for h in self.hinges]
         self._real[self.sl_sensor] = s.sensor_outputs()
+        joints = s.joint_monitors()
+        self._real[self.sl_joint] = [joints[name] for name in self.joint_monitor_names]

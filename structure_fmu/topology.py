@@ -4,12 +4,24 @@ masses and loads, and the map to reduced coordinates.
 Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (Otsuka et al. 2019, Eq. 3). Each 3-vector "slot"
 s = 3 node + k (k = 0 r, 1 r_x, 2 r_y) occupies E[3s:3s+3].
 
-Joints are not Lagrange constraints here but shared or prescribed coordinates (the master/slave
+Joint points are not Lagrange constraints here but shared or prescribed coordinates (the master/slave
 elimination of Peng et al. 2019, Sec. 3): a slot is a linear combination of free vectors q_j and prescribed vectors
-p_j(t), so E = (T kron I3) q + (P kron I3) p(t). A hinge shares r and r_y between the parent's tip node
-and the child's root node; a rigid body (one element) has r^B = r^A + l r_x^A, r_x^B = r_x^A,
-r_y^B = r_y^A, the linear rows of Otsuka et al. 2019, Eq. (17); a clamp or driven root is prescribed. What remains as
-Lagrange constraints is nonlinear: unit length and orthogonality (Otsuka et al. 2019, Eqs. 6, 17), see constraints.py.
+p_j(t), so E = (T kron I3) q + (P kron I3) p(t). A ball, universal or revolute joint shares r between the
+parent's tip node and the child's root node (with the ground: r is prescribed at the child's root); a
+revolute joint about the chord of both bodies also shares r_y (with the ground: prescribed); a rigid body (one
+element) has r^B = r^A + l r_x^A, r_x^B = r_x^A, r_y^B = r_y^A, the linear rows of Otsuka et al. 2019, Eq. (17); a
+clamp or driven root is prescribed. What remains as Lagrange constraints is nonlinear: unit length and
+orthogonality (Otsuka et al. 2019, Eqs. 6, 17), and the axis products of universal joints and of revolute joints
+about any other axis (constraints.py `AxisProduct`).
+
+Coordinates and constraints per joint at the child's root node (free 3-vectors x 3 coordinates; constraint rows
+including the node's own unit-length and orthogonality rows), the same with a parent and with the ground:
+  joint                  coordinates   constraints rigid   constraints flexible
+  ball                   6             3                   2
+  universal              6             4                   3
+  revolute, chord axis   3             2                   1
+  revolute, other axis   6             5                   4
+(a flexible node keeps the axial stretch |r_x| free: one more degree of freedom than the joint's own).
 """
 from dataclasses import dataclass, field
 
@@ -17,8 +29,10 @@ import numpy as np
 
 from fmu_common import topology
 from fmu_common.errors import SceneError
+from fmu_common.scene_schema import PARENT_JOINTS
 
-from .joints import fold_angle, hinge_coordinates
+from .constraints import AxisProduct
+from .joints import hinge_angle
 from .motion import Fixed, HeavePitch, SpinUp
 from .section import Section, section_from_scene
 
@@ -33,18 +47,29 @@ class StructureBody(topology.Body):
     damping: float = 0.0
 
 
+CHORD_TOLERANCE = 1e-12
+"""A revolute axis within this of the chord in both frames shares (with the ground: prescribes) r_y."""
+
+
 @dataclass
 class Hinge:
+    """A revolute joint's fold angle (joints.py) and actuator. A chord-axis hinge without orientation has the
+    shared r_y slot axis_slot; any other (axis_slot None) measures its angle with axis, reference and
+    child_reference."""
+
     name: str
-    parent_slot: int        # r_x slot of the parent's tip node
-    child_slot: int         # r_x slot of the child's root node
-    axis_slot: int          # shared r_y slot
-    initial_angle: float    # rad
-    stiffness: float        # K, N m/rad
-    damping: float          # C, N m s/rad
-    torque: float           # T_const, N m
+    parent_slot: int | None   # r_x slot of the parent's tip node (None: the ground)
+    child_slot: int           # r_x slot of the child's root node
+    axis_slot: int | None     # shared r_y slot of a chord-axis hinge, else None
+    initial_angle: float      # rad
+    stiffness: float          # K, N m/rad
+    damping: float            # C, N m s/rad
+    torque: float             # T_const, N m
     stop_angle: float | None  # rad, latch angle
     latch_factor: float
+    axis: np.ndarray | None = None             # a, parent frame components (with the ground: global)
+    reference: np.ndarray | None = None        # p perpendicular to a, parent frame components
+    child_reference: np.ndarray | None = None  # O^T p, child frame components
 
 
 @dataclass
@@ -80,6 +105,7 @@ class StructureTopology(topology.Topology):
         self.unit_slots: list[int] = []
         self.orthogonal_slots: list[tuple[int, int]] = []
         self.fixed_directions: list[tuple[int, np.ndarray]] = []   # slot . n = 0
+        self.axis_products: list[AxisProduct] = []                 # joint rows v_A(a) . v_B(b) = 0
         self.masses: list[tuple[int, float]] = []                  # (node, kg)
         self.angular_velocity: dict[str, np.ndarray] = {}          # initial rigid rotation rate, rad/s
         self.loads: list[dict] = []
@@ -145,11 +171,8 @@ class StructureTopology(topology.Topology):
         if motion is not None:
             root = [self._new_prescribed(r0, True, motion), self._new_prescribed(x0, False, motion),
                     self._new_prescribed(y0, False, motion)]
-        elif kind == "hinge":
-            tip = self.bodies[joint["parent"]].nodes[-1]
-            tip_slot = 3 * tip
-            root = [self.slots[tip_slot + R], self._new_free(x0), self.slots[tip_slot + RY]]
-            self._add_hinge(joint_key, joint, tip, first_node)
+        elif kind in PARENT_JOINTS:
+            root = self._add_joint(joint, first_node, r0, x0, y0)
         elif kind == "pin":
             axis = joint["axis"]
             fixed = len(self.motions)
@@ -165,7 +188,7 @@ class StructureTopology(topology.Topology):
             root = [self._new_free(r0), self._new_free(x0), self._new_free(y0)]
         self.slots += root
         for node in body.nodes[1:]:
-            if self.fidelity == "flexible":
+            if self.fidelity in ("flexible", "strain-based"):   # strain-based: E on the same node slots
                 r_i, x_i, y_i = self.node_initial[node]
                 self.slots += [self._new_free(r_i), self._new_free(x_i), self._new_free(y_i)]
             else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17)
@@ -188,12 +211,45 @@ class StructureTopology(topology.Topology):
                                        amplitude, frequency, phase))
         return len(self.motions) - 1
 
-    def _add_hinge(self, key, spec, tip_node, root_node):
-        line = next(h for h in self.hinge_lines if h.child == spec["child"])   # name and initial angle checked
+    def _add_joint(self, spec, root_node, r0, x0, y0):
+        """The root slots [r, r_x, r_y] of a child on a ball, universal or revolute joint (`JointLine`), with its
+        axis-product rows and, for a revolute, its Hinge."""
+        line = next(j for j in self.joint_lines if j.child == spec["child"])
+        if line.parent is None:          # the ground: the root point (and a chord axis) stay where they start
+            fixed = len(self.motions)
+            self.motions.append(Fixed())
+            tip_x = None
+            point = self._new_prescribed(r0, True, fixed)
+            chord = lambda: self._new_prescribed(y0, False, fixed)
+        else:
+            tip = self.bodies[line.parent].nodes[-1]
+            tip_x = 3 * tip + RX
+            point = self.slots[3 * tip + R]
+            chord = lambda: self.slots[3 * tip + RY]
+        child_x = 3 * root_node + RX
+        shared_chord = line.kind == "revolute" and _along_chord(line)
+        root = [point, self._new_free(x0), chord() if shared_chord else self._new_free(y0)]
+        if line.kind == "universal":
+            self.axis_products.append(AxisProduct(tip_x, line.axis, child_x, line.child_axis))
+        if line.kind == "revolute":
+            if not shared_chord:
+                for p in _perpendiculars(line.orientation.T @ line.axis):
+                    self.axis_products.append(AxisProduct(tip_x, line.axis, child_x, p))
+            self._add_hinge(spec, line, tip_x, child_x, shared_chord)
+        return root
+
+    def _add_hinge(self, spec, line, parent_slot, child_slot, shared_chord):
         stop = None if spec["stop_angle_deg"] is None else np.radians(spec["stop_angle_deg"])
         stiffness, damping, torque, latch = (spec[k] for k in ("stiffness", "damping", "torque", "latch_factor"))
-        self.hinges.append(Hinge(line.name, 3 * tip_node + RX, 3 * root_node + RX, 3 * tip_node + RY,
-                                 line.initial_angle, stiffness, damping, torque, stop, latch))
+        reference = _perpendiculars(line.axis)[0]
+        if shared_chord and parent_slot is not None and np.array_equal(line.orientation, np.eye(3)):
+            # the chord-axis hinge: the angle between the gradients r_x about the shared r_y (joints.py)
+            hinge = Hinge(line.name, parent_slot, child_slot, parent_slot + 1, line.initial_angle, stiffness,
+                          damping, torque, stop, latch)
+        else:
+            hinge = Hinge(line.name, parent_slot, child_slot, None, line.initial_angle, stiffness, damping, torque,
+                          stop, latch, line.axis, reference, line.orientation.T @ reference)
+        self.hinges.append(hinge)
 
     def _add_constraints(self):
         """Nonlinear internal constraints, each once per distinct slot combination (Otsuka et al. 2019, Eqs. 6, 17)."""
@@ -213,7 +269,7 @@ class StructureTopology(topology.Topology):
                 self.orthogonal_slots.append(tuple(slots))
 
         for body in self.bodies.values():
-            nodes = body.nodes if self.fidelity == "flexible" else body.nodes[:1]
+            nodes = body.nodes if self.fidelity in ("flexible", "strain-based") else body.nodes[:1]
             for node in nodes:
                 if self.fidelity == "rigid":
                     add("unit", [3 * node + RX])
@@ -282,6 +338,25 @@ class StructureTopology(topology.Topology):
         return np.concatenate(self.free_initial) if self.free_initial else np.zeros(0)
 
     def fold_angles(self, e):
-        """Fold angle of each hinge (rad): angle from the parent's tip r_x to the child's r_x about r_y."""
+        """Fold angle of each revolute joint (rad): the child's signed angle about the axis relative to the
+        parent (joints.py)."""
         e = np.asarray(e)
-        return {h.name: fold_angle(e[hinge_coordinates(h)]) for h in self.hinges}
+        return {h.name: hinge_angle(h, e) for h in self.hinges}
+
+
+def _along_chord(line):
+    """Whether a revolute JointLine's axis is the chord of both frames (with the ground: of the child's),
+    within CHORD_TOLERANCE: then r_y is shared (prescribed) and no axis-product row is needed."""
+    chord = np.array([0.0, 1.0, 0.0])
+    child = np.linalg.norm(line.orientation.T @ line.axis - chord) <= CHORD_TOLERANCE
+    return child and (line.parent is None or np.linalg.norm(line.axis - chord) <= CHORD_TOLERANCE)
+
+
+def _perpendiculars(axis):
+    """(p_1, p_2): unit vectors with (p_1, p_2, axis) a right-handed orthonormal triad for a unit axis (3,); p_1
+    from the frame direction least along the axis (for the chord: p_1 = span, p_2 = -normal)."""
+    axis = np.asarray(axis, dtype=float)
+    k = int(np.argmin(np.abs(axis)))
+    p1 = np.eye(3)[k] - axis[k] * axis
+    p1 /= np.linalg.norm(p1)
+    return p1, np.cross(axis, p1)

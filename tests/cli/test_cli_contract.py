@@ -176,11 +176,11 @@ def test_run_without_samples_writes_nulls(scene, tmp_path):
 
 
 def test_deployment_time_waits_for_every_latched_hinge(scene):
-    scene["structure"]["joints"].append({"type": "hinge", "name": "tip_fold", "stop_angle_deg": 5.0})
-    scene["structure"]["joints"].append({"type": "hinge", "name": "free"})   # no stop: ignored
+    scene["structure"]["joints"].append({"type": "revolute", "name": "tip_fold", "stop_angle_deg": 5.0})
+    scene["structure"]["joints"].append({"type": "revolute", "name": "free"})   # no stop: ignored
     assert deployment_time({"fold": 0.1, "tip_fold": 0.15}, scene) == 0.15
     assert deployment_time({"fold": 0.1}, scene) is None                  # tip_fold has not latched yet
-    assert deployment_time({}, {"structure": {"joints": [{"type": "hinge", "name": "free"}]}}) is None
+    assert deployment_time({}, {"structure": {"joints": [{"type": "revolute", "name": "free"}]}}) is None
 
 
 # --- the run loop, with a stand-in unit -----------------------------------------------------------
@@ -359,8 +359,11 @@ def test_run_example_scene(tmp_path, backend):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["simulated_time_s"] == pytest.approx(0.3)
-    # the example couples the uvlm-flat aero unit and has a strain gauge: their summaries are added
-    assert set(summary) == SUMMARY_FIELDS | {"aero", "strain_gauges"}
+    # the example couples the uvlm-flat aero unit, has a strain gauge and a revolute joint between its bodies:
+    # their summaries are added, the joint's monitors within round-off of zero (it shares the point and the axis)
+    assert set(summary) == SUMMARY_FIELDS | {"aero", "strain_gauges", "joint_monitors"}
+    assert set(summary["joint_monitors"]) == {"fold_point_mismatch", "fold_axis_error"}
+    assert max(summary["joint_monitors"].values()) < 1e-12
     with (tmp_path / "out" / "timeseries.csv").open() as f:
         header = next(csv.reader(f))
     assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header

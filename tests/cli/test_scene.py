@@ -109,7 +109,7 @@ def test_defaults_of_a_minimal_scene():
                      "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "angular_velocity": None,
                      "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
-                                 "mass_per_length": None}}]
+                                 "mass_per_length": None, "rotary_inertia": 0.0}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",
@@ -280,11 +280,11 @@ def test_flow_direction_defaults_to_the_chord_axis_of_the_first_root_body(raw):
     del raw["flow"]["direction"]
     inner, outer = raw["structure"]["bodies"]
     inner["chord_axis"] = [0, 2, 0]                  # any length
-    del outer["chord_axis"]                          # the hinge's child shares its parent's
+    del outer["chord_axis"]                          # the joint gives its child its frame
     raw["structure"]["bodies"] = [outer, inner]      # the hinge's child first
     scene = resolved(raw, "aero.model=uvlm-flat")
     assert scene["flow"]["direction"] == [0.0, 2.0, 0.0]                  # chord_axis of body 'inner'
-    assert scene["structure"]["bodies"][0]["chord_axis"] == [0.0, 2.0, 0.0]
+    assert scene["structure"]["bodies"][0]["chord_axis"] is None         # the topology derives it
     assert resolved(raw, "aero.model=strip", "flow.direction=[1,0,1]")["flow"]["direction"] == [1.0, 0.0, 1.0]
 
 

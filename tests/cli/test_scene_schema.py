@@ -10,9 +10,11 @@ import copy
 import json
 import time
 
+import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError
+from fmu_common.topology import Topology
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES, MAX_MEMORY_BYTES, memory_estimate
 from fmu_common.scene_schema import ACCELERATIONS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
@@ -89,7 +91,7 @@ CAMPAIGN = [
     ("spin_up", ["structure.joints.0.law=sudden"], "structure.joints.0.law", "'spin_up'"),
     ("deploy_rigid", ["structure.bodies.outer.root=[0,0,1]"], "structure.bodies.outer.root", "not allowed"),
     ("deploy_rigid", ["structure.bodies.outer.chord_axis=[0,1,0]"], "structure.bodies.outer.chord_axis",
-     "the parent's chord axis"),
+     "the chord axis the joint gives the child"),
     ("heaving_wing", ["structure.motion.alpha_deg=5"], "structure.motion.alpha_deg", "0 when heave_amplitude"),
     ("deploy_rigid", ["structure.joints.fold.name=outer"], "structure.joints.outer.name", "not a body's"),
     ("deploy_rigid", ["time.stop=1" + "0" * 400], "time.stop", "a finite number > 0"),    # beyond the floats
@@ -197,7 +199,6 @@ def test_time_series_estimate_matches_the_recorded_rows():
     """The time-series part of the estimate against the bytes the master's rows take (numpy rows in a list)."""
     import sys
 
-    import numpy as np
 
     scene = load_scene(SCENES / "deploy_flexible.toml", ["time.stop=1.0"])
     estimate = memory_estimate(scene)["time series"][1]
@@ -274,14 +275,25 @@ def _check_filled(spec, raw, resolved, key):
         assert resolved == spec.default, key                     # a plain default: filled in
 
 
-def test_default_of_a_hinge_child_follows_its_parent():
-    """The child's chord axis defaults to its parent's, whatever that is (not to a fixed default)."""
+def test_a_jointed_child_takes_its_frame_from_its_parent():
+    """A revolute joint's child gets its parent's chord axis, whatever that is (not a fixed default), turned by
+    the joint's orientation: the resolved scene leaves it to the topology."""
     raw = read_scene_file(SCENES / "deploy_rigid.toml")
     del raw["structure"]["bodies"][1]["chord_axis"]
     outer = resolve_scene(raw, "x")["structure"]["bodies"][1]
-    assert outer["chord_axis"] == [1.0, 0.0, 0.0] and outer["root"] is None and outer["span_axis"] is None
+    assert outer["chord_axis"] is None and outer["root"] is None and outer["span_axis"] is None
+    chord = lambda scene: Topology.from_scene(scene).bodies["outer"].chord_axis
+    assert chord(resolve_scene(raw, "x")) == pytest.approx([1.0, 0.0, 0.0], abs=1e-15)
     raw["structure"]["bodies"][0]["chord_axis"] = [0.0, 1.0, 0.0]
-    assert resolve_scene(raw, "x")["structure"]["bodies"][1]["chord_axis"] == [0.0, 1.0, 0.0]
+    assert chord(resolve_scene(raw, "x")) == pytest.approx([0.0, 1.0, 0.0], abs=1e-15)
+    # a quarter turn about the span first takes the chord to the normal; the fold then turns that about the
+    # chord axis by theta_0: sin(theta_0) span + cos(theta_0) normal of the parent
+    raw["structure"]["joints"][1]["orientation_deg"] = [90.0, 0.0, 0.0]
+    scene = resolve_scene(raw, "x")
+    inner = Topology.from_scene(scene).bodies["inner"]
+    theta = np.radians(scene["structure"]["joints"][1]["initial_angle_deg"])
+    normal = np.cross(inner.span_axis, inner.chord_axis)
+    assert chord(scene) == pytest.approx(np.sin(theta) * inner.span_axis + np.cos(theta) * normal, abs=1e-15)
 
 
 def test_load_case_defaults_are_its_body_tip_and_axis():
@@ -325,4 +337,4 @@ def test_docs_scenes_md_is_generated_from_the_schema():
     for name, spec in SCENE.keys["structure"].keys.items():
         if isinstance(spec, Key):
             assert f"| `{name}` |" in text
-    assert "| `section.youngs_modulus` | number | Pa |" in text and '`type = "hinge"`' in text
+    assert "| `section.youngs_modulus` | number | Pa |" in text and '`type = "revolute"`' in text

@@ -12,7 +12,7 @@ from fmpy.validation import validate_fmu
 from fmu_common.fmi_slave import DIVERGED_CATEGORY
 from fmu_common.topology import Topology
 from orchestrator.build import embedded_scene, fmus_up_to_date
-from orchestrator.scene import load_scene
+from orchestrator.scene import joint_monitor_names, load_scene
 from orchestrator.units import UnitError, make_unit
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
@@ -90,7 +90,8 @@ def test_variables_match_topology(scene, fmu_dir):
     assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
         "Real", "J", "output", "continuous", "exact")
     # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, latch
-    # times, probe positions and velocities and strain gauges (tests/units/test_sensors.py), parameters
+    # times, probe positions and velocities and strain gauges (tests/units/test_sensors.py), joint monitors,
+    # parameters
     h = len(topology.hinge_names)
     assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
     assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [
@@ -100,7 +101,9 @@ def test_variables_match_topology(scene, fmu_dir):
     assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
     tunables = StructureSolver.tunable_parameters(scene)
     sensors = 6 * len(scene["probes"]) + len(scene["strain_gauges"])
-    first = 3 * n + 2 * h + 3 + sensors
+    joints = [v[name].valueReference for name in joint_monitor_names(scene)]
+    assert joints == list(range(3 * n + 2 * h + 3 + sensors, 3 * n + 2 * h + 3 + sensors + len(joints)))
+    first = 3 * n + 2 * h + 3 + sensors + len(joints)
     assert [v[name].valueReference for name in tunables] == list(range(first, first + len(tunables)))
     for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
         p = v[name]

@@ -21,7 +21,7 @@ def folded_scene(angle_deg=30.0):
                     "chord_axis": [1, 0, 0], "section": SECTION},
                    {"name": "outer", "length": 0.7, "section": outer}],
         "joints": [{"type": "clamp", "body": "inner"},
-                   {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
+                   {"type": "revolute", "name": "fold", "parent": "inner", "child": "outer",
                     "initial_angle_deg": angle_deg}]}}, "folded")
 
 

@@ -213,7 +213,7 @@ def folded_scene(model):
                                   "section": SECTION},
                                  {"name": "outer", "length": 2.0, "section": outer}],
                       "joints": [{"type": "clamp", "body": "inner"},
-                                 {"type": "hinge", "name": "fold", "parent": "inner", "child": "outer",
+                                 {"type": "revolute", "name": "fold", "parent": "inner", "child": "outer",
                                   "initial_angle_deg": 30.0}]},
         "aero": {"model": model, "chordwise_panels": 3, "spanwise_panels": 5, "wake_length": 4.0},
         "flow": {"speed": 7.0, "density": RHO}}, "folded")

@@ -29,5 +29,5 @@ def test_jacobian_rate_and_velocity_term_match_finite_differences(scene):
     dE = rng.standard_normal(E.size)
     along = lambda k: cons.residual(E + k * s * dE)
     assert np.allclose(cons.rate(E, dE), (along(1) - along(-1)) / (2 * s), rtol=0, atol=1e-8)
-    assert np.allclose(cons.velocity_quadratic(dE), (along(1) - 2 * along(0) + along(-1)) / s**2,
+    assert np.allclose(cons.velocity_quadratic(dE, E), (along(1) - 2 * along(0) + along(-1)) / s**2,
                        rtol=1e-6, atol=1e-6)

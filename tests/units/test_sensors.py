@@ -96,12 +96,14 @@ def test_the_sensor_outputs_are_declared_as_the_timeseries_columns_with_units(ri
     position_and_strain_columns = [c for c in columns if c.rsplit("_", 1)[0] in probes or c in gauges]
     assert position_and_strain_columns == [f"{p}_{a}" for p in probes for a in "xyz"] + gauges
     assert all(fmi_name(c) in variables for c in position_and_strain_columns)
-    # contiguous after the latch times, before the parameters
+    # contiguous after the latch times, before the joint monitors and the parameters
     refs = [variables[fmi_name(n)].valueReference for n in
             [f"{p}_{a}" for p in probes for a in "xyz"] + [f"{p}_v{a}" for p in probes for a in "xyz"] + gauges]
     assert refs == list(range(refs[0], refs[0] + len(refs)))
     assert refs[0] == variables["latch_time_fold"].valueReference + 1
-    assert refs[-1] + 1 == variables["structure.step"].valueReference
+    joints = [variables[n].valueReference for n in ("fold_point_mismatch", "fold_axis_error")]
+    assert joints == [refs[-1] + 1, refs[-1] + 2]
+    assert joints[-1] + 1 == variables["structure.step"].valueReference
 
 
 # --- values against independent computations -------------------------------------------------------

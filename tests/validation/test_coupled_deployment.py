@@ -41,10 +41,19 @@ def tip_deflection(result, t):
     return metrics.tip_deflection(series.time, series.column("tip_x"), series.column("tip_y"), t)
 
 
-@pytest.fixture(scope="module")
-def flexible_runs():
-    """deploy_flexible at 0, 10 and 20 m/s (Otsuka et al. 2022, Sec. 5), 0.25 s."""
-    return {speed: run(FLEXIBLE, f"flow.speed={speed}", "time.stop=0.25") for speed in (0, 10, 20)}
+# per fidelity: the relative tolerances on the deployment times and on the tip deflection. The strain-based
+# fidelity is Otsuka et al. 2022's own model, held to its numbers closely; the ANCF model of Otsuka et al. 2019
+# reproduces them within the spread of the two papers' models.
+TOLERANCES = {"flexible": (0.10, 0.25), "strain-based": (0.05, 0.10)}
+
+
+@pytest.fixture(scope="module", params=sorted(TOLERANCES))
+def flexible_runs(request):
+    """deploy_flexible at 0, 10 and 20 m/s (Otsuka et al. 2022, Sec. 5), 0.25 s, in the ANCF and the strain-based
+    fidelity: {speed: (result, summary)} and the fidelity under "fidelity"."""
+    runs = {speed: run(FLEXIBLE, f"flow.speed={speed}", "time.stop=0.25", f"structure.fidelity={request.param}")
+            for speed in (0, 10, 20)}
+    return {**runs, "fidelity": request.param}
 
 
 @pytest.mark.slow
@@ -52,14 +61,16 @@ def flexible_runs():
 def test_flexible_deployment_time_matches_otsuka_2022(flexible_runs, speed, latched):
     """Otsuka et al. 2022, Sec. 5, Fig. 10: the fold angle reaches 0 at 0.120, 0.166 and 0.198 s at 0, 10 and 20 m/s."""
     _, summary = flexible_runs[speed]
-    assert summary["deployment_time_s"] == pytest.approx(latched, rel=0.10)
+    tolerance = TOLERANCES[flexible_runs["fidelity"]][0]
+    assert summary["deployment_time_s"] == pytest.approx(latched, rel=tolerance)
 
 
 @pytest.mark.slow
 def test_tip_deflection_at_10_ms_is_18_percent_of_the_span(flexible_runs):
     """Otsuka et al. 2022, Sec. 5: at 10 m/s the wingtip deflection is 18% of the span (0.056 m of 0.3 m) at 0.2 s."""
     result, _ = flexible_runs[10]
-    assert tip_deflection(result, 0.2) / SPAN == pytest.approx(0.18, rel=0.25)
+    tolerance = TOLERANCES[flexible_runs["fidelity"]][1]
+    assert tip_deflection(result, 0.2) / SPAN == pytest.approx(0.18, rel=tolerance)
 
 
 @pytest.mark.slow
@@ -67,7 +78,7 @@ def test_peak_bending_and_strain_fall_with_flow_speed(flexible_runs):
     """Otsuka et al. 2019, Fig. 15 (maximum bending displacement 100 mm from the root) and Otsuka et al. 2022,
     Fig. 12 (maximum strain 0.02 m from the root) both fall as the flow speed rises: the aerodynamic force damps
     the wing."""
-    speeds = sorted(flexible_runs)
+    speeds = sorted(v for v in flexible_runs if v != "fidelity")
     bending = [peak_bending(flexible_runs[v][0]) for v in speeds]
     strain = [flexible_runs[v][1]["strain_gauges"]["strain_20mm"]["peak"] for v in speeds]
     assert all(a > b for a, b in zip(bending, bending[1:])), bending

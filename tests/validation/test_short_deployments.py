@@ -43,7 +43,7 @@ def one_dof_pendulum(scene):
     """
     body = scene["structure"]["bodies"][1]
     section = body["section"]
-    hinge = next(j for j in scene["structure"]["joints"] if j["type"] == "hinge")
+    hinge = next(j for j in scene["structure"]["joints"] if j["type"] == "revolute")
     L = body["length"]
     mass = section["density"] * section["thickness"] * section["chord"] * L
     inertia = mass * L**2 / 3

@@ -1,0 +1,47 @@
+"""Per-joint constraint monitors on the exchanged coordinates E (any structural fidelity: every structure unit
+exchanges the same E, per node r, r_x, r_y; Otsuka et al. 2019, Eq. 3).
+
+For each ball, universal or revolute joint with a parent body (`fmu_common.topology.JointLine`), between the
+parent's tip node A and the child's root node B, in the unit frames F = [x, y, z] of the two nodes
+(x = r_x / |r_x|, y = r_y, z = r_x x r_y / |r_x|):
+  <name>_point_mismatch  |r^A - r^B| (m), every joint: zero for a shared point;
+  <name>_axis_product    (F_A a) . (F_B b) (-), a universal joint with a = parent_axis, b = child_axis: zero while
+                         the cross holds (Otsuka et al. 2022, Sec. 4.2 plots (r_y^P)^T r_z^Q);
+  <name>_axis_error      |F_A a - F_B O^T a| (-), a revolute joint with axis a (parent frame) and the child's
+                         orientation O: zero while both bodies keep the axis (Otsuka et al. 2022, Sec. 4.3 plots
+                         |r_x^P + r_z^Q|, the same for its anti-parallel axes).
+Joints with the ground are left out (their point and chord are prescribed, or held by the constraint rows).
+"""
+import numpy as np
+
+
+def _unit_frame(node):
+    """[x, y, z] (3, 3) columns, from a node's (3, 3) rows r, r_x, r_y."""
+    x = node[1] / np.linalg.norm(node[1])
+    return np.column_stack([x, node[2], np.cross(x, node[2])])
+
+
+def monitor_names(name: str, kind: str) -> list[str]:
+    """The monitors of the joint `name` of type `kind` ('ball', 'universal', 'revolute') with a parent body."""
+    axis = {"universal": ["_axis_product"], "revolute": ["_axis_error"]}.get(kind, [])
+    return [f"{name}{suffix}" for suffix in ["_point_mismatch", *axis]]
+
+
+def joint_monitors(joint_lines, bodies, e) -> dict[str, float]:
+    """{monitor name: value} (module docstring) of the joints `joint_lines` (Topology.joint_lines) between the
+    `bodies` (Topology.bodies: name -> Body with its global node indices) at the exchanged coordinates e
+    (9 n_nodes,)."""
+    nodes = np.asarray(e, dtype=float).reshape(-1, 3, 3)
+    out = {}
+    for line in joint_lines:
+        if line.parent is None:
+            continue
+        tip, root = nodes[bodies[line.parent].nodes[-1]], nodes[bodies[line.child].nodes[0]]
+        values = [float(np.linalg.norm(tip[0] - root[0]))]
+        parent, child = _unit_frame(tip), _unit_frame(root)
+        if line.kind == "universal":
+            values.append(float((parent @ line.axis) @ (child @ line.child_axis)))
+        elif line.kind == "revolute":
+            values.append(float(np.linalg.norm(parent @ line.axis - child @ (line.orientation.T @ line.axis))))
+        out.update(zip(monitor_names(line.name, line.kind), values))
+    return out

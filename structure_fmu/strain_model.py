@@ -1,0 +1,340 @@
+"""The strain-based structural model: B^T M B q'' + B^T M dB/dt q' + K q + Psi_q^T lambda = B^T F
+(Otsuka et al. 2022, Eq. 9).
+
+Generalized coordinates q, body after body (parents first): the joint parameters eta at the body's root
+(Otsuka et al. 2022, Eq. 11: theta of a revolute joint, four Euler parameters of a ball joint, nine direction
+cosines of a universal joint; none for a clamp or a driven root), then per element the constant strains
+[eps_x, kappa_x, kappa_y, kappa_z] (Eq. 12). The nodal vectors follow from the recursion (Eqs. 7-8,
+structure_fmu.strain_kinematics); the exchanged coordinates E keep r, r_x, r_y of every node, so the unit
+exchanges exactly what the ANCF units do, on the same node slots.
+
+Inertia and every force but the elastic one are those of the ANCF model on E (structure_fmu.model): the
+constant ANCF mass M_E and the loads, gravity, actuators and damping act on E and reach q through
+B = dE/dq (Otsuka et al. 2022, Eq. 9 and Appendix A: Q -> B^T Q). The elastic force is K q with the constant
+diagonal K = ds diag(EA, GJ, EI_yy, EI_zz) per element. What remains as constraints are the joint parameters'
+own (Psi: |zeta| = 1, Eq. 22; mu orthonormal with the universal joint's axis product, Eq. 18), kept by
+Lagrange multipliers in the integrators (index-1 with projection for RK4, index-3 for generalized-alpha).
+"""
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from fmu_common.errors import SceneError
+from fmu_common.vectors import cross
+
+from . import strain_kinematics as sk
+from .model import StructureModel
+from .motion import SpinUp
+
+SUPPORTED_ROOTS = ("clamp", "pin", "driven", "revolute", "ball", "universal")
+
+
+class _Root:
+    """How a body's root node is held: kind ('fixed', 'revolute', 'ball', 'universal', 'driven'), the parent
+    body (None: the ground), its axis, orientation and child axis (fmu_common.topology.JointLine), the ground
+    point (m), the offset of its parameters in q, and the SpinUp law of a driven root."""
+
+    def __init__(self, kind, parent, axis, orientation, point, offset, motion=None, child_axis=None):
+        self.kind, self.parent, self.axis, self.orientation = kind, parent, axis, orientation
+        self.child_axis = child_axis
+        self.point, self.offset, self.motion = point, offset, motion
+        self.size = 0 if kind == "driven" else sk.PARAMETERS[kind]
+
+
+class StrainBasedModel(StructureModel):
+    """The StructureModel's inertia and forces on E, over the strain-based coordinates q (see the module)."""
+
+    def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
+        super().__init__(topology, gravity, hinge_parameters, body_damping, damping_model)
+        self.roots, self.strain_slices, eta0 = {}, {}, []
+        offset = 0
+        for name, body in topology.bodies.items():
+            root = self._root(name, body, offset)
+            self.roots[name] = root
+            eta0.append(sk.initial_parameters(root.kind, self._initial_angle(name), root.orientation)
+                        if root.size else np.zeros(0))
+            offset += root.size
+            n_el = len(body.elements)
+            self.strain_slices[name] = slice(offset, offset + sk.STRAINS * n_el)
+            eta0.append(np.zeros(sk.STRAINS * n_el))
+            offset += sk.STRAINS * n_el
+        self.n_q = offset
+        self._q0 = np.concatenate(eta0)
+        self.element_lengths = self.lengths
+        section = [topology.bodies[b].section for b in topology.element_body]
+        # K = ds diag(EA, GJ, EI_yy, EI_zz) per element (Otsuka et al. 2022, Eq. 9's constant K)
+        self.stiffness_diagonal = np.zeros(self.n_q)
+        for name, body in topology.bodies.items():
+            k = np.array([[s.axial, s.torsion, s.flap, s.chordwise] for s in (section[e] for e in body.elements)])
+            self.stiffness_diagonal[self.strain_slices[name]] = (k * self.lengths[body.elements, None]).ravel()
+        self._constraints = _JointConstraints(self.roots, self.n_q)
+        self._cache_configuration = (None, None)
+        self._cache_motion = (None, None)
+        self._cache_mass = (None, None)
+
+    # ---------------------------------------------------------------- construction
+    def _initial_angle(self, name):
+        line = next((j for j in self.top.joint_lines if j.child == name), None)
+        return line.initial_angle if line is not None else 0.0
+
+    def _root(self, name, body, offset):
+        key, joint = self.top.root_joints.get(name, (None, None))
+        if joint is None:
+            raise SceneError(f"structure.bodies.{name}", name, "a body held at its root by a joint: the "
+                             f"strain-based fidelity supports {', '.join(SUPPORTED_ROOTS)} (a free body has none)")
+        kind = joint["type"]
+        if kind not in SUPPORTED_ROOTS:
+            raise SceneError(f"{key}.type", kind, f"one of {', '.join(SUPPORTED_ROOTS)} with the strain-based "
+                                                  "fidelity")
+        start = np.column_stack([body.span_axis, body.chord_axis, np.cross(body.span_axis, body.chord_axis)])
+        if kind == "clamp":
+            return _Root("fixed", None, None, start, body.root, offset)
+        if kind == "driven":   # law spin_up about the root's chord axis (Otsuka et al. 2019, Eq. 27)
+            return _Root("driven", None, None, start, body.root, offset,
+                         SpinUp(body.chord_axis, body.root, joint["omega"], joint["ramp_time"]))
+        if kind == "pin":      # a revolute joint to the ground about the root's chord or section normal
+            axis = body.chord_axis if joint["axis"] == "chord" else start[:, 2]
+            return _Root("revolute", None, axis, start, body.root, offset)
+        line = next(j for j in self.top.joint_lines if j.child == name)
+        return _Root(kind, line.parent, line.axis, line.orientation, body.root, offset, child_axis=line.child_axis)
+
+    # ---------------------------------------------------------------- kinematics
+    def _configuration(self, q, t):
+        """(H (n_nodes, 4, 3), dH/dq (n_nodes, 4, 3, n_q), dH/dt at fixed q (n_nodes, 4, 3), element
+        transfers Phi (n_el, 4, 4)) at q, t; cached for the last q, t."""
+        key = (q.tobytes(), t)
+        if self._cache_configuration[0] == key:
+            return self._cache_configuration[1]
+        top = self.top
+        n_nodes, n_q = top.n_nodes, self.n_q
+        strains = np.zeros((len(self.lengths), sk.STRAINS))
+        for name, body in top.bodies.items():
+            strains[body.elements] = q[self.strain_slices[name]].reshape(-1, sk.STRAINS)
+        Phi, dPhi = sk.transfer(strains, self.lengths)
+        H = np.zeros((n_nodes, 4, 3))
+        dH = np.zeros((n_nodes, 4, 3, n_q))
+        Ht = np.zeros((n_nodes, 4, 3))
+        for name, body in top.bodies.items():
+            root, first = self.roots[name], body.nodes[0]
+            H[first], dH[first], Ht[first] = self._root_state(root, q, t, H, dH, Ht)
+            columns = self.strain_slices[name].start
+            for k, e in enumerate(body.elements):
+                a, b = top.element_nodes[e]
+                H[b] = Phi[e] @ H[a]
+                dH[b] = np.einsum("ij,jkq->ikq", Phi[e], dH[a])
+                dH[b][..., columns + sk.STRAINS * k:columns + sk.STRAINS * (k + 1)] += \
+                    np.einsum("pij,jk->ikp", dPhi[e], H[a])
+                Ht[b] = Phi[e] @ Ht[a]
+        value = (H, dH, Ht, Phi, dPhi)
+        self._cache_configuration = (key, value)
+        return value
+
+    def _parent_state(self, root, H, dH, Ht):
+        """(H, dH/dq, dH/dt) of what the root joint hangs from: the parent's tip node or the ground point."""
+        if root.parent is None:
+            ground = np.vstack([root.point, np.eye(3)])
+            return ground, np.zeros((4, 3, self.n_q)), np.zeros((4, 3))
+        tip = self.top.bodies[root.parent].nodes[-1]
+        return H[tip], dH[tip], Ht[tip]
+
+    def _root_state(self, root, q, t, H, dH, Ht):
+        """(H, dH/dq, dH/dt) of a body's root node (Otsuka et al. 2022, Eq. 8: H_root = C(eta) H_parent)."""
+        if root.kind == "driven":
+            k = root.motion.kinematics(t)
+            frame = k.rotation @ root.orientation
+            arm = k.rotation @ (root.point - root.motion.pivot)
+            Hr = np.vstack([root.motion.pivot + arm + k.translation, frame.T])
+            rate = np.vstack([cross(k.omega, arm) + k.velocity, cross(k.omega, frame.T)])
+            return Hr, np.zeros((4, 3, self.n_q)), rate
+        Hp, dHp, Htp = self._parent_state(root, H, dH, Ht)
+        eta = q[root.offset:root.offset + root.size]
+        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
+        Hr = np.vstack([Hp[0], c @ Hp[1:]])
+        dHr = np.concatenate([dHp[:1], np.einsum("ij,jkq->ikq", c, dHp[1:])])
+        for k in range(root.size):
+            dHr[1:, :, root.offset + k] += dc[k] @ Hp[1:]
+        Htr = np.vstack([Htp[0], c @ Htp[1:]])
+        return Hr, dHr, Htr
+
+    def _motion(self, q, dq, t):
+        """(E, dE, a (n,)): exchanged coordinates, their rates and d2E/dt2 at q'' = 0 (dB/dt q' plus a driven
+        root's acceleration), from the nodal H, dH/dt, d2H/dt2 (cached for the last q, q', t)."""
+        key = (q.tobytes(), dq.tobytes(), t)
+        if self._cache_motion[0] == key:
+            return self._cache_motion[1]
+        top = self.top
+        H, dH, Ht, Phi, dPhi = self._configuration(q, t)
+        Hd = dH @ dq + Ht
+        rates = np.zeros((len(self.lengths), sk.STRAINS))
+        strains = np.zeros_like(rates)
+        for name, body in top.bodies.items():
+            rates[body.elements] = dq[self.strain_slices[name]].reshape(-1, sk.STRAINS)
+            strains[body.elements] = q[self.strain_slices[name]].reshape(-1, sk.STRAINS)
+        Phi_d = np.einsum("np,npij->nij", rates, dPhi)
+        Phi_dd = sk.transfer_second(strains, rates, self.lengths)
+        Hdd = np.zeros_like(H)
+        for name, body in top.bodies.items():
+            root, first = self.roots[name], body.nodes[0]
+            Hdd[first] = self._root_acceleration(root, q, dq, t, H, Hd, Hdd)
+            for e in body.elements:
+                a, b = top.element_nodes[e]
+                Hdd[b] = Phi_dd[e] @ H[a] + 2.0 * Phi_d[e] @ Hd[a] + Phi[e] @ Hdd[a]
+        value = (_exchanged(H), _exchanged(Hd), _exchanged(Hdd))
+        self._cache_motion = (key, value)
+        return value
+
+    def _root_acceleration(self, root, q, dq, t, H, Hd, Hdd):
+        """d2H/dt2 of a root node at zero parameter accelerations."""
+        if root.kind == "driven":
+            k = root.motion.kinematics(t)
+            frame = (k.rotation @ root.orientation).T
+            arm = k.rotation @ (root.point - root.motion.pivot)
+            spin = lambda v: cross(k.alpha, v) + cross(k.omega, cross(k.omega, v))
+            return np.vstack([spin(arm) + k.acceleration, spin(frame)])
+        if root.parent is None:
+            Hp, Hpd, Hpdd = np.vstack([root.point, np.eye(3)]), np.zeros((4, 3)), np.zeros((4, 3))
+        else:
+            tip = self.top.bodies[root.parent].nodes[-1]
+            Hp, Hpd, Hpdd = H[tip], Hd[tip], Hdd[tip]
+        eta, rate = q[root.offset:root.offset + root.size], dq[root.offset:root.offset + root.size]
+        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
+        c_dot = np.einsum("k,kij->ij", rate, dc) if root.size else np.zeros((3, 3))
+        c_ddot = sk.joint_second(root.kind, eta, rate, root.axis, root.orientation)
+        return np.vstack([Hpdd[0], c_ddot @ Hp[1:] + 2.0 * c_dot @ Hpd[1:] + c @ Hpdd[1:]])
+
+    def velocity_map(self, q, t=0.0):
+        """B = dE/dq (n, n_q) at q (Otsuka et al. 2022, Eq. 9)."""
+        dH = self._configuration(q, t)[1]
+        return dH[:, :3].reshape(-1, self.n_q)
+
+    # ---------------------------------------------------------------- the integrators' interface
+    def initial_coordinates(self):
+        return self._q0.copy()
+
+    def coordinates(self, q, dq, t):
+        """E, dE/dt and None (the prescribed acceleration is inside the force, see force_q)."""
+        E, dE, _ = self._motion(q, dq, t)
+        return E, dE, None
+
+    def mass_matrix(self, q, t=0.0):
+        """B^T M_E B (n_q, n_q) (Otsuka et al. 2022, Eq. 9)."""
+        return self._mass(q, t)[0]
+
+    def _mass(self, q, t=0.0):
+        """(M, Cholesky factor of M + Psi_q^T w Psi_q), cached for the last q. The direction cosines of a
+        universal joint make M singular: E carries no r_z, so a change of mu's third row alone moves no
+        mass. Adding the constraint term (w = the mean diagonal of M) makes the matrix definite without
+        changing q'' (the constrained solution satisfies Psi_q q'' = gamma, so the added term only shifts the
+        multipliers by w gamma) nor the metric of the projection on the constraint manifold's tangent."""
+        key = q.tobytes()
+        if self._cache_mass[0] != key:
+            B = self.velocity_map(q, t)
+            M = B.T @ self.mass_E @ B
+            regular = M
+            if self._constraints.count:
+                G = self._constraints.jacobian(q)
+                regular = M + np.trace(M) / len(M) * (G.T @ G)
+            self._cache_mass = (key, (M, cho_factor(regular)))
+        return self._cache_mass[1]
+
+    def solve_mass(self, q, b):
+        """(M + Psi_q^T w Psi_q)^-1 b: the integrators' index-1 solve and projection metric (see _mass)."""
+        return cho_solve(self._mass(q)[1], b)
+
+    def force_q(self, q, dq, t, Q, latched):
+        """B^T (F_E - M_E dB/dt q') - K q (Otsuka et al. 2022, Eq. 9), with F_E the ANCF model's force on E
+        (gravity, loads, actuators, damping, Q), and the current E, dE; no separate prescribed term."""
+        E, dE, a = self._motion(q, dq, t)
+        B = self.velocity_map(q, t)
+        F = B.T @ (self.force_E(E, dE, t, Q, latched) - self.mass_E @ a) - self.stiffness_diagonal * q
+        return F, E, dE, None
+
+    @property
+    def constraint_count(self):
+        return self._constraints.count
+
+    def constraint_residual(self, q, E):
+        return self._constraints.residual(q)
+
+    def constraint_jacobian(self, q, E):
+        return self._constraints.jacobian(q)
+
+    def constraint_rate(self, q, dq, E, dE):
+        return self._constraints.jacobian(q) @ dq
+
+    def constraint_gamma(self, q, dq, E, dE, ddp):
+        return -self._constraints.velocity_quadratic(dq)
+
+    def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
+        """beta' M + B^T (gamma' C_E + K_E) B + K + sum lambda_i Psi_i,qq: generalized-alpha's matrix with the
+        tangent of the forces on E mapped by B (the derivatives of B itself left out: modified Newton)."""
+        E, dE, _ = self._motion(q, dq, t)
+        B = self.velocity_map(q, t)
+        K_E, C_E = self.tangent_E(E, dE, latched)
+        S = beta_p * self.mass_matrix(q, t) + B.T @ (gamma_p * C_E + K_E) @ B + np.diag(self.stiffness_diagonal)
+        if self._constraints.count:
+            S = S + self._constraints.hessian_sum(lam)
+        return S, E
+
+    def rates_of(self, q, dE, t):
+        B = self.velocity_map(q, t)
+        Ht = self._configuration(q, t)[2]
+        return np.linalg.lstsq(B, dE - _exchanged(Ht), rcond=None)[0]
+
+    # ---------------------------------------------------------------- monitors
+    def potential_energy(self, q, E, latched, angles):
+        """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J."""
+        return super().potential_energy(q, E, latched, angles) + 0.5 * float(q @ (self.stiffness_diagonal * q))
+
+    def element_strains(self, q):
+        """{body: (n_el, 4)} strains eps_x (-), kappa_x, kappa_y, kappa_z (1/m) of each element."""
+        return {name: q[s].reshape(-1, sk.STRAINS) for name, s in self.strain_slices.items()}
+
+
+def _exchanged(H):
+    """E (9 n_nodes,) from nodal H (n_nodes, 4, 3): r, r_x, r_y of every node."""
+    return H[:, :3].reshape(-1)
+
+
+class _JointConstraints:
+    """The joint parameters' constraints Psi_i(q) = 1/2 q^T H_i q + g_i . q + c_i (Otsuka et al. 2022, Eqs. 18,
+    22): quadratic, so the Jacobian is linear in q (dense: a few rows)."""
+
+    def __init__(self, roots, n_q):
+        rows = []      # (hessian entries [(i, j, value)], linear entries [(i, value)], constant)
+        for root in roots.values():
+            o = root.offset
+            if root.kind == "ball":          # |zeta|^2 - 1 (Eq. 22)
+                rows.append(([(o + k, o + k, 2.0) for k in range(4)], [], -1.0))
+            elif root.kind == "universal":   # rows of mu orthonormal, the cross's axes perpendicular (Eq. 18)
+                mu = lambda a, b, o=o: o + 3 * a + b
+                for a in range(3):
+                    rows.append(([(mu(a, k), mu(a, k), 2.0) for k in range(3)], [], -1.0))
+                for a, b in ((0, 1), (1, 2), (2, 0)):
+                    rows.append(([(mu(a, k), mu(b, k), 1.0) for k in range(3)]
+                                 + [(mu(b, k), mu(a, k), 1.0) for k in range(3)], [], 0.0))
+                # (F_parent a) . (F_child b) = b^T mu a with F_child = F_parent mu^T
+                rows.append(([], [(mu(i, j), root.child_axis[i] * root.axis[j]) for i in range(3) for j in range(3)],
+                             0.0))
+        self.count = len(rows)
+        self.hessians = np.zeros((self.count, n_q, n_q))
+        self.linear = np.zeros((self.count, n_q))
+        self.constant = np.zeros(self.count)
+        for r, (quadratic, linear, constant) in enumerate(rows):
+            for i, j, value in quadratic:
+                self.hessians[r, i, j] += value
+            for i, value in linear:
+                self.linear[r, i] += value
+            self.constant[r] = constant
+
+    def residual(self, q):
+        return 0.5 * np.einsum("rij,i,j->r", self.hessians, q, q) + self.linear @ q + self.constant
+
+    def jacobian(self, q):
+        return self.hessians @ q + self.linear
+
+    def velocity_quadratic(self, dq):
+        """dq^T H_i dq: the part of d2Psi/dt2 that is not Psi_q q''."""
+        return np.einsum("rij,i,j->r", self.hessians, dq, dq)
+
+    def hessian_sum(self, multipliers):
+        return np.einsum("r,rij->ij", multipliers, self.hessians)
