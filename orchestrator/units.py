@@ -81,7 +81,9 @@ class UnitKind:
     inputs: tuple[str, ...]           # indexed input blocks, each [1..n]
     outputs: tuple[str, ...]          # indexed output blocks, each [1..n]
     monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
-    scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale)
+    scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale); the aero
+                                      # unit sees the structure only through its topology, which the master
+                                      # compares by topology_hash when the units connect
     hinge_monitors: bool = False      # fold_angle_<hinge> and latch_time_<hinge> outputs, per hinge of the scene
     sensor_monitors: bool = False     # <probe>_x.._vz, <gauge> and joint monitor outputs of the scene
     extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
@@ -92,7 +94,7 @@ KINDS = {
                           ("e", "de"), ("energy", "kinetic_energy", "constraint_residual"),
                           ("structure", "probes", "strain_gauges"), hinge_monitors=True, sensor_monitors=True),
     "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), ("e", "de"), ("Q",),
-                     ("CL", "lift", "wake_panels"), ("structure", "aero", "flow"), extra_monitors=True),
+                     ("CL", "lift", "wake_panels"), ("aero", "flow"), extra_monitors=True),
 }
 FMU_FILES = {kind: spec.fmu_file for kind, spec in KINDS.items()}
 ERROR_STATUS = 3  # fmi2Error: a call that logged a message at this status (or worse) failed

@@ -54,11 +54,11 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
     """q'' and lambda from the index-1 equations by a Schur complement on the mass matrix."""
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
     if model.constraint_count == 0:
-        return model.solve_mass(q, F), np.zeros(0)
+        return model.solve_mass(q, t, F), np.zeros(0)
     Gq = model.constraint_jacobian(q, E)
     gamma = model.constraint_gamma(q, dq, E, dE, ddp)
-    MinvF = model.solve_mass(q, F)
-    MinvGt = model.solve_mass(q, Gq.T)
+    MinvF = model.solve_mass(q, t, F)
+    MinvGt = model.solve_mass(q, t, Gq.T)
     lam = _schur_solve(Gq @ MinvGt, Gq @ MinvF - gamma)
     return MinvF - MinvGt @ lam, lam
 
@@ -73,12 +73,12 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
         if np.abs(phi).max() < tol:
             break
         Gq = model.constraint_jacobian(q, E)
-        MinvGt = model.solve_mass(q, Gq.T)
+        MinvGt = model.solve_mass(q, t, Gq.T)
         q = q - MinvGt @ _schur_solve(Gq @ MinvGt, phi)
     else:
         E, dE, _ = model.coordinates(q, dq, t)
     Gq = model.constraint_jacobian(q, E)
-    MinvGt = model.solve_mass(q, Gq.T)
+    MinvGt = model.solve_mass(q, t, Gq.T)
     dphi = model.constraint_rate(q, dq, E, dE)
     return q, dq - MinvGt @ _schur_solve(Gq @ MinvGt, dphi)
 
@@ -210,7 +210,7 @@ class GeneralizedAlpha:
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
         for _ in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            residual = model.mass_matrix(q) @ ddq - F
+            residual = model.mass_matrix(q, t) @ ddq - F
             phi = np.zeros(0)
             if model.constraint_count:
                 Gq = model.constraint_jacobian(q, E)

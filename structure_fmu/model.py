@@ -169,12 +169,12 @@ class StructureModel:
         """q at t = 0 (n_q,)."""
         return self.top.initial_free()
 
-    def mass_matrix(self, q):
-        """M_q (n_q, n_q), constant here."""
+    def mass_matrix(self, q, t):
+        """M_q (n_q, n_q) at q and t (s), constant here."""
         return self.mass_q
 
-    def solve_mass(self, q, b):
-        """M_q^-1 b for b (n_q,) or (n_q, k)."""
+    def solve_mass(self, q, t, b):
+        """M_q^-1 b at q and t (s), for b (n_q,) or (n_q, k)."""
         return self.mass_inverse @ b
 
     @property

@@ -201,7 +201,7 @@ class StrainBasedModel(StructureModel):
         c_ddot = sk.joint_second(root.kind, eta, rate, root.axis, root.orientation)
         return np.vstack([Hpdd[0], c_ddot @ Hp[1:] + 2.0 * c_dot @ Hpd[1:] + c @ Hpdd[1:]])
 
-    def velocity_map(self, q, t=0.0):
+    def velocity_map(self, q, t):
         """B = dE/dq (n, n_q) at q (Otsuka et al. 2022, Eq. 9)."""
         dH = self._configuration(q, t)[1]
         return dH[:, :3].reshape(-1, self.n_q)
@@ -215,17 +215,17 @@ class StrainBasedModel(StructureModel):
         E, dE, _ = self._motion(q, dq, t)
         return E, dE, None
 
-    def mass_matrix(self, q, t=0.0):
-        """B^T M_E B (n_q, n_q) (Otsuka et al. 2022, Eq. 9)."""
+    def mass_matrix(self, q, t):
+        """B^T M_E B (n_q, n_q) at q and t (s) (Otsuka et al. 2022, Eq. 9; t matters with a driven root)."""
         return self._mass(q, t)[0]
 
-    def _mass(self, q, t=0.0):
+    def _mass(self, q, t):
         """(M, Cholesky factor of M + Psi_q^T w Psi_q), cached for the last q. The direction cosines of a
         universal joint make M singular: E carries no r_z, so a change of mu's third row alone moves no
         mass. Adding the constraint term (w = the mean diagonal of M) makes the matrix definite without
         changing q'' (the constrained solution satisfies Psi_q q'' = gamma, so the added term only shifts the
         multipliers by w gamma) nor the metric of the projection on the constraint manifold's tangent."""
-        key = q.tobytes()
+        key = (q.tobytes(), t)
         if self._cache_mass[0] != key:
             B = self.velocity_map(q, t)
             M = B.T @ self.mass_E @ B
@@ -233,12 +233,14 @@ class StrainBasedModel(StructureModel):
             if self._constraints.count:
                 G = self._constraints.jacobian(q)
                 regular = M + np.trace(M) / len(M) * (G.T @ G)
-            self._cache_mass = (key, (M, cho_factor(regular)))
+            # unchecked: a state gone NaN reaches the solver's divergence check, which names the time
+            self._cache_mass = (key, (M, cho_factor(regular, check_finite=False)))
         return self._cache_mass[1]
 
-    def solve_mass(self, q, b):
-        """(M + Psi_q^T w Psi_q)^-1 b: the integrators' index-1 solve and projection metric (see _mass)."""
-        return cho_solve(self._mass(q)[1], b)
+    def solve_mass(self, q, t, b):
+        """(M + Psi_q^T w Psi_q)^-1 b at q and t (s): the integrators' index-1 solve and projection metric (see
+        _mass)."""
+        return cho_solve(self._mass(q, t)[1], b, check_finite=False)
 
     def force_q(self, q, dq, t, Q, latched):
         """B^T (F_E - M_E dB/dt q') - K q (Otsuka et al. 2022, Eq. 9), with F_E the ANCF model's force on E
