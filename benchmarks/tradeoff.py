@@ -33,7 +33,7 @@ ERROR_FLOOR = 1e-4             # %, errors below it are drawn at it on the log a
 FLAT_VS_FREE_PAPER = 95.0      # %, Otsuka et al. 2019, Sec. VII.A: the flat wake's time 95% shorter than the free's
 PAPER_CHOICE = {"L_w": 5, "M": 2, "N": 7}   # Otsuka et al. 2019, Sec. VII.A, for the deployment
 FACTORS = {                    # levels from the least to the most accurate
-    "structure": ("rigid", 3, 7, 15),
+    "structure": ("rigid", 3, "strain-based 7", 7, "strain-based 15", 15),
     "h": (5e-4, 2e-4, 1e-4),   # generalized-alpha step of the flexible structure (the report says why)
     "aero": ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free"),
     "M": (1, 2, 3, 4),
@@ -44,9 +44,10 @@ FACTORS = {                    # levels from the least to the most accurate
 }
 LEVEL_STEP = {15: 1e-4}        # s, structure levels that need a smaller step h than the base's: with 15 elements per
                                # body and h = 2e-4 s generalized-alpha's Newton diverges at the first coupled step
+STRAIN = "strain-based "       # a structure level "strain-based <n>": the strain-based fidelity, n elements per body
 QUICK_FACTORS = {              # the paper's choices L_w = 5, M = 2, N = 7 below the finest level, as in FACTORS
-    "structure": ("rigid", 7), "h": (2e-4, 1e-4), "aero": ("none", "strip", "uvlm-flat"), "M": (1, 2, 3),
-    "N": (3, 7, 10), "L_w": (2, 5, 10), "step": (2e-3, 1e-3), "algorithm": ("gauss-seidel", "implicit"),
+    "structure": ("rigid", "strain-based 7", 7), "h": (2e-4, 1e-4), "aero": ("none", "strip", "uvlm-flat"),
+    "M": (1, 2, 3), "N": (3, 7, 10), "L_w": (2, 5, 10), "step": (2e-3, 1e-3), "algorithm": ("gauss-seidel", "implicit"),
 }
 COSTS = {"wall": ("wall_s", "run wall time"), "cpu": ("cpu_s", "run CPU time")}   # --cost: row key, axis label
 FACTOR_NAMES = {"structure": "structure fidelity", "h": "structure step h", "aero": "aero model",
@@ -60,7 +61,8 @@ COLORS = dict(zip(FACTORS, ("tab:red", "tab:pink", "tab:blue", "tab:green", "tab
 
 @dataclass(frozen=True)
 class Setting:
-    """One point of the design space: structure "rigid" or elements per body, the flexible structure's step h
+    """One point of the design space: structure "rigid", elements per body (ANCF) or "strain-based <n>", the
+    deformable structure's step h
     (s), aero.model, M x N panels per body, L_w (chords), coupling step (s), coupling algorithm."""
     structure: object
     h: float
@@ -78,13 +80,15 @@ class Setting:
         if self.structure == "rigid":
             integrator, step = rigid_integrator()
             return out + ["structure.fidelity=rigid", f"structure.integrator={integrator}", f"structure.step={step!r}"]
-        return out + ["structure.fidelity=flexible", f"structure.elements_per_body={self.structure}",
+        fidelity, elements = structure_level(self.structure)
+        return out + [f"structure.fidelity={fidelity}", f"structure.elements_per_body={elements}",
                       f"structure.step={self.h!r}"]
 
     def text(self):
         """The setting in words."""
+        fidelity, elements = structure_level(self.structure)
         structure = ("rigid" if self.structure == "rigid" else
-                     f"flexible, {self.structure} elements per body, h = {1e3 * self.h:g} ms")
+                     f"{fidelity}, {elements} elements per body, h = {1e3 * self.h:g} ms")
         return (f"{structure}, {self.aero} M = {self.M}, N = {self.N} per body, L_w = {self.L_w:g} chords, "
                 f"{self.algorithm} coupling every {1e3 * self.step:g} ms")
 
@@ -95,6 +99,15 @@ class Job:
     setting: Setting
     speed: float
     stop: float
+
+
+def structure_level(level):
+    """(structure.fidelity, elements per body) of a structure level: "rigid", n (ANCF) or "strain-based <n>"."""
+    if level == "rigid":
+        return "rigid", 1
+    if isinstance(level, str):
+        return "strain-based", int(level.removeprefix(STRAIN))
+    return "flexible", level
 
 
 def rigid_integrator():
@@ -115,7 +128,9 @@ def base_setting():
 def level_text(factor, level):
     """A level as the tables write it, e.g. "rigid", "15 elements/body", "M = 3", "step 0.5 ms"."""
     if factor == "structure":
-        return "rigid" if level == "rigid" else f"{level} elements/body"
+        fidelity, elements = structure_level(level)
+        return {"rigid": "rigid", "flexible": f"{elements} elements/body"}.get(fidelity,
+                                                                              f"{elements} strain-based elements/body")
     if factor in ("M", "N", "L_w"):
         return f"{factor} = {level:g}"
     if factor in ("step", "h"):
@@ -155,7 +170,8 @@ def cost(job):
     """Rough relative cost of a run, to start the longest first: structure work (elements) plus aero work per
     coupling step (wake and panels), times the implicit coupling's iterations (about 5)."""
     s = job.setting
-    structure = 0.2 if s.structure == "rigid" else s.structure / 7 * 1e-4 / s.h
+    fidelity, elements = structure_level(s.structure)
+    structure = 0.2 if fidelity == "rigid" else elements / 7 * 1e-4 / s.h * (3 if fidelity == "strain-based" else 1)
     wake = {"uvlm-prescribed": 1.0, "uvlm-free": 5.0 * s.L_w / 5}.get(s.aero, 0.1)
     aero = wake * s.M * s.N / 14 * (1e-3 / s.step) ** (2 if s.aero == "uvlm-free" else 1)
     return (structure + aero) * (5 if s.algorithm == "implicit" else 1)
