@@ -105,16 +105,18 @@ def main():
     rms_reference, rms_uncertainty = (None, None) if args.quick else reference_rms()
     ref = res[reference_run]
 
-    def row(run, metrics_of):
+    def row(run, metrics_of, first):
+        """Table cells: fidelity, elements, CPU s, the first metric with format `first`, the errors (%), status."""
         r = res[run]
-        cells = [run.fidelity, str(run.elements), fmt(r.get("cpu_s"), ".2f")]
-        return cells + [fmt(m, ".3g") for m in metrics_of(r)] + [status(r)]
+        value, *errors = metrics_of(r)
+        return ([run.fidelity, str(run.elements), fmt(r.get("cpu_s"), ".2f"), fmt(value, first)]
+                + [fmt(e, ".3g") for e in errors] + [status(r)])
 
-    two_body_rows = [row(r, lambda x: (x.get("rms_z"), error(x.get("rms_z"), rms_reference)))
+    two_body_rows = [row(r, lambda x: (x.get("rms_z"), error(x.get("rms_z"), rms_reference)), ".6f")
                      for r in runs if r.scene == "two_body_003"]
     deploy_rows = [row(r, lambda x: (x.get("deploy_s"), error(x.get("deploy_s"), ref.get("deploy_s")),
-                                     error(x.get("strain"), ref.get("strain")), error(x.get("tip"), ref.get("tip"))))
-                   for r in runs if r.scene == "deploy_flexible" and r != reference_run]
+                                     error(x.get("strain"), ref.get("strain")), error(x.get("tip"), ref.get("tip"))),
+                       ".5f") for r in runs if r.scene == "deploy_flexible" and r != reference_run]
     if not args.no_plots:
         plot(runs, res, rms_reference, ref)
     REPORT.render(two_body_rows=two_body_rows, deploy_rows=deploy_rows, rms_reference=rms_reference,
