@@ -147,19 +147,20 @@ def lattice_added_mass(scene: dict, body: str) -> tuple[float, float, dict]:
     from structure_fmu.modes import natural_modes
 
     solver, model, E0 = _rest_coordinates(scene)
+    B = model.velocity_map(solver.state.q, solver.state.t)      # dE/dq: T (ANCF) or the strain-based map
     h, scale = 1e-3, 1e-3
     columns = []
-    for j in range(model.T.shape[1]):
+    for j in range(B.shape[1]):
         aero = AeroSolver(scene, {"flow.speed": 0.0, "flow.density": 1.0})
         for k in range(3):
-            aero.advance(k * h, E0, k * h * scale * model.T[:, j])
+            aero.advance(k * h, E0, k * h * scale * B[:, j])
         columns.append(-aero.Q / scale)
     omega, shapes = natural_modes(solver)
-    added = shapes.T @ model.T.T @ np.array(columns).T @ shapes      # (M_a, M) on the modes' span
+    added = shapes.T @ B.T @ np.array(columns).T @ shapes      # (M_a, M) on the modes' span
     ratios = np.diag(added)
     P, delta = tip_load_scale(scene, body)
     load = model.force_E(E0, np.zeros_like(E0), 1.0, np.zeros_like(E0), {}) - model.gravity_E
-    modal_force = shapes.T @ (model.T.T @ load)
+    modal_force = shapes.T @ (B.T @ load)
     modes = {"omega": omega, "mu": ratios,
              "kinetic": 0.5 * modal_force ** 2 / np.maximum(omega ** 2, np.finfo(float).tiny) / (P * delta)}
     return float(np.max(eigvals(added).real)), float(ratios[0]), modes

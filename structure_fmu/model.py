@@ -210,6 +210,10 @@ class StructureModel:
         T = self.T_sparse
         return beta_p * self.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T, E
 
+    def velocity_map(self, q, t):
+        """dE/dq (n, n_q): T, constant here."""
+        return self.T
+
     def rates_of(self, q, dE, t):
         """The q' whose exchanged rates come closest to dE (least squares; exact when dE is reachable)."""
         _, dp, _ = self.prescribed(t)
