@@ -105,10 +105,7 @@ class StrainBasedModel(StructureModel):
             return self._cache_configuration[1]
         top = self.top
         n_nodes, n_q = top.n_nodes, self.n_q
-        strains = np.zeros((len(self.lengths), sk.STRAINS))
-        for name, body in top.bodies.items():
-            strains[body.elements] = q[self.strain_slices[name]].reshape(-1, sk.STRAINS)
-        Phi, dPhi = sk.transfer(strains, self.lengths)
+        Phi, dPhi = sk.transfer(self._per_element(q), self.lengths)
         H = np.zeros((n_nodes, 4, 3))
         dH = np.zeros((n_nodes, 4, 3, n_q))
         Ht = np.zeros((n_nodes, 4, 3))
@@ -126,6 +123,13 @@ class StrainBasedModel(StructureModel):
         value = (H, dH, Ht, Phi, dPhi)
         self._cache_configuration = (key, value)
         return value
+
+    def _per_element(self, x):
+        """The strain entries of coordinates (or rates) x (n_q,) by element, (n_el, 4)."""
+        out = np.zeros((len(self.lengths), sk.STRAINS))
+        for name, body in self.top.bodies.items():
+            out[body.elements] = x[self.strain_slices[name]].reshape(-1, sk.STRAINS)
+        return out
 
     def _parent_state(self, root, H, dH, Ht):
         """(H, dH/dq, dH/dt) of what the root joint hangs from: the parent's tip node or the ground point."""
@@ -163,13 +167,9 @@ class StrainBasedModel(StructureModel):
         top = self.top
         H, dH, Ht, Phi, dPhi = self._configuration(q, t)
         Hd = dH @ dq + Ht
-        rates = np.zeros((len(self.lengths), sk.STRAINS))
-        strains = np.zeros_like(rates)
-        for name, body in top.bodies.items():
-            rates[body.elements] = dq[self.strain_slices[name]].reshape(-1, sk.STRAINS)
-            strains[body.elements] = q[self.strain_slices[name]].reshape(-1, sk.STRAINS)
+        rates = self._per_element(dq)
         Phi_d = np.einsum("np,npij->nij", rates, dPhi)
-        Phi_dd = sk.transfer_second(strains, rates, self.lengths)
+        Phi_dd = sk.transfer_second(self._per_element(q), rates, self.lengths)
         Hdd = np.zeros_like(H)
         for name, body in top.bodies.items():
             root, first = self.roots[name], body.nodes[0]
@@ -286,9 +286,6 @@ class StrainBasedModel(StructureModel):
         """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J."""
         return super().potential_energy(q, E, latched, angles) + 0.5 * float(q @ (self.stiffness_diagonal * q))
 
-    def element_strains(self, q):
-        """{body: (n_el, 4)} strains eps_x (-), kappa_x, kappa_y, kappa_z (1/m) of each element."""
-        return {name: q[s].reshape(-1, sk.STRAINS) for name, s in self.strain_slices.items()}
 
 
 def _exchanged(H):
