@@ -5,7 +5,8 @@
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
 - ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
-- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s);
+- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s), with the joints'
+  monitors (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
 - ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
 - ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
   aero unit in-process with the recorded inputs (``orchestrator.wake_view``; capped in wall time). A
@@ -102,10 +103,16 @@ def monitors_figure(result: RunResult) -> Figure:
     energy_ax.plot(series.time, series.energy)
     energy_ax.set(title=_title(result, "energy and constraint residual"), ylabel="energy (J)")
     residual = series.constraint_residual
-    residual_ax.plot(series.time, residual)
-    if np.any(np.isfinite(residual) & (residual > 0)):
+    residual_ax.plot(series.time, residual, label="constraint residual")
+    curves = [residual]
+    for name in series.joint_names:      # the joints' own conditions, on the same (log) scale
+        curves.append(np.abs(series.column(name)))
+        residual_ax.plot(series.time, curves[-1], label=name)
+    if any(np.any(np.isfinite(c) & (c > 0)) for c in curves):
         residual_ax.set_yscale("log")
-    residual_ax.set(xlabel="time (s)", ylabel="constraint residual (-)")
+    if series.joint_names:
+        residual_ax.legend(fontsize=7)
+    residual_ax.set(xlabel="time (s)", ylabel="residual, joint monitors (-, m)")
     for ax in (energy_ax, residual_ax):
         ax.grid(True, alpha=0.3)
     return fig
