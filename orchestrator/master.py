@@ -124,7 +124,8 @@ def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
     positions = np.array([probes[p] for p in series.probe_names], dtype=float).reshape(-1, 3)
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
-                  kinetic_energy=monitors.get("kinetic_energy", np.nan), aero=loads,
+                  kinetic_energy=monitors.get("kinetic_energy", np.nan),
+                  external_work=monitors.get("external_work", np.nan), aero=loads,
                   coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
                   strains=strains, joints=monitors.get("joints", {}))
     return monitors.get("latch_times", {})

@@ -1,13 +1,13 @@
 """The samples a run records at each communication point.
 
-One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees),
-each strain gauge's surface strain (-, a column named as the gauge), each joint monitor
-(``<joint>_point_mismatch`` in m, ``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a
-parent), the structure's energy (J), its kinetic
-energy (J) and its constraint residual (-), and, for a scene with an aero unit, the lift coefficient ``CL``
-(-) and the ``lift`` (N), and, for implicit coupling, the iterations ``coupling_iterations`` the master took
-in the communication step ending at that sample and the relative interface residual ``coupling_residual``
-(-) it accepted (0 and NaN at t = 0). The column names are those of
+One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees), each strain
+gauge's surface strain (-, a column named as the gauge), each joint monitor (``<joint>_point_mismatch`` in m,
+``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a parent), the structure's energy (J),
+its kinetic energy (J), its constraint residual (-) and the work of the point loads and Q on it since t = 0
+(``external_work``, J: energy minus it changes only by damping and driven motions), and, for a scene with an
+aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the iterations
+``coupling_iterations`` the master took in the communication step ending at that sample and the relative
+interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those of
 ``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-MONITOR_COLUMNS = ("energy", "kinetic_energy", "constraint_residual")
+MONITOR_COLUMNS = ("energy", "kinetic_energy", "constraint_residual", "external_work")
 """The scalar monitor columns, in ``timeseries.csv`` order, after the fold angles."""
 
 AERO_COLUMNS = ("CL", "lift")
@@ -65,7 +65,7 @@ class TimeSeries:
 
     @classmethod
     def from_arrays(cls, probe_names: Sequence[str], hinge_names: Sequence[str], time, positions,
-                    fold_angles_deg, energy, constraint_residual, kinetic_energy=None,
+                    fold_angles_deg, energy, constraint_residual, kinetic_energy=None, external_work=None,
                     aero: Mapping[str, Sequence[float]] | None = None,
                     coupling: Mapping[str, Sequence[float]] | None = None,
                     strains: Mapping[str, Sequence[float]] | None = None,
@@ -80,7 +80,9 @@ class TimeSeries:
                      strain_names=list(strains), joint_names=list(joints))
         m = len(time)
         kinetic = np.full(m, np.nan) if kinetic_energy is None else kinetic_energy
-        monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual}
+        work = np.full(m, np.nan) if external_work is None else external_work
+        monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual,
+                    "external_work": work}
         aero, coupling = aero or {}, coupling or {}
         table = np.column_stack([
             np.asarray(time, float),
@@ -98,6 +100,7 @@ class TimeSeries:
 
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
                energy: float, constraint_residual: float, kinetic_energy: float = np.nan,
+               external_work: float = np.nan,
                aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None,
                strains: Mapping[str, float] | None = None, joints: Mapping[str, float] | None = None) -> None:
         """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
@@ -106,7 +109,8 @@ class TimeSeries:
         values, or no dict, give NaN)."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
         strains, joints = strains or {}, joints or {}
-        monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual}
+        monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual,
+                    "external_work": external_work}
         aero, coupling = aero or {}, coupling or {}
         self._rows.append(np.concatenate((
             [time], np.asarray(positions, float).reshape(-1), angles,
@@ -164,6 +168,11 @@ class TimeSeries:
     def energy(self) -> np.ndarray:
         """Energy of the structure, J, shape (samples,)."""
         return self.column("energy")
+
+    @property
+    def external_work(self) -> np.ndarray:
+        """Work of the point loads and Q on the structure since t = 0, J, shape (samples,)."""
+        return self.column("external_work")
 
     @property
     def kinetic_energy(self) -> np.ndarray:

@@ -13,6 +13,7 @@
                                   aero:      set_inputs(e, de)  the structure's coordinates and rates
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
     unit.monitors()             structure: {"energy": J, "kinetic_energy": J, "constraint_residual": -,
+                                            "external_work": J,
                                             "fold_angles_deg": {hinge: deg},
                                             "latch_times": {hinge: s, for the hinges latched so far},
                                             "probe_positions": {probe: (3,) m, global frame},
@@ -91,7 +92,7 @@ class UnitKind:
 
 KINDS = {
     "structure": UnitKind("structure.fmu", ("structure_fmu.structure_slave", "StructureSlave"), ("Q",),
-                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual"),
+                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual", "external_work"),
                           ("structure", "probes", "strain_gauges"), hinge_monitors=True, sensor_monitors=True),
     "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), ("e", "de"), ("Q",),
                      ("CL", "lift", "wake_panels"), ("aero", "flow"), extra_monitors=True),

@@ -34,6 +34,7 @@ class State:
     multipliers: np.ndarray
     latched: dict = field(default_factory=dict)
     latch_times: dict = field(default_factory=dict)
+    work: float = 0.0            # J, work of the external forces since t = 0 (StructureSolver.advance)
 
     def copy(self):
         return replace(self, q=self.q.copy(), dq=self.dq.copy(), ddq=self.ddq.copy(), accel=self.accel.copy(),

@@ -119,16 +119,22 @@ class StructureModel:
             return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
         return 1.0
 
-    def force_E(self, E, dE, t, Q, latched):
-        """Generalized force on E (n,): elastic, gravity, point loads, actuators, damping and external Q."""
-        F = self.gravity_E + Q
-        if self.flexible:
-            e_el = E[self.dofs]
-            F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
+    def external_force_E(self, t, Q):
+        """The external generalized force on E (n,) at time t (s): the point loads and Q (N, N m). Its power on
+        dE is what the energy monitor's external work integrates."""
+        F = np.array(Q, dtype=float)
         for load in self.loads:
             k = load["element"]
             s = shape_row(load["x"], load["y"], self.lengths[k])
             F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
+        return F
+
+    def force_E(self, E, dE, t, Q, latched):
+        """Generalized force on E (n,): elastic, gravity, point loads, actuators, damping and external Q."""
+        F = self.gravity_E + self.external_force_E(t, Q)
+        if self.flexible:
+            e_el = E[self.dofs]
+            F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
         for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
         if self.mass_damping is not None:

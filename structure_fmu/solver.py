@@ -138,6 +138,7 @@ class StructureSolver:
                                      _DIVERGENCE_HINT[self.integrator.name]) from None
             self._check(new)
             self._update_latches(previous, new)
+            new.work = previous.work + 0.5 * h * (self._power(previous, Q) + self._power(new, Q))
             self.state = new
 
     def _check(self, state):
@@ -150,6 +151,11 @@ class StructureSolver:
         size = np.abs(E.reshape(-1, 3, 3)[:, 1:]).max()   # gradients stay O(1) in any physical motion
         if size > 1e3:
             raise SolverDiverged(state.t, f"gradient vectors grew to {size:.3g}", hint)
+
+    def _power(self, state, Q):
+        """Power (W) of the external forces (point loads and Q, `StructureModel.external_force_E`) at a state:
+        the external work is its trapezoidal integral over the internal steps, second order like the steps."""
+        return float(self.model.external_force_E(state.t, Q) @ self._evaluated(state)[1])
 
     def _update_latches(self, previous, new):
         hinges = [h for h in self.model.hinges if h.stop_angle is not None and not previous.latched.get(h.name)]
@@ -217,6 +223,7 @@ class StructureSolver:
         kinetic = 0.5 * float(dE @ (self.model.mass_E @ dE))
         return {"energy": kinetic + self.model.potential_energy(self.state.q, E, self.state.latched, angles),
                 "kinetic_energy": kinetic,
+                "external_work": self.state.work,
                 "constraint_residual": residual,
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
                 "latch_times": dict(self.state.latch_times)}

@@ -6,7 +6,7 @@ The resolved scene is read from the resource `scene.json` (inside the FMU, or th
 
 Variables, with value references laid out contiguously so that get/set are numpy fancy indexing
 (n = Topology.n_coordinates, H = number of hinges, P = number of probes, G = number of strain gauges;
-s = 3n+2H+3, the first sensor output):
+s = 3n+2H+4, the first sensor output):
 
 | vr                | name                      | causality / variability  | unit                              |
 |-------------------|---------------------------|--------------------------|-----------------------------------|
@@ -17,7 +17,8 @@ s = 3n+2H+3, the first sensor output):
 | 3n+H              | energy                    | output, continuous       | J                                 |
 | 3n+H+1            | kinetic_energy            | output, continuous       | J                                 |
 | 3n+H+2            | constraint_residual       | output, continuous       | 1                                 |
-| 3n+H+3 .. 3n+2H+2 | latch_time_<hinge>        | output, discrete         | s                                 |
+| 3n+H+3            | external_work             | output, continuous       | J                                 |
+| 3n+H+4 .. 3n+2H+3 | latch_time_<hinge>        | output, discrete         | s                                 |
 | s .. s+3P-1       | <probe>_x, _y, _z         | output, continuous       | m (global frame)                  |
 | s+3P .. s+6P-1    | <probe>_vx, _vy, _vz      | output, continuous       | m/s (global frame)                |
 | s+6P .. s+6P+G-1  | <gauge>                   | output, continuous       | 1 (surface strain)                |
@@ -86,7 +87,8 @@ class StructureSlave(SolverSlave):
         self.input_blocks = [("Q", self.sl_q, "generalized force on")]
         self.sl_fold = slice(3 * n, 3 * n + nh)
         self.i_energy, self.i_kinetic, self.i_residual = 3 * n + nh, 3 * n + nh + 1, 3 * n + nh + 2
-        self.sl_latch = slice(3 * n + nh + 3, 3 * n + 2 * nh + 3)
+        self.i_work = 3 * n + nh + 3
+        self.sl_latch = slice(3 * n + nh + 4, 3 * n + 2 * nh + 4)
         self.sensor_names = self._solver.sensors.output_names()
         self.sl_sensor = slice(self.sl_latch.stop, self.sl_latch.stop + len(self.sensor_names))
         self.joint_monitor_names = self._solver.joint_monitor_names()
@@ -123,6 +125,8 @@ class StructureSlave(SolverSlave):
         self._reg("kinetic_energy", self.i_kinetic, "J", "kinetic energy of the structure (1/2 de^T M de)",
                   **out)
         self._reg("constraint_residual", self.i_residual, "1", "constraint residual monitor (max norm)", **out)
+        self._reg("external_work", self.i_work, "J", "work of the point loads and Q since the start: energy minus "
+                                                     "it changes only by damping and driven motions", **out)
         for j, hinge in enumerate(self.hinges):
             self._reg(fmi_name(f"latch_time_{hinge}"), self.sl_latch.start + j, "s",
                       f"time hinge {hinge} latched at its stop angle ({LATCH_PENDING:g} until then)",
@@ -148,6 +152,7 @@ class StructureSlave(SolverSlave):
         self._real[self.i_energy] = m["energy"]
         self._real[self.i_kinetic] = m["kinetic_energy"]
         self._real[self.i_residual] = m["constraint_residual"]
+        self._real[self.i_work] = m["external_work"]
         self._real[self.sl_latch] = [self._t0 + m["latch_times"][h] if h in m["latch_times"] else LATCH_PENDING
                                      for h in self.hinges]
         self._real[self.sl_sensor] = s.sensor_outputs()

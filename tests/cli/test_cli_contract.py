@@ -116,9 +116,9 @@ def test_timeseries_csv_columns_and_rows(scene, tmp_path):
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "fold_angle_fold", "energy", "kinetic_energy",
-                       "constraint_residual"]
+                       "constraint_residual", "external_work"]
     data = np.array(rows[1:], dtype=float)
-    assert data.shape == (len(TIME), 8)
+    assert data.shape == (len(TIME), 9)
     column = {name: data[:, k] for k, name in enumerate(rows[0])}
     np.testing.assert_allclose(column["time"], TIME)
     np.testing.assert_allclose(data[:, 1:4], TIP)
@@ -172,7 +172,7 @@ def test_run_without_samples_writes_nulls(scene, tmp_path):
     assert summary["probes"] == {"tip": {"initial": None, "final": None,
                                          "min_displacement": None, "max_displacement": None}}
     assert (tmp_path / "timeseries.csv").read_text().splitlines() == [
-        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,kinetic_energy,constraint_residual"]
+        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,kinetic_energy,constraint_residual,external_work"]
 
 
 def test_deployment_time_waits_for_every_latched_hinge(scene):

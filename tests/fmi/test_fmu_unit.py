@@ -89,21 +89,21 @@ def test_variables_match_topology(scene, fmu_dir):
     kinetic = v["kinetic_energy"]
     assert (kinetic.type, kinetic.unit, kinetic.causality, kinetic.variability, kinetic.initial) == (
         "Real", "J", "output", "continuous", "exact")
-    # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, latch
+    # the documented contiguous layout: fold angles, energy, kinetic_energy, constraint_residual, external_work, latch
     # times, probe positions and velocities and strain gauges (tests/units/test_sensors.py), joint monitors,
     # parameters
     h = len(topology.hinge_names)
     assert [v[f"fold_angle_{x}"].valueReference for x in topology.hinge_names] == list(range(3 * n, 3 * n + h))
-    assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual")] == [
-        3 * n + h, 3 * n + h + 1, 3 * n + h + 2]
+    assert [v[x].valueReference for x in ("energy", "kinetic_energy", "constraint_residual", "external_work")] == [
+        3 * n + h, 3 * n + h + 1, 3 * n + h + 2, 3 * n + h + 3]
     latch = [v[f"latch_time_{x}"] for x in topology.hinge_names]
-    assert [x.valueReference for x in latch] == list(range(3 * n + h + 3, 3 * n + 2 * h + 3))
+    assert [x.valueReference for x in latch] == list(range(3 * n + h + 4, 3 * n + 2 * h + 4))
     assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
     tunables = StructureSolver.tunable_parameters(scene)
     sensors = 6 * len(scene["probes"]) + len(scene["strain_gauges"])
     joints = [v[name].valueReference for name in joint_monitor_names(scene)]
-    assert joints == list(range(3 * n + 2 * h + 3 + sensors, 3 * n + 2 * h + 3 + sensors + len(joints)))
-    first = 3 * n + 2 * h + 3 + sensors + len(joints)
+    assert joints == list(range(3 * n + 2 * h + 4 + sensors, 3 * n + 2 * h + 4 + sensors + len(joints)))
+    first = 3 * n + 2 * h + 4 + sensors + len(joints)
     assert [v[name].valueReference for name in tunables] == list(range(first, first + len(tunables)))
     for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
         p = v[name]
