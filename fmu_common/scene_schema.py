@@ -231,8 +231,8 @@ MOTION = Table({
 
 PROBE = Table({
     "name": Name("-", REQUIRED, "column prefix in timeseries.csv (`<name>_x`, `_y`, `_z`) and key in "
-                                "summary.json; the structure FMU outputs `<name>_x/_y/_z` (m) and "
-                                "`<name>_vx/_vy/_vz` (m/s)"),
+                                "summary.json; the structure FMU outputs `<name>_x/_y/_z` (m), "
+                                "`<name>_vx/_vy/_vz` (m/s) and `<name>_ax/_ay/_az` (m/s^2)"),
     "body": Name("-", REQUIRED, _BODY_REF),
     "span": non_negative("m", "position from the body root, at most the body length"),
     "chord": fraction("where on the chord", Absent("the body's section.axis_position")),

@@ -18,6 +18,7 @@
                                             "latch_times": {hinge: s, for the hinges latched so far},
                                             "probe_positions": {probe: (3,) m, global frame},
                                             "probe_velocities": {probe: (3,) m/s, global frame},
+                                            "probe_accelerations": {probe: (3,) m/s2, global frame},
                                             "strains": {gauge: surface strain, -},
                                             "joints": {<joint>_point_mismatch: m, <joint>_axis_...: -}}
                                 (the structure unit's outputs <probe>_x.., <probe>_vx.., <gauge> of the
@@ -230,17 +231,16 @@ class Unit:
         m = self._get_mon() if self._monitor_values is None else self._monitor_values
         h = len(self.hinges)
         angles, latch_times = m[:h], m[h:2 * h]          # the order of monitor_vrs in __init__
-        k, p = 2 * h + len(self._monitor_names), 3 * len(self.probes)
+        k, p = 2 * h + len(self._monitor_names), 3 * len(self.probes)      # p: values per kind of probe output
         out = {name: float(v) for name, v in zip(self._monitor_names, m[2 * h:k])}
         if self._spec.hinge_monitors:
             out["fold_angles_deg"] = {name: float(a) for name, a in zip(self.hinges, angles)}
             out["latch_times"] = {name: float(t) for name, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
         if self._spec.sensor_monitors:
-            positions, velocities = m[k:k + p].reshape(-1, 3).copy(), m[k + p:k + 2 * p].reshape(-1, 3).copy()
-            out["probe_positions"] = dict(zip(self.probes, positions))
-            out["probe_velocities"] = dict(zip(self.probes, velocities))
-            g = k + 2 * p + len(self.gauges)
-            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 2 * p:g])}
+            for j, kind in enumerate(("probe_positions", "probe_velocities", "probe_accelerations")):
+                out[kind] = dict(zip(self.probes, m[k + j * p:k + (j + 1) * p].reshape(-1, 3).copy()))
+            g = k + 3 * p + len(self.gauges)
+            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 3 * p:g])}
             out["joints"] = {name: float(v) for name, v in zip(self.joint_monitors, m[g:])}
         return out
 

@@ -216,6 +216,11 @@ class StructureModel:
         T = self.T_sparse
         return beta_p * self.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T, E
 
+    def acceleration_E(self, q, dq, ddq, t):
+        """d2E/dt2 (n,) for q'' = ddq: T q'' + P p''(t)."""
+        _, _, ddp = self.coordinates(q, dq, t)
+        return self.T @ ddq + (self.P @ ddp if ddp is not None else 0.0)
+
     def velocity_map(self, q, t):
         """dE/dq (n, n_q): T, constant here."""
         return self.T

@@ -1,7 +1,8 @@
 """The scene's probes and strain gauges: fixed material points of the wing read from its coordinates.
 
 A probe at (body, span x, chord fraction) is a material point: its global position is r = S(x, y) e
-(Otsuka et al. 2019, Eq. 2) and, S being constant for a material point, its velocity is r' = S(x, y) de.
+(Otsuka et al. 2019, Eq. 2) and, S being constant for a material point, its velocity is r' = S(x, y) de and its
+acceleration r'' = S(x, y) dde.
 A strain gauge reads the extensional strain of the plate surface at distance d from the reference line,
 eps = d kappa_y (Euler-Bernoulli: strain = distance from the neutral surface x curvature), kappa_y the
 flap curvature of the reference line at the gauge's span (`structure_fmu.element.flap_curvature`).
@@ -21,16 +22,17 @@ from .element import flap_curvature
 AXES = "xyz"
 
 
-def probe_output_names(probe: str) -> tuple[list[str], list[str]]:
-    """(position names ``<probe>_x/_y/_z``, velocity names ``<probe>_vx/_vy/_vz``) of a probe's outputs."""
-    return [f"{probe}_{a}" for a in AXES], [f"{probe}_v{a}" for a in AXES]
+def probe_output_names(probe: str) -> tuple[list[str], list[str], list[str]]:
+    """(position names ``<probe>_x/_y/_z``, velocity names ``<probe>_vx/_vy/_vz``, acceleration names
+    ``<probe>_ax/_ay/_az``) of a probe's outputs."""
+    return [f"{probe}_{a}" for a in AXES], [f"{probe}_v{a}" for a in AXES], [f"{probe}_a{a}" for a in AXES]
 
 
 def output_names(probe_names: list[str], gauge_names: list[str]) -> list[str]:
     """Names of the sensor outputs in the structure unit's order: every probe's position, then every probe's
-    velocity, then the gauges' strains."""
+    velocity, then every probe's acceleration, then the gauges' strains."""
     names = [probe_output_names(p) for p in probe_names]
-    return [n for pos, _ in names for n in pos] + [n for _, vel in names for n in vel] + list(gauge_names)
+    return [n for kind in range(3) for group in names for n in group[kind]] + list(gauge_names)
 
 
 class Sensors:
@@ -61,7 +63,8 @@ class Sensors:
         return self._probe_rows @ np.asarray(e, dtype=float).reshape(-1, 3)
 
     def velocities(self, de: np.ndarray) -> np.ndarray:
-        """Probe global velocities (n_probes, 3), m/s, from the coordinate rates de (n,): the same rows."""
+        """Probe global velocities (n_probes, 3), m/s, from the coordinate rates de (n,): the same rows; also
+        the accelerations (m/s^2) from dde."""
         return self._probe_rows @ np.asarray(de, dtype=float).reshape(-1, 3)
 
     def strains(self, e: np.ndarray) -> np.ndarray:
@@ -80,15 +83,19 @@ class Sensors:
                      for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[0], AXES)]
         velocities = [(name, "m/s", f"global {a} velocity of {w}")
                       for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[1], AXES)]
+        accelerations = [(name, "m/s2", f"global {a} acceleration of {w}")
+                         for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[2], AXES)]
         strains = [(g["name"], "1", f"surface strain of strain gauge {g['name']} (body {g['body']}, span "
                                     f"{g['span']:g} m, {g['surface_distance']:g} m from the reference line)")
                    for g in self._gauges]
-        return positions + velocities + strains
+        return positions + velocities + accelerations + strains
 
     def output_names(self) -> list[str]:
         """Names of the outputs, in the order of ``outputs`` (`output_names`)."""
         return output_names(self.probe_names, self.gauge_names)
 
-    def outputs(self, e: np.ndarray, de: np.ndarray) -> np.ndarray:
-        """All readings flat, in the order of ``output_names``: positions (m), velocities (m/s), strains (1)."""
-        return np.concatenate([self.positions(e).ravel(), self.velocities(de).ravel(), self.strains(e)])
+    def outputs(self, e: np.ndarray, de: np.ndarray, dde: np.ndarray) -> np.ndarray:
+        """All readings flat, in the order of ``output_names``: positions (m), velocities (m/s), accelerations
+        (m/s^2), strains (1)."""
+        return np.concatenate([self.positions(e).ravel(), self.velocities(de).ravel(), self.velocities(dde).ravel(),
+                               self.strains(e)])

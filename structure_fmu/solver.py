@@ -10,7 +10,7 @@ import numpy as np
 
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
 
-from .integrators import RK4, GeneralizedAlpha, State, project
+from .integrators import RK4, GeneralizedAlpha, State, constrained_accelerations, project
 from .joint_monitors import joint_monitors
 from .model import StructureModel
 from .strain_model import StrainBasedModel
@@ -58,6 +58,7 @@ class StructureSolver:
         n_c = self.model.constraint_count
         self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
+        self._last_Q = self._zero_Q
         self._initialized = False
         self._cache = ((None, None), (None, None))   # (state, _evaluated values), newest first
         self._check_initial_constraints()
@@ -121,6 +122,7 @@ class StructureSolver:
     def advance(self, t_end: float, Q=None) -> None:
         """Take internal steps from `time` to `t_end` (s) with the generalized force Q held constant."""
         Q = self._zero_Q if Q is None else checked_input("Q", Q, self._zero_Q.size, self.state.t)
+        self._last_Q = Q
         if self.state.q.size == 0:        # fully prescribed: no dynamics
             self.state = replace(self.state, t=float(t_end))
             return
@@ -205,9 +207,19 @@ class StructureSolver:
 
     def sensor_outputs(self) -> np.ndarray:
         """The scene's probes and strain gauges at the current state, flat in the order of
-        `self.sensors.output_names()`: probe positions (m), probe velocities (m/s), gauge strains (1)."""
+        `self.sensors.output_names()`: probe positions (m), velocities (m/s) and accelerations (m/s^2), gauge
+        strains (1)."""
         E, dE, _, _ = self._evaluated(self.state)
-        return self.sensors.outputs(E, dE)
+        return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E))
+
+    def acceleration_E(self) -> np.ndarray:
+        """d2E/dt2 (n,) at the current state under the generalized force of the last step (zero before the first):
+        the index-1 accelerations evaluated here, not the integrator's (RK4 keeps those of a step's start)."""
+        state = self.state
+        if state.q.size == 0:
+            return self.model.acceleration_E(state.q, state.dq, state.dq, state.t)
+        ddq, _ = constrained_accelerations(self.model, state.t, state.q, state.dq, self._last_Q, state.latched)
+        return self.model.acceleration_E(state.q, state.dq, ddq, state.t)
 
     def joint_monitor_names(self) -> list[str]:
         """Names of the joints' constraint monitors (`structure_fmu.joint_monitors`), in output order."""
@@ -231,10 +243,10 @@ class StructureSolver:
     def get_state(self):
         """Complete internal state, deep-copied. The cached Newton matrix is saved by reference (it is
         replaced, never modified in place), so that a rolled-back step repeats bit for bit."""
-        return (self.state.copy(), self._initialized, getattr(self.integrator, "_matrix", None))
+        return (self.state.copy(), self._initialized, getattr(self.integrator, "_matrix", None), self._last_Q.copy())
 
     def set_state(self, saved) -> None:
-        state, initialized, matrix = saved
-        self.state, self._initialized = state.copy(), initialized
+        state, initialized, matrix, last_Q = saved
+        self.state, self._initialized, self._last_Q = state.copy(), initialized, last_Q.copy()
         if hasattr(self.integrator, "_matrix"):
             self.integrator._matrix = matrix

@@ -200,6 +200,10 @@ class StrainBasedModel(StructureModel):
         c_ddot = sk.joint_second(root.kind, eta, rate, root.axis, root.orientation)
         return np.vstack([Hpdd[0], c_ddot @ Hp[1:] + 2.0 * c_dot @ Hpd[1:] + c @ Hpdd[1:]])
 
+    def acceleration_E(self, q, dq, ddq, t):
+        """d2E/dt2 (n,) for q'' = ddq: B q'' + dB/dt q' (plus a driven root's acceleration)."""
+        return self.velocity_map(q, t) @ ddq + self._motion(q, dq, t)[2]
+
     def velocity_map(self, q, t):
         """B = dE/dq (n, n_q) at q (Otsuka et al. 2022, Eq. 9)."""
         dH = self._configuration(q, t)[1]

@@ -21,7 +21,8 @@ s = 3n+2H+4, the first sensor output):
 | 3n+H+4 .. 3n+2H+3 | latch_time_<hinge>        | output, discrete         | s                                 |
 | s .. s+3P-1       | <probe>_x, _y, _z         | output, continuous       | m (global frame)                  |
 | s+3P .. s+6P-1    | <probe>_vx, _vy, _vz      | output, continuous       | m/s (global frame)                |
-| s+6P .. s+6P+G-1  | <gauge>                   | output, continuous       | 1 (surface strain)                |
+| s+6P .. s+9P-1    | <probe>_ax, _ay, _az      | output, continuous       | m/s2 (global frame)               |
+| s+9P .. s+9P+G-1  | <gauge>                   | output, continuous       | 1 (surface strain)                |
 | then              | <joint>_point_mismatch, <joint>_axis_product, <joint>_axis_error | output, continuous | m, 1, 1 |
 | then              | <tunable parameter>       | parameter, fixed         | as StructureSolver declares       |
 | last              | topology_hash (String)    | output, constant         | -                                 |

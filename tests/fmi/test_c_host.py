@@ -193,4 +193,11 @@ def test_runs_with_an_empty_environment(c_host, unzipped, scene, tmp_path):
     if not numeric_env():
         np.testing.assert_array_equal(c["round1"], reference)
     else:  # kernels chosen by the CPU, not by this process's variables: the same numbers up to rounding
-        np.testing.assert_allclose(c["round1"], reference, rtol=1e-11, atol=1e-12)
+        # the probe accelerations come from solves with the mass matrix (condition number 1e7-1e8, model.py):
+        # there the kernels' rounding grows to kappa x eps ~ 1e-8 relative; the state and every other output
+        # keep the rounding of their kernels
+        accelerations = [name for _, name in units[0].outputs if name.endswith(("_ax", "_ay", "_az"))]
+        solved = [column(units, "structure", name) for name in accelerations]
+        rest = [k for k in range(reference.shape[1]) if k not in solved]
+        np.testing.assert_allclose(c["round1"][:, rest], reference[:, rest], rtol=1e-11, atol=1e-12)
+        np.testing.assert_allclose(c["round1"][:, solved], reference[:, solved], rtol=1e-8, atol=1e-9)

@@ -100,7 +100,7 @@ def test_variables_match_topology(scene, fmu_dir):
     assert [x.valueReference for x in latch] == list(range(3 * n + h + 4, 3 * n + 2 * h + 4))
     assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
     tunables = StructureSolver.tunable_parameters(scene)
-    sensors = 6 * len(scene["probes"]) + len(scene["strain_gauges"])
+    sensors = 9 * len(scene["probes"]) + len(scene["strain_gauges"])
     joints = [v[name].valueReference for name in joint_monitor_names(scene)]
     assert joints == list(range(3 * n + 2 * h + 4 + sensors, 3 * n + 2 * h + 4 + sensors + len(joints)))
     first = 3 * n + 2 * h + 4 + sensors + len(joints)

@@ -17,6 +17,7 @@ import structure_fmu.structure_slave  # noqa: F401  (the host's copy, shared by 
 from orchestrator.master import communication_times, new_series, run_scene
 from orchestrator.scene import load_scene
 from orchestrator.units import UnitError, make_unit
+from structure_fmu.solver import StructureSolver
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import fmi_name
 from fmu_common.shape_functions import shape_row
@@ -88,6 +89,7 @@ def test_the_sensor_outputs_are_declared_as_the_timeseries_columns_with_units(ri
     for p in probes:
         expected_units.update({f"{p}_{a}": "m" for a in "xyz"})
         expected_units.update({f"{p}_v{a}": "m/s" for a in "xyz"})
+        expected_units.update({f"{p}_a{a}": "m/s2" for a in "xyz"})
     expected_units.update({g: "1" for g in gauges})
     for name, unit in expected_units.items():
         v = variables[fmi_name(name)]
@@ -98,7 +100,8 @@ def test_the_sensor_outputs_are_declared_as_the_timeseries_columns_with_units(ri
     assert all(fmi_name(c) in variables for c in position_and_strain_columns)
     # contiguous after the latch times, before the joint monitors and the parameters
     refs = [variables[fmi_name(n)].valueReference for n in
-            [f"{p}_{a}" for p in probes for a in "xyz"] + [f"{p}_v{a}" for p in probes for a in "xyz"] + gauges]
+            [f"{p}_{a}" for p in probes for a in "xyz"] + [f"{p}_v{a}" for p in probes for a in "xyz"]
+            + [f"{p}_a{a}" for p in probes for a in "xyz"] + gauges]
     assert refs == list(range(refs[0], refs[0] + len(refs)))
     assert refs[0] == variables["latch_time_fold"].valueReference + 1
     joints = [variables[n].valueReference for n in ("fold_point_mismatch", "fold_axis_error")]
@@ -248,3 +251,30 @@ def test_a_sensor_name_that_takes_another_outputs_name_is_refused(override, key,
     with pytest.raises(SceneError) as err:
         still_air(RIGID, override)
     assert err.value.key == key and taken in str(err.value)
+
+
+def test_probe_acceleration_of_a_released_rigid_pendulum():
+    """pendulum_rigid at release, horizontal from its pin: angular acceleration 3 g / (2 L), so the tip (span L)
+    accelerates by 3 g / 2 straight down and has no centripetal part yet."""
+    solver = StructureSolver(load_scene(SCENES / "pendulum_rigid.toml"))
+    n = len(solver.sensors.probe_names)
+    tip = solver.sensor_outputs()[6 * n:9 * n].reshape(-1, 3)[solver.sensors.probe_names.index("tip")]
+    assert tip == pytest.approx([0.0, 0.0, -1.5 * 9.81], abs=1e-9)
+
+
+@pytest.mark.parametrize("fidelity", ["rigid", "flexible", "strain-based"])
+def test_probe_accelerations_are_the_rate_of_the_probe_velocities(fidelity):
+    """The double pendulum in swing: each probe's acceleration output against the central difference of its
+    velocity output over +-1e-5 s (RK4 at 1e-4 s, the ANCF bars at 4e-5 s; the bars vibrate up to thousands of
+    rad/s, so the difference must resolve those)."""
+    step = ["structure.step=4e-5"] if fidelity == "flexible" else []
+    solver = StructureSolver(load_scene(SCENES / "double_pendulum.toml", [f"structure.fidelity={fidelity}", *step]))
+    n, h = len(solver.sensors.probe_names), 1e-5
+    readings = []
+    for t in (0.1 - h, 0.1, 0.1 + h):
+        solver.advance(t)
+        readings.append(solver.sensor_outputs())
+    velocity = lambda r: r[3 * n:6 * n]
+    difference = (velocity(readings[2]) - velocity(readings[0])) / (2 * h)
+    acceleration = readings[1][6 * n:9 * n]
+    assert np.abs(acceleration - difference).max() < 2e-3 * np.abs(acceleration).max()
