@@ -72,6 +72,14 @@ def _section_rule(key: str, section: dict) -> None:
                                  "required unless thickness, density and youngs_modulus describe a plate")
 
 
+def _slider_rule(key: str, slider: dict) -> None:
+    """A slider keeps its node on a line or on a plane: exactly one of the two."""
+    given = [name for name in ("line", "plane_normal") if slider[name] is not None]
+    if len(given) != 1:
+        raise SceneError(f"{key}.line", slider["line"], "exactly one of line (the node stays on a line) and "
+                                                       "plane_normal (on a plane)")
+
+
 def _motion_rule(key: str, motion: dict) -> None:
     """alpha_deg is a constant pitch: it excludes the oscillating pitch and the heave."""
     if motion["alpha_deg"] != 0.0:
@@ -183,7 +191,17 @@ JOINT = Variants("type", {
         "orientation_deg": _ORIENTATION,
     }, doc="universal joint (Otsuka et al. 2022, Sec. 3.2, Eq. 18): shared point, and parent_axis stays "
            "perpendicular to child_axis"),
-}, doc="what holds a body's root, at most one joint per root")
+    "slider": Table({
+        "name": Name("-", REQUIRED, "joint name"),
+        "body": Name("-", REQUIRED, _BODY_REF),
+        "span": non_negative("m", "position of the node from the body root; must be a node of the body", 0.0),
+        "line": Vector("-", Absent("none: plane_normal gives a plane"), "direction of the fixed line, global",
+                       nonzero=True),
+        "plane_normal": Vector("-", Absent("none: line gives a line"), "normal of the fixed plane, global",
+                               nonzero=True),
+    }, doc="the node of `body` at `span` stays on a fixed line or plane through its position at t = 0 (ANCF "
+           "fidelities); it holds no root", rules=(_slider_rule,)),
+}, doc="what holds a body's root, at most one joint per root; or a slider")
 
 MASS = Table({
     "body": Name("-", REQUIRED, _BODY_REF),

@@ -108,6 +108,10 @@ class Topology:
         for i, spec in enumerate(joints):
             key = f"structure.joints.{item_label(i, spec)}"
             kind = spec["type"]
+            if kind == "slider":        # holds a node, not the root: the structure unit's
+                if spec["body"] not in specs:
+                    raise SceneError(f"{key}.body", spec["body"], f"one of the bodies {sorted(specs)}")
+                continue
             jointed = kind in PARENT_JOINTS
             fields = ("parent", "child") if jointed else ("body",)
             for field_name in fields:

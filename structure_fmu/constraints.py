@@ -4,7 +4,8 @@ Otsuka et al. 2022, Sec. 3).
 The internal constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c_i:
   unit length   (|v|^2 - 1) / 2 = 0        (Otsuka et al. 2019, Eq. 6 row 1 for r_y; Eq. 17 rows 1-2)
   orthogonality a . b = 0                  (Otsuka et al. 2019, Eq. 6 row 2; Eq. 17 row 3)
-  fixed plane   v . n = 0                  (a pin about the section normal)
+  fixed plane   v . n = c                  (a pin about the section normal: a gradient in the plane, c = 0; a
+                                           slider: a node's r on a fixed plane or line, c = n . its start)
 so their Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap. The joints'
 axis products (`AxisProduct`: universal and revolute joints whose axis is not a shared chord) are quartic in E
 at most. The linear rows of Eq. (17) and the shared joint points are eliminated by the coordinate map
@@ -158,8 +159,9 @@ class Constraints:
     def __init__(self, topology, T):
         self.unit = np.array(topology.unit_slots, dtype=int)
         self.ortho = np.array(topology.orthogonal_slots, dtype=int).reshape(-1, 2)
-        self.plane = np.array([s for s, _ in topology.fixed_directions], dtype=int)
-        self.plane_normal = np.array([n for _, n in topology.fixed_directions]).reshape(-1, 3)
+        self.plane = np.array([s for s, _, _ in topology.fixed_directions], dtype=int)
+        self.plane_normal = np.array([n for _, n, _ in topology.fixed_directions]).reshape(-1, 3)
+        self._plane_offset = np.array([c for _, _, c in topology.fixed_directions], dtype=float)
         self.n = topology.n_coordinates
         self.axes = AxisProducts(topology.axis_products, T, self.n)
         self.count = len(self.unit) + len(self.ortho) + len(self.plane) + self.axes.count
@@ -194,7 +196,7 @@ class Constraints:
         products = (E[self._ia] * E[self._ib]).reshape(-1, 3).sum(axis=1) * self._coefficient + self._constant
         parts = [products]
         if len(self.plane):
-            parts.append((E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1))
+            parts.append((E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1) - self._plane_offset)
         if self.axes.count:
             parts.append(self.axes.residual(E))
         return np.concatenate(parts) if len(parts) > 1 else products

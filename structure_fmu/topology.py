@@ -30,6 +30,7 @@ import numpy as np
 from fmu_common import topology
 from fmu_common.errors import SceneError
 from fmu_common.scene_schema import PARENT_JOINTS
+from fmu_common.schema import item_label
 
 from .constraints import AxisProduct
 from .joints import hinge_angle
@@ -104,7 +105,7 @@ class StructureTopology(topology.Topology):
         self.hinges: list[Hinge] = []
         self.unit_slots: list[int] = []
         self.orthogonal_slots: list[tuple[int, int]] = []
-        self.fixed_directions: list[tuple[int, np.ndarray]] = []   # slot . n = 0
+        self.fixed_directions: list[tuple[int, np.ndarray, float]] = []   # slot . n = c
         self.axis_products: list[AxisProduct] = []                 # joint rows v_A(a) . v_B(b) = 0
         self.masses: list[tuple[int, float]] = []                  # (node, kg)
         self.angular_velocity: dict[str, np.ndarray] = {}          # initial rigid rotation rate, rad/s
@@ -124,6 +125,7 @@ class StructureTopology(topology.Topology):
                                                               f"{top.fidelity} structure moves by its dynamics)")
         for key, spec in top._body_specs(structure):
             top._add_coordinates(top.bodies[spec["name"]], key, spec, motion_spec)
+        top._add_sliders(structure)
         top._add_constraints()
         top._add_masses_and_loads(structure)
         if "load" in scene:
@@ -183,7 +185,7 @@ class StructureTopology(topology.Topology):
             else:
                 root = [self._new_prescribed(r0, True, fixed), self._new_free(x0), self._new_free(y0)]
                 normal = np.cross(x0, y0)
-                self.fixed_directions += [(3 * first_node + RX, normal), (3 * first_node + RY, normal)]
+                self.fixed_directions += [(3 * first_node + RX, normal, 0.0), (3 * first_node + RY, normal, 0.0)]
         else:
             root = [self._new_free(r0), self._new_free(x0), self._new_free(y0)]
         self.slots += root
@@ -250,6 +252,23 @@ class StructureTopology(topology.Topology):
             hinge = Hinge(line.name, parent_slot, child_slot, None, line.initial_angle, stiffness, damping, torque,
                           stop, latch, line.axis, reference, line.orientation.T @ reference)
         self.hinges.append(hinge)
+
+    def _add_sliders(self, structure):
+        """Rows (r - r_0) . n = 0 of each slider's node: one for a plane, two (n normal to it) for a line."""
+        for i, spec in enumerate(structure["joints"]):
+            if spec["type"] != "slider":
+                continue
+            key = f"structure.joints.{item_label(i, spec)}"
+            if self.fidelity not in ("rigid", "flexible"):
+                raise SceneError(f"{key}.type", "slider", f"a joint of the rigid or flexible fidelity (not "
+                                                          f"{self.fidelity})")
+            node = self._node_at(f"{key}.span", spec["body"], spec["span"])
+            start = self.node_initial[node][0]
+            if spec["line"] is not None:
+                normals = _perpendiculars(np.asarray(spec["line"], float) / np.linalg.norm(spec["line"]))
+            else:
+                normals = [np.asarray(spec["plane_normal"], float) / np.linalg.norm(spec["plane_normal"])]
+            self.fixed_directions += [(3 * node + R, n, float(n @ start)) for n in normals]
 
     def _add_constraints(self):
         """Nonlinear internal constraints, each once per distinct slot combination (Otsuka et al. 2019, Eqs. 6, 17)."""
