@@ -77,10 +77,15 @@ def wing_panels(scene: dict) -> int:
     return bodies * chordwise * aero["spanwise_panels"]
 
 
+DEFORMABLE = ("flexible", "strain-based")
+"""The fidelities whose bodies deform: structure.elements_per_body elements each, free nodes, damping of
+deformation (the others: one element per body, Otsuka et al. 2019, Sec. IV)."""
+
+
 def body_elements(structure: dict) -> int:
-    """Elements per body of the resolved `structure` table: elements_per_body for the flexible and strain-based
-    fidelities, one for a rigid or prescribed body (Otsuka et al. 2019, Sec. IV)."""
-    return structure["elements_per_body"] if structure["fidelity"] in ("flexible", "strain-based") else 1
+    """Elements per body of the resolved `structure` table: elements_per_body for a DEFORMABLE fidelity, one
+    for a rigid or prescribed body."""
+    return structure["elements_per_body"] if structure["fidelity"] in DEFORMABLE else 1
 
 
 def structure_coordinates(scene: dict) -> int:

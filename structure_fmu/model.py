@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
+from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.shape_functions import shape_row
 from fmu_common.vectors import cross
 
@@ -35,7 +36,7 @@ class StructureModel:
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
         self.flexible = topology.fidelity == "flexible"      # the ANCF elastic force (strain-based: K q instead)
-        deformable = topology.fidelity in ("flexible", "strain-based")
+        deformable = topology.fidelity in DEFORMABLE
         # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
         rotary = np.array([s.rotary_inertia for s in sections])

@@ -11,7 +11,7 @@ import numpy as np
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
 
 from .integrators import RK4, GeneralizedAlpha, State, constrained_accelerations, project
-from .joint_monitors import joint_monitors
+from .joint_monitors import joint_monitors, monitor_names
 from .model import StructureModel
 from .strain_model import StrainBasedModel
 from .sensors import Sensors
@@ -223,8 +223,8 @@ class StructureSolver:
 
     def joint_monitor_names(self) -> list[str]:
         """Names of the joints' constraint monitors (`structure_fmu.joint_monitors`), in output order."""
-        top = self.topology
-        return list(joint_monitors(top.joint_lines, top.bodies, top.initial_coordinates()))
+        return [name for j in self.topology.joint_lines if j.parent is not None
+                for name in monitor_names(j.name, j.kind)]
 
     def joint_monitors(self) -> dict:
         """{<joint>_point_mismatch (m), <joint>_axis_product / _axis_error (-)} at the current state."""

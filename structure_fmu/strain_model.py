@@ -32,14 +32,31 @@ SUPPORTED_ROOTS = ("clamp", "pin", "driven", "revolute", "ball", "universal")
 
 class _Root:
     """How a body's root node is held: kind ('fixed', 'revolute', 'ball', 'universal', 'driven'), the parent
-    body (None: the ground), its axis, orientation and child axis (fmu_common.topology.JointLine), the ground
-    point (m), the offset of its parameters in q, and the SpinUp law of a driven root."""
+    body (None: the ground), its axis, orientation, child axis and initial fold angle (rad)
+    (fmu_common.topology.JointLine), the ground point (m), the offset of its parameters in q, and the SpinUp
+    law of a driven root."""
 
-    def __init__(self, kind, parent, axis, orientation, point, offset, motion=None, child_axis=None):
+    def __init__(self, kind, parent, axis, orientation, point, offset, motion=None, child_axis=None,
+                 initial_angle=0.0):
         self.kind, self.parent, self.axis, self.orientation = kind, parent, axis, orientation
-        self.child_axis = child_axis
+        self.child_axis, self.initial_angle = child_axis, initial_angle
         self.point, self.offset, self.motion = point, offset, motion
         self.size = 0 if kind == "driven" else sk.PARAMETERS[kind]
+
+    def ground(self):
+        """H (4, 3) of the ground the root hangs from: its point and the global axes."""
+        return np.vstack([self.point, np.eye(3)])
+
+    def driven(self, t):
+        """(H, dH/dt, d2H/dt2) (4, 3) each of a driven root at t (s): x(t) = pivot + R (x0 - pivot) + h and
+        g(t) = R g0 of the motion law (structure_fmu.motion)."""
+        k = self.motion.kinematics(t)
+        frame = (k.rotation @ self.orientation).T                  # rows r_x, r_y, r_z
+        arm = k.rotation @ (self.point - self.motion.pivot)
+        spin = lambda v: cross(k.alpha, v) + cross(k.omega, cross(k.omega, v))
+        return (np.vstack([self.motion.pivot + arm + k.translation, frame]),
+                np.vstack([cross(k.omega, arm) + k.velocity, cross(k.omega, frame)]),
+                np.vstack([spin(arm) + k.acceleration, spin(frame)]))
 
 
 class StrainBasedModel(StructureModel):
@@ -52,7 +69,7 @@ class StrainBasedModel(StructureModel):
         for name, body in topology.bodies.items():
             root = self._root(name, body, offset)
             self.roots[name] = root
-            eta0.append(sk.initial_parameters(root.kind, self._initial_angle(name), root.orientation)
+            eta0.append(sk.initial_parameters(root.kind, root.initial_angle, root.orientation)
                         if root.size else np.zeros(0))
             offset += root.size
             n_el = len(body.elements)
@@ -74,10 +91,6 @@ class StrainBasedModel(StructureModel):
         self._cache_mass = (None, None)
 
     # ---------------------------------------------------------------- construction
-    def _initial_angle(self, name):
-        line = next((j for j in self.top.joint_lines if j.child == name), None)
-        return line.initial_angle if line is not None else 0.0
-
     def _root(self, name, body, offset):
         _, joint = self.top.root_joints.get(name, (None, None))
         if joint is None:
@@ -94,7 +107,8 @@ class StrainBasedModel(StructureModel):
             axis = body.chord_axis if joint["axis"] == "chord" else start[:, 2]
             return _Root("revolute", None, axis, start, body.root, offset)
         line = next(j for j in self.top.joint_lines if j.child == name)
-        return _Root(kind, line.parent, line.axis, line.orientation, body.root, offset, child_axis=line.child_axis)
+        return _Root(kind, line.parent, line.axis, line.orientation, body.root, offset, child_axis=line.child_axis,
+                     initial_angle=line.initial_angle)
 
     # ---------------------------------------------------------------- kinematics
     def _configuration(self, q, t):
@@ -134,19 +148,14 @@ class StrainBasedModel(StructureModel):
     def _parent_state(self, root, H, dH, Ht):
         """(H, dH/dq, dH/dt) of what the root joint hangs from: the parent's tip node or the ground point."""
         if root.parent is None:
-            ground = np.vstack([root.point, np.eye(3)])
-            return ground, np.zeros((4, 3, self.n_q)), np.zeros((4, 3))
+            return root.ground(), np.zeros((4, 3, self.n_q)), np.zeros((4, 3))
         tip = self.top.bodies[root.parent].nodes[-1]
         return H[tip], dH[tip], Ht[tip]
 
     def _root_state(self, root, q, t, H, dH, Ht):
         """(H, dH/dq, dH/dt) of a body's root node (Otsuka et al. 2022, Eq. 8: H_root = C(eta) H_parent)."""
         if root.kind == "driven":
-            k = root.motion.kinematics(t)
-            frame = k.rotation @ root.orientation
-            arm = k.rotation @ (root.point - root.motion.pivot)
-            Hr = np.vstack([root.motion.pivot + arm + k.translation, frame.T])
-            rate = np.vstack([cross(k.omega, arm) + k.velocity, cross(k.omega, frame.T)])
+            Hr, rate, _ = root.driven(t)
             return Hr, np.zeros((4, 3, self.n_q)), rate
         Hp, dHp, Htp = self._parent_state(root, H, dH, Ht)
         eta = q[root.offset:root.offset + root.size]
@@ -184,13 +193,9 @@ class StrainBasedModel(StructureModel):
     def _root_acceleration(self, root, q, dq, t, H, Hd, Hdd):
         """d2H/dt2 of a root node at zero parameter accelerations."""
         if root.kind == "driven":
-            k = root.motion.kinematics(t)
-            frame = (k.rotation @ root.orientation).T
-            arm = k.rotation @ (root.point - root.motion.pivot)
-            spin = lambda v: cross(k.alpha, v) + cross(k.omega, cross(k.omega, v))
-            return np.vstack([spin(arm) + k.acceleration, spin(frame)])
+            return root.driven(t)[2]
         if root.parent is None:
-            Hp, Hpd, Hpdd = np.vstack([root.point, np.eye(3)]), np.zeros((4, 3)), np.zeros((4, 3))
+            Hp, Hpd, Hpdd = root.ground(), np.zeros((4, 3)), np.zeros((4, 3))
         else:
             tip = self.top.bodies[root.parent].nodes[-1]
             Hp, Hpd, Hpdd = H[tip], Hd[tip], Hdd[tip]

@@ -29,6 +29,7 @@ import numpy as np
 
 from fmu_common import topology
 from fmu_common.errors import SceneError
+from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.scene_schema import PARENT_JOINTS
 from fmu_common.schema import item_label
 
@@ -190,7 +191,7 @@ class StructureTopology(topology.Topology):
             root = [self._new_free(r0), self._new_free(x0), self._new_free(y0)]
         self.slots += root
         for node in body.nodes[1:]:
-            if self.fidelity in ("flexible", "strain-based"):   # strain-based: E on the same node slots
+            if self.fidelity in DEFORMABLE:   # strain-based too: its E has the same node slots
                 r_i, x_i, y_i = self.node_initial[node]
                 self.slots += [self._new_free(r_i), self._new_free(x_i), self._new_free(y_i)]
             else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17)
@@ -288,7 +289,7 @@ class StructureTopology(topology.Topology):
                 self.orthogonal_slots.append(tuple(slots))
 
         for body in self.bodies.values():
-            nodes = body.nodes if self.fidelity in ("flexible", "strain-based") else body.nodes[:1]
+            nodes = body.nodes if self.fidelity in DEFORMABLE else body.nodes[:1]
             for node in nodes:
                 if self.fidelity == "rigid":
                     add("unit", [3 * node + RX])
