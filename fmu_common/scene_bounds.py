@@ -82,17 +82,18 @@ DEFORMABLE = ("flexible", "strain-based")
 deformation (the others: one element per body, Otsuka et al. 2019, Sec. IV)."""
 
 
-def body_elements(structure: dict) -> int:
-    """Elements per body of the resolved `structure` table: elements_per_body for a DEFORMABLE fidelity, one
-    for a rigid or prescribed body."""
+def body_elements(structure: dict, body: dict) -> int:
+    """Elements of the resolved `body` of the resolved `structure` table: its own `elements` if given, else
+    elements_per_body for a DEFORMABLE fidelity and one for a rigid or prescribed body."""
+    if body.get("elements") is not None:
+        return body["elements"]
     return structure["elements_per_body"] if structure["fidelity"] in DEFORMABLE else 1
 
 
 def structure_coordinates(scene: dict) -> int:
-    """Exchanged coordinates: 9 per node, elements + 1 nodes per body (one element for a rigid or prescribed
-    body)."""
+    """Exchanged coordinates: 9 per node, elements + 1 nodes per body."""
     structure = scene["structure"]
-    return 9 * (body_elements(structure) + 1) * len(structure["bodies"])
+    return 9 * sum(body_elements(structure, body) + 1 for body in structure["bodies"])
 
 
 def communication_steps(scene: dict) -> int:
@@ -107,17 +108,21 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     gauge, monitor and aero column) plus ROW_BYTES; structure: about 14 dense matrices of the coordinates'
     size (maps, mass, tangent and constraint matrices, the LU and their temporaries); aero: about 12 dense
     matrices of the bound panels' size (influence, their contractions, the LU, temporaries); aero input
-    record: e and de of each aero step, at most AERO_INPUT_RECORD_VALUES numbers; shed wake: 4 numbers per
-    corner (position, circulation) of at most MAX_WAKE_ROWS rows, in about 8 copies (states saved for
-    implicit coupling, the velocities of a free wake). The factors were measured on the shipped scenes
-    refined (structure: 50 and 100 elements per body; aero: 1024 and 2048 panels).
+    record: e and de of each aero step, at most AERO_INPUT_RECORD_VALUES numbers; structure coordinate record:
+    E of each communication step (a numpy row and its time, a float in a list: ROW_BYTES + 32 bytes beyond
+    its numbers), thinned to about AERO_INPUT_RECORD_VALUES numbers (``orchestrator.master.StructureCoordinates``);
+    shed wake: 4 numbers per corner (position, circulation) of at most MAX_WAKE_ROWS rows, in about 8 copies
+    (states saved for implicit coupling, the velocities of a free wake). The factors were measured on the
+    shipped scenes refined (structure: 50 and 100 elements per body; aero: 1024 and 2048 panels).
     """
     steps = communication_steps(scene)
     hinges = sum(1 for j in scene["structure"]["joints"] if j["type"] == "revolute")
     columns = 1 + 3 * len(scene["probes"]) + hinges + len(scene["strain_gauges"]) + 3 + 4
     n = structure_coordinates(scene)
+    kept = min(steps, math.ceil(steps / math.ceil(steps * n / AERO_INPUT_RECORD_VALUES)) + 1)
     parts = {"time series": ("time.stop", steps * (8.0 * columns + ROW_BYTES)),
-             "structure matrices": ("structure.elements_per_body", 14 * 8.0 * n * n)}
+             "structure matrices": ("structure.elements_per_body", 14 * 8.0 * n * n),
+             "structure coordinate record": ("time.stop", kept * (8.0 * n + ROW_BYTES + 32))}
     panels = wing_panels(scene)
     if panels:
         aero = scene["aero"]

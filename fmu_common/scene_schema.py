@@ -11,18 +11,22 @@ another table (a probe's chord is its body's axis position); optional tables ([s
 
 What `resolve_scene` checks: types, ranges, unknown keys (everywhere), unique names, the rules inside one
 table (a plate section needs all three of thickness, density and Young's modulus), references that a
-default needs (a probe's body), and the size bounds (`fmu_common.scene_bounds`). The relations between
-tables that building the units checks stay there: a joint's bodies exist, hinges form a tree, a body root
-carries one joint, a mass sits at a node (`fmu_common.topology`, `structure_fmu.topology`), and a probe
-lies within its body (`orchestrator.scene`).
+default needs (a probe's body), and the size bounds (`fmu_common.scene_bounds`); it expands the scissor chains
+of `structure.scissors` into bodies, joints and probes (`fmu_common.scissors`). The relations between tables
+that building the units checks stay there: a joint's bodies exist, parent-child joints form a tree, a body root
+carries one joint, a mass, pin or slider sits at a node and a pin's two nodes coincide (`fmu_common.topology`,
+`structure_fmu.topology`, `structure_fmu.pins`), and a probe lies within its body (`orchestrator.scene`).
 """
 from __future__ import annotations
 
 import copy
 
+import numpy as np
+
 from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
+from .scissors import expand_scissors
 from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, Table, Tables, Text, Variants,
                      Vector, item_label)
 
@@ -32,6 +36,9 @@ AERO_MODELS = ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
 SPAN_CORRECTIONS = ("helmbold", "none")
 FIDELITIES = ("prescribed", "rigid", "flexible", "strain-based")
 PARENT_JOINTS = ("revolute", "ball", "universal")
+PIN_AXES = ("chord", "normal", "free")
+SCISSOR_ENDS = ("free", "pin", "slide_across", "slide_along")
+MAX_SCISSORS = 50
 """The joint types that may join a parent body's tip to a child's root (the others hold a root to the ground)."""
 INTEGRATORS = ("rk4", "generalized-alpha")
 DAMPING_MODELS = ("deformation", "mass-proportional")
@@ -124,6 +131,10 @@ BODY = Table({
                          "(a hinge's child: its parent's, if given)", nonzero=True),
     "damping": non_negative("1/s", "alpha: damping of deformation or of all motion (structure.damping_model)",
                             0.0),
+    "elements": Integer("-", Absent("structure.elements_per_body; 1 in the rigid and prescribed fidelities"),
+                        "elements along this body: a rigid body stays rigid whatever its count, its nodes are where "
+                        "pins, sliders, masses and loads can sit", low=1, high=MAX_ELEMENTS_PER_BODY,
+                        why=DENSE_STRUCTURE),
     "angular_velocity": Vector("rad/s", Absent("at rest"), "initial rigid rotation rate about the root, global "
                                                             "frame"),
     "section": SECTION,
@@ -143,10 +154,18 @@ _ORIENTATION = Vector("deg", [0.0, 0.0, 0.0], "the child's initial orientation r
 JOINT = Variants("type", {
     "clamp": Table({"body": Name("-", REQUIRED, _BODY_REF)}, doc="the root node of `body` is fixed"),
     "pin": Table({
+        "name": Name("-", Absent("unnamed: messages name it by its index"), "joint name"),
         "body": Name("-", REQUIRED, _BODY_REF),
-        "axis": Choice("-", "chord", "rotation axis: about the chord r_y, or about the section normal r_x x r_y",
-                       options=("chord", "normal")),
-    }, doc="the root of `body` is fixed in position and free to rotate about one axis"),
+        "span": non_negative("m", "position of the pinned node from the body root; must be a node of the body", 0.0),
+        "other": Name("-", Absent("the ground: the point stays where it starts"),
+                      "the body the point is shared with"),
+        "other_span": non_negative("m", "position of the shared node on `other` from its root; must be a node", 0.0),
+        "axis": Choice("-", "chord", "rotation axis: about the chord r_y (shared by the two nodes), about the "
+                                     "section normal r_x x r_y, or free (a ball: only the point is shared)",
+                       options=PIN_AXES),
+    }, doc="a point shared by the node of `body` at `span` and the node of `other` at `other_span` (or fixed in "
+           "space), free to rotate about one axis or fully (Peng et al. 2019, Sec. 2.2: shared coordinates); the "
+           "two nodes must coincide at t = 0"),
     "driven": Table({
         "body": Name("-", REQUIRED, _BODY_REF),
         "law": Choice("-", "spin_up", "angle law: spin_up is Otsuka et al. 2019, Eq. 27", options=("spin_up",)),
@@ -195,13 +214,57 @@ JOINT = Variants("type", {
         "name": Name("-", REQUIRED, "joint name"),
         "body": Name("-", REQUIRED, _BODY_REF),
         "span": non_negative("m", "position of the node from the body root; must be a node of the body", 0.0),
-        "line": Vector("-", Absent("none: plane_normal gives a plane"), "direction of the fixed line, global",
-                       nonzero=True),
-        "plane_normal": Vector("-", Absent("none: line gives a line"), "normal of the fixed plane, global",
-                               nonzero=True),
-    }, doc="the node of `body` at `span` stays on a fixed line or plane through its position at t = 0 (ANCF "
-           "fidelities); it holds no root", rules=(_slider_rule,)),
-}, doc="what holds a body's root, at most one joint per root; or a slider")
+        "line": Vector("-", Absent("none: plane_normal gives a plane"), "direction of the line: global components, "
+                       "or with `other` components along that node's span, chord and normal", nonzero=True),
+        "plane_normal": Vector("-", Absent("none: line gives a line"), "normal of the plane; components as for "
+                               "line", nonzero=True),
+        "other": Name("-", Absent("the ground: the line or plane is fixed in space"),
+                      "the body that carries the line or plane"),
+        "other_span": non_negative("m", "the node of `other` whose frame carries the line or plane; must be a node",
+                                   0.0),
+    }, doc="the node of `body` at `span` stays on a line or plane through its position at t = 0, fixed in space or "
+           "in the frame of a node of `other` (ANCF fidelities); it holds no root", rules=(_slider_rule,)),
+}, doc="what holds a body's root (at most one joint per root), a pin at any node, or a slider")
+
+def _scissor_rule(key: str, chain: dict) -> None:
+    """The height axis is perpendicular to the direction; bars have an even element count (a mid-length node)."""
+    d, h = (np.asarray(chain[name], float) for name in ("direction", "height_axis"))
+    if abs(d @ h) > 1e-9 * np.linalg.norm(d) * np.linalg.norm(h):
+        raise SceneError(f"{key}.height_axis", chain["height_axis"], "a direction perpendicular to direction")
+    if chain["elements_per_bar"] is not None and chain["elements_per_bar"] % 2:
+        raise SceneError(f"{key}.elements_per_bar", chain["elements_per_bar"], "an even count: the mid-length pivot "
+                                                                              "is a node")
+
+
+_SCISSOR_END = lambda where: Choice("-", "free", f"the {where}: free, pinned to the ground (about the chord), or "
+                                                 "kept on a line through its start across the chain (along "
+                                                 "height_axis) or along it (along direction)", options=SCISSOR_ENDS)
+SCISSOR = Table({
+    "name": Name("-", REQUIRED, "chain name: its bars are <name>_up<i> and <name>_down<i> (i = 1..count), its "
+                                "pins and probes <name>_a<i>, <name>_b<i>, <name>_c<i>"),
+    "count": Integer("-", REQUIRED, "scissor-like elements (SLEs) in the chain", low=1, high=MAX_SCISSORS,
+                     why="each SLE adds two bodies"),
+    "bar_length": positive("m", "length of each bar, pinned to its partner at mid-length"),
+    "initial_angle_deg": Number("deg", REQUIRED, "angle theta between the bars and direction at t = 0 (90: folded, "
+                                                 "0: flat); deploying decreases it", low=0.0, high=90.0,
+                                low_open=True, high_open=True),
+    "origin": Vector("m", [0.0, 0.0, 0.0], "position of the first lower end b_1"),
+    "direction": Vector("-", [1.0, 0.0, 0.0], "direction d in which the chain deploys", nonzero=True),
+    "height_axis": Vector("-", [0.0, 1.0, 0.0], "direction h from the lower ends b_i to the upper ends a_i, "
+                                                "perpendicular to direction; the pins turn about d x h, every "
+                                                "bar's chord", nonzero=True),
+    "elements_per_bar": Integer("-", Absent("2 in the rigid fidelity; structure.elements_per_body rounded up to "
+                                            "even in the flexible one"), "elements of each bar (even)", low=2,
+                                high=MAX_ELEMENTS_PER_BODY, why=DENSE_STRUCTURE),
+    "damping": non_negative("1/s", "alpha of each bar (structure.damping_model)", 0.0),
+    "start_lower": _SCISSOR_END("lower end b_1 of the first SLE"),
+    "start_upper": _SCISSOR_END("upper end a_1 of the first SLE"),
+    "end_upper": _SCISSOR_END("upper end a_{count+1} of the last SLE"),
+    "end_lower": _SCISSOR_END("lower end b_{count+1} of the last SLE"),
+    "section": SECTION,
+}, doc="A planar chain of scissor-like elements (Peng et al. 2019, Sec. 2): two bars pinned at mid-length, "
+       "chained at their ends; expanded into bodies, pins, sliders and probes (fmu_common.scissors)",
+    rules=(_scissor_rule,))
 
 MASS = Table({
     "body": Name("-", REQUIRED, _BODY_REF),
@@ -322,8 +385,9 @@ SCENE = Table({
                                                     "Otsuka et al. 2019, Sec. II.C write it)",
                                 options=DAMPING_MODELS),
         "gravity": Vector("m/s^2", [0.0, 0.0, 0.0], "gravity vector, global frame"),
-        "bodies": Tables(BODY, "body", default=REQUIRED, min_items=1),
+        "bodies": Tables(BODY, "body", doc="at least one, here or from structure.scissors"),
         "joints": Tables(JOINT, "joint"),
+        "scissors": Tables(SCISSOR, "scissor chain"),
         "masses": Tables(MASS, "lumped mass"),
         "loads": Tables(LOAD, "point load"),
         "motion": MOTION,
@@ -358,11 +422,21 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     if not isinstance(raw, dict):
         raise SceneError("<top level>", raw, "a TOML table")
     scene = SCENE.resolve("", raw)
+    expand_scissors(scene, _resolve_item)
+    if not scene["structure"]["bodies"]:
+        raise SceneError("structure.bodies", MISSING, "at least one body (an array of tables [[structure.bodies]], "
+                                                      "or a chain [[structure.scissors]])")
     if scene["name"] is None:
         scene["name"] = SCENE.keys["name"].check("name", default_name)
     fill_derived_defaults(scene)
     check_sizes(scene)
     return scene
+
+
+def _resolve_item(section: str, key: str, raw: dict) -> dict:
+    """One raw table of the array `section` (structure.bodies, structure.joints or probes) resolved at `key`."""
+    item = {"bodies": BODY, "joints": JOINT, "probes": PROBE}[section]
+    return item.resolve(key, raw)
 
 
 def _bodies_by_name(scene: dict) -> dict[str, dict]:

@@ -95,11 +95,10 @@ class Topology:
         top = cls()
         structure = scene["structure"]
         top.fidelity = structure["fidelity"]
-        n_el = body_elements(structure)
         specs = {spec["name"]: (body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
         parent_of = top._parse_joints(structure["joints"], specs)
         for name in _body_order(specs, parent_of):
-            top._add_body(name, specs[name], n_el)
+            top._add_body(name, specs[name], body_elements(structure, specs[name][1]))
         return top
 
     def _parse_joints(self, joints, specs) -> dict:
@@ -108,15 +107,13 @@ class Topology:
         for i, spec in enumerate(joints):
             key = f"structure.joints.{item_label(i, spec)}"
             kind = spec["type"]
-            if kind == "slider":        # holds a node, not the root: the structure unit's
-                if spec["body"] not in specs:
-                    raise SceneError(f"{key}.body", spec["body"], f"one of the bodies {sorted(specs)}")
-                continue
             jointed = kind in PARENT_JOINTS
-            fields = ("parent", "child") if jointed else ("body",)
+            fields = ("parent", "child") if jointed else ("body", "other") if "other" in spec else ("body",)
             for field_name in fields:
                 if spec[field_name] is not None and spec[field_name] not in specs:
                     raise SceneError(f"{key}.{field_name}", spec[field_name], f"one of the bodies {sorted(specs)}")
+            if not holds_root(spec):    # a node shared or kept on a line: the structure unit's
+                continue
             target = spec["child"] if jointed else spec["body"]
             if target in self.root_joints:
                 raise SceneError(key, target, "a body root can carry only one joint")
@@ -269,6 +266,15 @@ class Topology:
             "joints": [[j.name, j.kind, j.parent, j.child] for j in self.joint_lines],
         }
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def holds_root(joint: dict) -> bool:
+    """Whether the resolved `joint` holds its body's root (at most one per root): a clamp, a driven root, a
+    revolute, ball or universal joint, or a pin of the root node to the ground; not a slider, nor a pin
+    elsewhere or between two bodies."""
+    if joint["type"] == "slider":
+        return False
+    return joint["type"] != "pin" or (joint["other"] is None and joint["span"] == 0.0)
 
 
 def body_key(index: int, spec: dict) -> str:

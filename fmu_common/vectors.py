@@ -28,3 +28,13 @@ def rotation_about(axis, angle):
     """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
     k = skew(axis)
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+def perpendiculars(axis):
+    """(p_1, p_2): unit vectors with (p_1, p_2, axis) a right-handed orthonormal triad for a unit axis (3,); p_1
+    from the frame direction least along the axis (for the chord: p_1 = span, p_2 = -normal)."""
+    axis = np.asarray(axis, dtype=float)
+    k = int(np.argmin(np.abs(axis)))
+    p1 = np.eye(3)[k] - axis[k] * axis
+    p1 /= np.linalg.norm(p1)
+    return p1, np.cross(axis, p1)

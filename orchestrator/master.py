@@ -34,6 +34,10 @@ aero unit can be replayed in-process after the run, e.g. for the 3D picture of w
 (``orchestrator.wake_view``): with explicit coupling the aero unit's state is a deterministic function of
 these inputs; with implicit coupling too, up to the aero unit's reuse of its factorization within a
 rigid-motion tolerance across the rejected iterates (about 1e-10 relative, see ``orchestrator.wake_view``).
+
+Every run also keeps, in memory, the structure unit's exchanged coordinates E at the communication points
+(``StructureCoordinates``, the structure unit's output ``e``, read after the step like the monitors), for the
+picture of the mechanism at several instants (``orchestrator.mechanism_view``).
 """
 
 from __future__ import annotations
@@ -54,14 +58,57 @@ from orchestrator.progress import Progress
 from orchestrator.scene import hinge_joints, joint_monitor_names
 from orchestrator.timeseries import AERO_COLUMNS, COUPLING_COLUMNS, TimeSeries
 from fmu_common.errors import SolverDiverged
+from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
 
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error")
 
+STRUCTURE_RECORD_VALUES = AERO_INPUT_RECORD_VALUES
+"""The structure coordinates are recorded up to about this many numbers (8 bytes each), the bound of the aero
+inputs' record (``fmu_common.scene_bounds.memory_estimate`` counts both)."""
+
 
 class CouplingError(RuntimeError):
     """The units cannot be connected (different topologies or sizes); raised before any step."""
+
+
+@dataclass
+class StructureCoordinates:
+    """The structure unit's exchanged coordinates E at communication points: ``t`` (s) and ``e`` ((n,) each,
+    9 per node: r (m), r_x and r_y (-), global frame; ``fmu_common.topology``).
+
+    Bounded: every ``stride``-th communication point is kept (t = 0 first), with ``stride`` the smallest that
+    keeps the whole run within ``STRUCTURE_RECORD_VALUES`` numbers (``for_run``; 1, every point, unless the
+    run is very long). Past that bound the record is thinned, not stopped: the latest point is always kept
+    as well, so the record ends where the run stopped (the end, or the last point before a failure)."""
+
+    stride: int = 1
+    t: list = field(default_factory=list)
+    e: list = field(default_factory=list)
+    _count: int = field(default=0, init=False, repr=False)                 # points offered so far
+    _tail_off_stride: bool = field(default=False, init=False, repr=False)  # the last kept point is there only
+                                                                           # because it is the latest
+
+    @classmethod
+    def for_run(cls, points: int, n: int, max_values: int = STRUCTURE_RECORD_VALUES) -> "StructureCoordinates":
+        """The record of a run of ``points`` communication points with ``n`` coordinates each, within about
+        ``max_values`` numbers."""
+        return cls(stride=max(1, math.ceil(points * n / max_values)))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def append(self, t: float, e: np.ndarray) -> None:
+        """Offer the E (n,) at communication point t (s); kept if on the stride or, until the next one, as
+        the latest."""
+        if self._tail_off_stride:
+            self.t.pop()
+            self.e.pop()
+        self._tail_off_stride = self._count % self.stride != 0
+        self._count += 1
+        self.t.append(float(t))
+        self.e.append(np.array(e, dtype=float))
 
 
 @dataclass
@@ -79,6 +126,7 @@ class RunResult:
                                                 # initialized before): / simulated time = real-time factor
     latch_times: dict = field(default_factory=dict)   # s, {hinge: time it latched}, as the structure unit
                                                       # reported at the last recorded communication point
+    structure_coordinates: StructureCoordinates | None = None   # the structure's E at communication points
 
 
 def communication_times(stop: float, step: float) -> np.ndarray:
@@ -188,6 +236,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     status, message, reached, stepping, latch_times = "ok", "", 0.0, None, {}
     structure = aero = scheme = None
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
+    coordinates = None
     phase = "starting the structure unit"
     try:
         structure = units.make_unit(kind="structure", scene=scene, backend=backend, fmu_dir=fmu_dir)
@@ -200,14 +249,20 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
             phase = "connecting the structure and aero units"
             check_connection(structure, aero)
         times = communication_times(stop, scene["coupling"]["step"])
+        coordinates = StructureCoordinates.for_run(len(times), structure.n)
         phase = "reading the initial outputs"
         scheme = make_scheme(scene, structure, aero, aero_inputs)
-        latch_times = _record(series, structure, aero, times[0], coupling=scheme.start())
+        start_coupling = scheme.start()
+        e = structure.get_outputs()[0]   # one read of e and the monitors, which _record then uses
+        latch_times = _record(series, structure, aero, times[0], coupling=start_coupling)
+        coordinates.append(times[0], e)
         stepping_start = _time.perf_counter()
         for t0, t1 in zip(times[:-1], times[1:]):
             phase = f"the step from t = {t0:.6g} s"
             step_coupling = scheme.advance(t0, t1)
+            e = structure.get_outputs()[0]
             latch_times = _record(series, structure, aero, t1, coupling=step_coupling)
+            coordinates.append(t1, e)
             reached = t1
             if progress is not None:
                 progress.update(t1)
@@ -231,4 +286,4 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     if progress is not None:
         progress.finish(reached, status)
     return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs,
-                     stepping, latch_times)
+                     stepping, latch_times, coordinates)

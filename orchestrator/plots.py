@@ -9,8 +9,12 @@
   monitors (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
 - ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
 - ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
-  aero unit in-process with the recorded inputs (``orchestrator.wake_view``; capped in wall time). A
-  failure there prints a warning and never affects the other plots or the run's status.
+  aero unit in-process with the recorded inputs (``orchestrator.wake_view``; capped in wall time);
+- ``mechanism.png``: the bodies' reference lines at 5 instants from t = 0 to the end, from the structure
+  coordinates the master recorded (``orchestrator.mechanism_view``), in the mechanism's plane when it is
+  planar, else in 3D.
+
+A failure of one of the two pictures prints a warning and never affects the other plots or the run's status.
 
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
 that name from an earlier run in the same folder is removed.
@@ -161,4 +165,13 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     except Exception as err:  # the picture is a courtesy: never fail the run or the other plots
         (out_dir / "wake_3d.png").unlink(missing_ok=True)  # no stale picture of an earlier run
         print(f"warning: wake picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    try:
+        from orchestrator.mechanism_view import write_mechanism_view
+
+        path = write_mechanism_view(result, out_dir)
+        if path is not None:
+            written.append(path)
+    except Exception as err:  # as the wake picture
+        (out_dir / "mechanism.png").unlink(missing_ok=True)
+        print(f"warning: mechanism picture not written: {type(err).__name__}: {err}", file=sys.stderr)
     return written

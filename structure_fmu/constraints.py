@@ -4,19 +4,45 @@ Otsuka et al. 2022, Sec. 3).
 The internal constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c_i:
   unit length   (|v|^2 - 1) / 2 = 0        (Otsuka et al. 2019, Eq. 6 row 1 for r_y; Eq. 17 rows 1-2)
   orthogonality a . b = 0                  (Otsuka et al. 2019, Eq. 6 row 2; Eq. 17 row 3)
-  fixed plane   v . n = c                  (a pin about the section normal: a gradient in the plane, c = 0; a
-                                           slider: a node's r on a fixed plane or line, c = n . its start)
-so their Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap. The joints'
-axis products (`AxisProduct`: universal and revolute joints whose axis is not a shared chord) are quartic in E
-at most. The linear rows of Eq. (17) and the shared joint points are eliminated by the coordinate map
-E = T q + P p (topology.py); the integrators need the Jacobian on the free coordinates q, G_q = G T
-(Otsuka et al. 2019, Eq. 4's Phi_q).
+so their Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap. The linear rows
+(`LinearRow`: sum_k a_k X_k . n = c) have a constant Jacobian: a pin about the section normal (a gradient in the
+plane), a slider on a fixed plane or line, a closed loop's shared point. The joints' axis products
+(`AxisProduct`: universal and revolute joints whose axis is not a shared chord) are quartic in E at most, the
+sliding rows between two bodies (`joint_rows.SlidingRow`) cubic. The linear rows of Eq. (17) and the shared joint
+points are eliminated by the coordinate map E = T q + P p (topology.py); the integrators need the Jacobian on the
+free coordinates q, G_q = G T (Otsuka et al. 2019, Eq. 4's Phi_q).
 """
 from dataclasses import dataclass
 
 import numpy as np
 
 from fmu_common.vectors import cross, skew
+
+from .joint_rows import SlidingRow, SlidingRows  # noqa: F401 (SlidingRow: the row type topology.py builds)
+
+
+@dataclass(frozen=True)
+class LinearRow:
+    """A linear row Phi = sum_k a_k X_{s_k} . n - c = 0 (m) on the 3-vector slots s_k of E (X = E.reshape(-1, 3)).
+
+    A fixed plane through c n (|n| = 1) of slot s is LinearRow((s,), (1.0,), n, c); a pin closing a loop between
+    slots s_a, s_b is three rows LinearRow((s_a, s_b), (1.0, -1.0), e_k, 0.0), k = x, y, z.
+
+    slots: slots (`StructureTopology.slots`), ints. coefficients: a_k, dimensionless, one per slot. normal: n,
+    (3,), global components. offset: c, m for a position slot (dimensionless for a gradient slot).
+    """
+
+    slots: tuple[int, ...]
+    coefficients: tuple[float, ...]
+    normal: np.ndarray
+    offset: float
+
+    def __post_init__(self):
+        if not self.slots or len(self.slots) != len(self.coefficients):
+            raise ValueError(f"a LinearRow needs one coefficient per slot, at least one slot: slots {self.slots}, "
+                             f"coefficients {self.coefficients}")
+        if np.shape(self.normal) != (3,):
+            raise ValueError(f"a LinearRow's normal is a 3-vector, not of shape {np.shape(self.normal)}")
 
 
 @dataclass(frozen=True)
@@ -148,96 +174,108 @@ class Constraints:
     to E = T q + P p (`T`, (n, n_q), `StructureTopology.maps`).
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
-    X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0), the fixed-plane
-    rows are X_s . n; the joints' `AxisProduct` rows (`AxisProducts`) come last: rows are ordered unit,
-    orthogonality, plane, axis. Every evaluation gathers E through flat index arrays built once (these run
-    several times per time step on small arrays).
+    X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0); the `LinearRow`s
+    (`topology.linear_rows`) are L E - c with a constant (m, n) matrix L; the joints' `AxisProduct` rows
+    (`AxisProducts`) and the `SlidingRow`s between bodies (`SlidingRows`) come last. Rows are ordered unit,
+    orthogonality, linear, axis, sliding (`blocks`: their slices). Every evaluation gathers E through flat index
+    arrays or matrices built once (these run several times per time step on small arrays).
 
-    The axis rows are quartic: their velocity term and Hessian depend on E as well as on dE and the
-    multipliers: `velocity_quadratic` and `hessian_sum` take E."""
+    The axis and sliding rows are nonlinear beyond quadratic: their velocity term and Hessian depend on E as well
+    as on dE and the multipliers: `velocity_quadratic` and `hessian_sum` take E."""
 
     def __init__(self, topology, T):
         self.unit = np.array(topology.unit_slots, dtype=int)
         self.ortho = np.array(topology.orthogonal_slots, dtype=int).reshape(-1, 2)
-        self.plane = np.array([s for s, _, _ in topology.fixed_directions], dtype=int)
-        self.plane_normal = np.array([n for _, n, _ in topology.fixed_directions]).reshape(-1, 3)
-        self._plane_offset = np.array([c for _, _, c in topology.fixed_directions], dtype=float)
         self.n = topology.n_coordinates
+        T = np.asarray(T, dtype=float)
+        self._linear_matrix = _linear_matrix(topology.linear_rows, self.n)
+        self._linear_offset = np.array([row.offset for row in topology.linear_rows], dtype=float)
+        self._linear_jacobian = self._linear_matrix @ T
+        self._linear_zeros = np.zeros(len(self._linear_offset))
         self.axes = AxisProducts(topology.axis_products, T, self.n)
-        self.count = len(self.unit) + len(self.ortho) + len(self.plane) + self.axes.count
+        self.sliding = SlidingRows(topology.sliding_rows, T, self.n)
         nu, no = len(self.unit), len(self.ortho)
+        sizes = {"unit": nu, "orthogonal": no, "linear": len(self._linear_offset), "axis": self.axes.count,
+                 "sliding": self.sliding.count}
+        ends = np.cumsum(list(sizes.values()))
+        # {kind: slice of its rows}, kinds in row order
+        self.blocks = {name: slice(end - size, end) for (name, size), end in zip(sizes.items(), ends)}
+        self.count = int(ends[-1])
         a, b = np.concatenate([self.unit, self.ortho[:, 0]]), np.concatenate([self.unit, self.ortho[:, 1]])
         components = np.arange(3)
         flat = lambda slots: (3 * slots[:, None] + components).ravel()          # E indices of the slots
-        self._ia, self._ib, self._ip = flat(a), flat(b), flat(self.plane)
+        self._ia, self._ib = flat(a), flat(b)
         self._coefficient = np.repeat([0.5, 1.0], [nu, no])
         self._velocity_coefficient = 2.0 * self._coefficient
         self._constant = np.repeat([-0.5, 0.0], [nu, no])
-        self._plane_normal = self.plane_normal.ravel()
-        self._plane_zeros = np.zeros(len(self.plane))
         # G_q row of a product: c (X_b^T T_a + X_a^T T_b), T_s the three rows of T of slot s. With the pair
         # [X_a, X_b] gathered as one 6-vector it is one small product with the stacked c [T_b; T_a] (6, n_q).
-        T = np.asarray(T, dtype=float)
         self._n_free = T.shape[1]
         self._pair = np.concatenate([self._ia.reshape(-1, 3), self._ib.reshape(-1, 3)], axis=1).ravel()
         slot_rows = lambda flat_index: T[flat_index].reshape(len(flat_index) // 3, 3, self._n_free)
         self._pair_rows = self._coefficient[:, None, None] * np.concatenate([slot_rows(self._ib), slot_rows(self._ia)],
                                                                             axis=1)
         self._swapped = np.concatenate([self._ib.reshape(-1, 3), self._ia.reshape(-1, 3)], axis=1).ravel()
-        self._plane_jacobian = np.einsum("sk,skj->sj", self.plane_normal, slot_rows(self._ip))
         # H_i entries: (slot row, slot column, constraint) pairs, each on the three components
         rows, cols, which = (np.concatenate(v) for v in zip((a, b, np.arange(nu + no)),
                                                              (self.ortho[:, 1], self.ortho[:, 0], nu + np.arange(no))))
         self._hessian_entries = ((3 * rows[:, None] + components) * self.n + 3 * cols[:, None] + components).ravel()
         self._hessian_multiplier = np.repeat(which, 3)
 
+    def _parts(self, products, linear, axes, sliding):
+        """The rows of each kind concatenated in row order; the callables are evaluated only for kinds with rows."""
+        parts = [products]
+        for kind, part in (("linear", linear), ("axis", axes), ("sliding", sliding)):
+            if self.blocks[kind].stop > self.blocks[kind].start:
+                parts.append(part())
+        return np.concatenate(parts) if len(parts) > 1 else products
+
     def residual(self, E):
         """Phi(E), shape (count,)."""
         products = (E[self._ia] * E[self._ib]).reshape(-1, 3).sum(axis=1) * self._coefficient + self._constant
-        parts = [products]
-        if len(self.plane):
-            parts.append((E[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1) - self._plane_offset)
-        if self.axes.count:
-            parts.append(self.axes.residual(E))
-        return np.concatenate(parts) if len(parts) > 1 else products
+        return self._parts(products, lambda: self._linear_matrix @ E - self._linear_offset,
+                           lambda: self.axes.residual(E), lambda: self.sliding.residual(E))
 
     def jacobian(self, E):
         """G_q = dPhi/dq = (dPhi/dE) T at E, dense (count, n_q)."""
         pairs = E[self._pair].reshape(-1, 1, 6) @ self._pair_rows
         products = pairs.reshape(len(self._pair_rows), self._n_free)
-        parts = [products]
-        if len(self.plane):
-            parts.append(self._plane_jacobian)
-        if self.axes.count:
-            parts.append(self.axes.jacobian(E))
-        return np.concatenate(parts) if len(parts) > 1 else products
+        return self._parts(products, lambda: self._linear_jacobian, lambda: self.axes.jacobian(E),
+                           lambda: self.sliding.jacobian(E))
 
     def rate(self, E, dE):
         """dPhi/dt = (dPhi/dE) dE at E for a rate dE (n,) on the exchanged coordinates, shape (count,)."""
         pairs = (E[self._pair] * dE[self._swapped]).reshape(-1, 6).sum(axis=1) * self._coefficient
-        parts = [pairs]
-        if len(self.plane):
-            parts.append((dE[self._ip] * self._plane_normal).reshape(-1, 3).sum(axis=1))
-        if self.axes.count:
-            parts.append(self.axes.rate(E, dE))
-        return np.concatenate(parts) if len(parts) > 1 else pairs
+        return self._parts(pairs, lambda: self._linear_matrix @ dE, lambda: self.axes.rate(E, dE),
+                           lambda: self.sliding.rate(E, dE))
 
     def velocity_quadratic(self, dE, E):
         """The term of d2Phi/dt2 that is not G d2E/dt2, quadratic in dE (count,): dE^T H_i dE for the
-        quadratic rows; the axis rows' term also depends on E."""
+        quadratic rows, 0 for the linear rows; the axis and sliding rows' terms also depend on E."""
         products = self._velocity_coefficient * (dE[self._ia] * dE[self._ib]).reshape(-1, 3).sum(axis=1)
-        parts = [products]
-        if len(self.plane):
-            parts.append(self._plane_zeros)
-        if self.axes.count:
-            parts.append(self.axes.velocity_quadratic(dE, E))
-        return np.concatenate(parts) if len(parts) > 1 else products
+        return self._parts(products, lambda: self._linear_zeros, lambda: self.axes.velocity_quadratic(dE, E),
+                           lambda: self.sliding.velocity_quadratic(dE, E))
 
     def hessian_sum(self, multipliers, E):
-        """sum_i lambda_i d2Phi_i/dE2, dense (n, n): the constraint part of the tangent stiffness at E, exact."""
+        """sum_i lambda_i d2Phi_i/dE2, dense (n, n): the constraint part of the tangent stiffness at E, exact (the
+        linear rows add nothing)."""
         multipliers = np.asarray(multipliers)
         values = multipliers[self._hessian_multiplier]
         out = np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
         if self.axes.count:
-            out += self.axes.hessian_sum(multipliers[self.count - self.axes.count:], E)
+            out += self.axes.hessian_sum(multipliers[self.blocks["axis"]], E)
+        if self.sliding.count:
+            out += self.sliding.hessian_sum(multipliers[self.blocks["sliding"]], E)
         return out
+
+
+def _linear_matrix(rows, n):
+    """L (m, n) of the `LinearRow`s on E (n,): row i has a_k n on the three entries of each slot s_k (summed where
+    slots repeat)."""
+    L = np.zeros((len(rows), n))
+    for i, row in enumerate(rows):
+        if not all(0 <= slot < n // 3 for slot in row.slots):
+            raise ValueError(f"LinearRow slots {row.slots} outside the {n // 3} slots of E")
+        for slot, coefficient in zip(row.slots, row.coefficients):
+            L[i, 3 * slot:3 * slot + 3] += coefficient * np.asarray(row.normal, dtype=float)
+    return L

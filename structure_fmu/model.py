@@ -56,6 +56,10 @@ class StructureModel:
         self.mass_inverse = cho_solve(cho_factor(self.mass_q), np.eye(n_q)) if n_q else np.zeros((0, 0))
         self.mass_prescribed = self.T.T @ self.mass_E @ self.P
         self.constraints = Constraints(topology, self.T)
+        # the rows the integrators solve: a loop of rigid bodies closed by rows, planar, repeats one of them
+        E0 = self.T @ topology.initial_free() + self.P @ np.concatenate(topology.prescribed_initial or [np.zeros(0)])
+        self._rows = independent_rows(self.constraints.jacobian(E0)) if self.constraints.count else np.zeros(0, int)
+        self._dropped = np.setdiff1d(np.arange(self.constraints.count), self._rows)
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
@@ -186,26 +190,32 @@ class StructureModel:
 
     @property
     def constraint_count(self):
-        return self.constraints.count
+        """Rows the integrators solve: the independent ones (`independent_rows`)."""
+        return len(self._rows)
 
     def constraint_residual(self, q, E):
         """Phi (count,) at the state whose exchanged coordinates are E."""
-        return self.constraints.residual(E)
+        return self.constraints.residual(E)[self._rows]
+
+    def constraint_violation(self, q, E):
+        """Largest |Phi| of every row, the redundant ones the integrators leave out included (the monitor)."""
+        rows = self.constraints.residual(E)[self._dropped] if len(self._dropped) else np.zeros(0)
+        return float(np.abs(np.concatenate([self.constraint_residual(q, E), rows])).max(initial=0.0))
 
     def constraint_jacobian(self, q, E):
         """Phi_q (count, n_q)."""
-        return self.constraints.jacobian(E)
+        return self.constraints.jacobian(E)[self._rows]
 
     def constraint_rate(self, q, dq, E, dE):
         """dPhi/dt (count,)."""
-        return self.constraints.rate(E, dE)
+        return self.constraints.rate(E, dE)[self._rows]
 
     def constraint_gamma(self, q, dq, E, dE, ddp):
         """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints (count,)."""
         gamma = -self.constraints.velocity_quadratic(dE, E)
         if ddp is not None:
             gamma -= self.constraints.rate(E, self.P @ ddp)
-        return gamma
+        return gamma[self._rows]
 
     def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
         """(beta' M_q + gamma' C_t + K_t (n_q, n_q), E): generalized-alpha's iteration matrix without the
@@ -213,7 +223,9 @@ class StructureModel:
         E, dE, _ = self.coordinates(q, dq, t)
         K, C = self.tangent_E(E, dE, latched)
         if self.constraints.count:
-            K = K + self.constraints.hessian_sum(lam, E)
+            multipliers = np.zeros(self.constraints.count)
+            multipliers[self._rows] = lam
+            K = K + self.constraints.hessian_sum(multipliers, E)
         T = self.T_sparse
         return beta_p * self.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T, E
 
@@ -250,3 +262,27 @@ class StructureModel:
             else:
                 spring += 0.5 * h.stiffness * theta**2 + h.torque * theta
         return elastic + potential + spring
+
+
+REDUNDANCY_TOLERANCE = 1e-8
+"""A row whose gradient is within this (relative) of the span of the rows before it is redundant."""
+
+
+def independent_rows(jacobian):
+    """Indices of the rows of `jacobian` (m, n_q) that are independent of the rows before them, in order
+    (modified Gram-Schmidt, twice). A planar closed loop of rigid bodies closed by the rows X_a - X_b = 0
+    (pins.py) repeats one of them (the out-of-plane one) at every configuration; judged at t = 0, so a
+    mechanism must not start in a singular configuration (the constraint_residual monitor, which includes
+    the rows left out, shows it if it did)."""
+    rows = np.asarray(jacobian, dtype=float)
+    basis = np.zeros_like(rows)             # orthonormal rows spanning the kept ones
+    keep = []
+    for i, row in enumerate(rows):
+        v = row.copy()
+        for _ in range(2):
+            v -= basis[:len(keep)].T @ (basis[:len(keep)] @ v)
+        norm = np.linalg.norm(v)
+        if norm > REDUNDANCY_TOLERANCE * max(np.linalg.norm(row), np.finfo(float).tiny):
+            basis[len(keep)] = v / norm
+            keep.append(i)
+    return np.array(keep, dtype=int)

@@ -184,8 +184,7 @@ class StructureSolver:
             if cached is state:
                 return values
         E, dE, _ = self.model.coordinates(state.q, state.dq, state.t)
-        residual = float(np.abs(self.model.constraint_residual(state.q, E)).max()) if self.model.constraint_count \
-            else 0.0
+        residual = self.model.constraint_violation(state.q, E)
         values = (E, dE, self.model.fold_angles(state.q, E), residual)
         self._cache = ((state, values), self._cache[0])
         return values

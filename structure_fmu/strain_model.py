@@ -64,6 +64,7 @@ class StrainBasedModel(StructureModel):
 
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         super().__init__(topology, gravity, hinge_parameters, body_damping, damping_model)
+        self._dropped = np.zeros(0, int)     # its own joint rows (_JointConstraints) are all independent
         self.roots, self.strain_slices, eta0 = {}, {}, []
         offset = 0
         for name, body in topology.bodies.items():
@@ -103,6 +104,8 @@ class StrainBasedModel(StructureModel):
         if kind == "driven":   # law spin_up about the root's chord axis (Otsuka et al. 2019, Eq. 27)
             return _Root("driven", None, None, start, body.root, offset,
                          SpinUp(body.chord_axis, body.root, joint["omega"], joint["ramp_time"]))
+        if kind == "pin" and joint["axis"] == "free":   # a ball joint to the ground
+            return _Root("ball", None, np.zeros(3), start, body.root, offset)
         if kind == "pin":      # a revolute joint to the ground about the root's chord or section normal
             axis = body.chord_axis if joint["axis"] == "chord" else start[:, 2]
             return _Root("revolute", None, axis, start, body.root, offset)

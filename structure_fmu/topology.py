@@ -1,18 +1,19 @@
 """The structure unit's topology: the shared one (fmu_common.topology) plus joints, sections, motions,
 masses and loads, and the map to reduced coordinates.
 
-Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (Otsuka et al. 2019, Eq. 3). Each 3-vector "slot"
-s = 3 node + k (k = 0 r, 1 r_x, 2 r_y) occupies E[3s:3s+3].
+Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (Otsuka et al. 2019, Eq. 3), each 3-vector a
+"slot" (slots.py): a linear combination of free vectors q_j and prescribed vectors p_j(t), so that
+E = (T kron I3) q + (P kron I3) p(t).
 
 Joint points are not Lagrange constraints here but shared or prescribed coordinates (the master/slave
-elimination of Peng et al. 2019, Sec. 3): a slot is a linear combination of free vectors q_j and prescribed vectors
-p_j(t), so E = (T kron I3) q + (P kron I3) p(t). A ball, universal or revolute joint shares r between the
-parent's tip node and the child's root node (with the ground: r is prescribed at the child's root); a
-revolute joint about the chord of both bodies also shares r_y (with the ground: prescribed); a rigid body (one
-element) has r^B = r^A + l r_x^A, r_x^B = r_x^A, r_y^B = r_y^A, the linear rows of Otsuka et al. 2019, Eq. (17); a
-clamp or driven root is prescribed. What remains as Lagrange constraints is nonlinear: unit length and
-orthogonality (Otsuka et al. 2019, Eqs. 6, 17), and the axis products of universal joints and of revolute joints
-about any other axis (constraints.py `AxisProduct`).
+elimination of Peng et al. 2019, Sec. 3). A ball, universal or revolute joint shares r between the parent's tip
+node and the child's root node (with the ground: r is prescribed at the child's root); a revolute joint about
+the chord of both bodies also shares r_y (with the ground: prescribed); a rigid body has r = r^A + s r_x^A,
+r_x = r_x^A, r_y = r_y^A at every node s along it, the linear rows of Otsuka et al. 2019, Eq. (17); a clamp or
+driven root is prescribed; pins and sliders at any node are pins.py's. What remains as Lagrange constraints is
+nonlinear: unit length and orthogonality (Otsuka et al. 2019, Eqs. 6, 17), the axis products of universal
+joints and of revolute joints about any other axis (constraints.py `AxisProduct`), and the rows of sliders and
+of pins that close a loop of rigid bodies.
 
 Coordinates and constraints per joint at the child's root node (free 3-vectors x 3 coordinates; constraint rows
 including the node's own unit-length and orthogonality rows), the same with a parent and with the ground:
@@ -23,7 +24,7 @@ including the node's own unit-length and orthogonality rows), the same with a pa
   revolute, other axis   6             5                   4
 (a flexible node keeps the axial stretch |r_x| free: one more degree of freedom than the joint's own).
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,14 +32,16 @@ from fmu_common import topology
 from fmu_common.errors import SceneError
 from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.scene_schema import PARENT_JOINTS
-from fmu_common.schema import item_label
+from fmu_common.vectors import perpendiculars
 
-from .constraints import AxisProduct
+from .constraints import AxisProduct, LinearRow
+from .joint_rows import SlidingRow
 from .joints import hinge_angle
 from .motion import Fixed, HeavePitch, SpinUp
+from .pins import add_pins, add_sliders
 from .section import Section, section_from_scene
+from .slots import RX, RY, R, Slot, compact
 
-R, RX, RY = 0, 1, 2  # slot kinds
 
 
 @dataclass
@@ -74,31 +77,15 @@ class Hinge:
     child_reference: np.ndarray | None = None  # O^T p, child frame components
 
 
-@dataclass
-class _Slot:
-    free: dict = field(default_factory=dict)        # free vector index -> coefficient
-    prescribed: dict = field(default_factory=dict)  # prescribed vector index -> coefficient
-
-    def plus(self, other, factor):
-        out = _Slot(dict(self.free), dict(self.prescribed))
-        for src, dst in ((other.free, out.free), (other.prescribed, out.prescribed)):
-            for j, c in src.items():
-                dst[j] = dst.get(j, 0.0) + factor * c
-        return out
-
-    def signature(self):
-        return (tuple(sorted((j, round(c, 12)) for j, c in self.free.items())),
-                tuple(sorted((j, round(c, 12)) for j, c in self.prescribed.items())))
-
-
 class StructureTopology(topology.Topology):
     """The shared topology plus joints, sections, motions, masses and loads, and the affine map
     q, p(t) -> E."""
 
     def __init__(self):
         super().__init__()
-        self.slots: list[_Slot] = []
+        self.slots: list[Slot] = []
         self.free_initial: list[np.ndarray] = []
+        self.free_is_position: list[bool] = []
         self.prescribed_initial: list[np.ndarray] = []
         self.prescribed_is_position: list[bool] = []
         self.prescribed_motion: list[int] = []
@@ -106,7 +93,8 @@ class StructureTopology(topology.Topology):
         self.hinges: list[Hinge] = []
         self.unit_slots: list[int] = []
         self.orthogonal_slots: list[tuple[int, int]] = []
-        self.fixed_directions: list[tuple[int, np.ndarray, float]] = []   # slot . n = c
+        self.linear_rows: list[LinearRow] = []                     # sum_k c_k slot_k . n = offset
+        self.sliding_rows: list[SlidingRow] = []                   # a point on a line or plane of another body
         self.axis_products: list[AxisProduct] = []                 # joint rows v_A(a) . v_B(b) = 0
         self.masses: list[tuple[int, float]] = []                  # (node, kg)
         self.angular_velocity: dict[str, np.ndarray] = {}          # initial rigid rotation rate, rad/s
@@ -126,7 +114,8 @@ class StructureTopology(topology.Topology):
                                                               f"{top.fidelity} structure moves by its dynamics)")
         for key, spec in top._body_specs(structure):
             top._add_coordinates(top.bodies[spec["name"]], key, spec, motion_spec)
-        top._add_sliders(structure)
+        add_pins(top, structure)
+        add_sliders(top, structure)
         top._add_constraints()
         top._add_masses_and_loads(structure)
         if "load" in scene:
@@ -143,15 +132,17 @@ class StructureTopology(topology.Topology):
         keyed = {spec["name"]: (topology.body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
         return [keyed[name] for name in self.bodies]
 
-    def _new_free(self, value):
+    def _new_free(self, value, position=False):
+        """A slot of a new free vector with initial `value` (3,); `position`: a point (m), else a gradient."""
         self.free_initial.append(np.asarray(value, float))
-        return _Slot(free={len(self.free_initial) - 1: 1.0})
+        self.free_is_position.append(position)
+        return Slot(free={len(self.free_initial) - 1: 1.0})
 
     def _new_prescribed(self, value, is_position, motion):
         self.prescribed_initial.append(np.asarray(value, float))
         self.prescribed_is_position.append(is_position)
         self.prescribed_motion.append(motion)
-        return _Slot(prescribed={len(self.prescribed_initial) - 1: 1.0})
+        return Slot(prescribed={len(self.prescribed_initial) - 1: 1.0})
 
     def _add_coordinates(self, body, key, spec, motion_spec):
         """The slots of the body's nodes: its root joint decides whether the root is free, shared or
@@ -176,26 +167,16 @@ class StructureTopology(topology.Topology):
                     self._new_prescribed(y0, False, motion)]
         elif kind in PARENT_JOINTS:
             root = self._add_joint(joint, first_node, r0, x0, y0)
-        elif kind == "pin":
-            axis = joint["axis"]
-            fixed = len(self.motions)
-            self.motions.append(Fixed())
-            if axis == "chord":
-                root = [self._new_prescribed(r0, True, fixed), self._new_free(x0),
-                        self._new_prescribed(y0, False, fixed)]
-            else:
-                root = [self._new_prescribed(r0, True, fixed), self._new_free(x0), self._new_free(y0)]
-                normal = np.cross(x0, y0)
-                self.fixed_directions += [(3 * first_node + RX, normal, 0.0), (3 * first_node + RY, normal, 0.0)]
-        else:
-            root = [self._new_free(r0), self._new_free(x0), self._new_free(y0)]
+        else:   # free, or pinned (pins.py shares its point afterwards)
+            root = [self._new_free(r0, position=True), self._new_free(x0), self._new_free(y0)]
         self.slots += root
-        for node in body.nodes[1:]:
+        n_el = len(body.elements)
+        for i, node in enumerate(body.nodes[1:], start=1):
             if self.fidelity in DEFORMABLE:   # strain-based too: its E has the same node slots
                 r_i, x_i, y_i = self.node_initial[node]
-                self.slots += [self._new_free(r_i), self._new_free(x_i), self._new_free(y_i)]
-            else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17)
-                self.slots += [root[R].plus(root[RX], body.length), root[RX], root[RY]]
+                self.slots += [self._new_free(r_i, position=True), self._new_free(x_i), self._new_free(y_i)]
+            else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17), at any node
+                self.slots += [root[R].plus(root[RX], body.length * i / n_el), root[RX], root[RY]]
 
     def _prescribed_motion(self, spec, r0, x0, y0, body):
         """The HeavePitch law of `structure.motion` for `body` (its own section normal and reference line where
@@ -236,7 +217,7 @@ class StructureTopology(topology.Topology):
             self.axis_products.append(AxisProduct(tip_x, line.axis, child_x, line.child_axis))
         if line.kind == "revolute":
             if not shared_chord:
-                for p in _perpendiculars(line.orientation.T @ line.axis):
+                for p in perpendiculars(line.orientation.T @ line.axis):
                     self.axis_products.append(AxisProduct(tip_x, line.axis, child_x, p))
             self._add_hinge(spec, line, tip_x, child_x, shared_chord)
         return root
@@ -244,7 +225,7 @@ class StructureTopology(topology.Topology):
     def _add_hinge(self, spec, line, parent_slot, child_slot, shared_chord):
         stop = None if spec["stop_angle_deg"] is None else np.radians(spec["stop_angle_deg"])
         stiffness, damping, torque, latch = (spec[k] for k in ("stiffness", "damping", "torque", "latch_factor"))
-        reference = _perpendiculars(line.axis)[0]
+        reference = perpendiculars(line.axis)[0]
         if shared_chord and parent_slot is not None and np.array_equal(line.orientation, np.eye(3)):
             # the chord-axis hinge: the angle between the gradients r_x about the shared r_y (joints.py)
             hinge = Hinge(line.name, parent_slot, child_slot, parent_slot + 1, line.initial_angle, stiffness,
@@ -253,23 +234,6 @@ class StructureTopology(topology.Topology):
             hinge = Hinge(line.name, parent_slot, child_slot, None, line.initial_angle, stiffness, damping, torque,
                           stop, latch, line.axis, reference, line.orientation.T @ reference)
         self.hinges.append(hinge)
-
-    def _add_sliders(self, structure):
-        """Rows (r - r_0) . n = 0 of each slider's node: one for a plane, two (n normal to it) for a line."""
-        for i, spec in enumerate(structure["joints"]):
-            if spec["type"] != "slider":
-                continue
-            key = f"structure.joints.{item_label(i, spec)}"
-            if self.fidelity not in ("rigid", "flexible"):
-                raise SceneError(f"{key}.type", "slider", f"a joint of the rigid or flexible fidelity (not "
-                                                          f"{self.fidelity})")
-            node = self._node_at(f"{key}.span", spec["body"], spec["span"])
-            start = self.node_initial[node][0]
-            if spec["line"] is not None:
-                normals = _perpendiculars(np.asarray(spec["line"], float) / np.linalg.norm(spec["line"]))
-            else:
-                normals = [np.asarray(spec["plane_normal"], float) / np.linalg.norm(spec["plane_normal"])]
-            self.fixed_directions += [(3 * node + R, n, float(n @ start)) for n in normals]
 
     def _add_constraints(self):
         """Nonlinear internal constraints, each once per distinct slot combination (Otsuka et al. 2019, Eqs. 6, 17)."""
@@ -296,7 +260,12 @@ class StructureTopology(topology.Topology):
                 add("unit", [3 * node + RY])
                 add("orthogonal", [3 * node + RX, 3 * node + RY])
 
-    def _node_at(self, key, body_name, span):
+    def compact_free(self):
+        """Drop the free vectors that no slot uses any more (eliminated by a pin) and renumber the rest."""
+        self.free_initial, self.free_is_position = compact(self.slots, self.free_initial, self.free_is_position)
+
+    def node_at(self, key, body_name, span):
+        """The node of body `body_name` at `span` (m from its root); SceneError naming `key` otherwise."""
         body = self.bodies[body_name]
         n_el = len(body.elements)
         position = span / body.length * n_el
@@ -310,7 +279,7 @@ class StructureTopology(topology.Topology):
         for i, spec in enumerate(structure["masses"]):
             item = f"structure.masses.{i}"
             self._check_body(f"{item}.body", spec["body"])
-            self.masses.append((self._node_at(f"{item}.span", spec["body"], spec["span"]), spec["mass"]))
+            self.masses.append((self.node_at(f"{item}.span", spec["body"], spec["span"]), spec["mass"]))
         for i, spec in enumerate(structure["loads"]):
             item = key or f"structure.loads.{i}"
             body = self.bodies[self._check_body(f"{item}.body", spec["body"])]
@@ -370,13 +339,3 @@ def _along_chord(line):
     chord = np.array([0.0, 1.0, 0.0])
     child = np.linalg.norm(line.orientation.T @ line.axis - chord) <= CHORD_TOLERANCE
     return child and (line.parent is None or np.linalg.norm(line.axis - chord) <= CHORD_TOLERANCE)
-
-
-def _perpendiculars(axis):
-    """(p_1, p_2): unit vectors with (p_1, p_2, axis) a right-handed orthonormal triad for a unit axis (3,); p_1
-    from the frame direction least along the axis (for the chord: p_1 = span, p_2 = -normal)."""
-    axis = np.asarray(axis, dtype=float)
-    k = int(np.argmin(np.abs(axis)))
-    p1 = np.eye(3)[k] - axis[k] * axis
-    p1 /= np.linalg.norm(p1)
-    return p1, np.cross(axis, p1)

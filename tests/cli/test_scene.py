@@ -104,9 +104,9 @@ def test_defaults_of_a_minimal_scene():
     assert scene["structure"] == {
         "fidelity": "flexible", "elements_per_body": 4, "integrator": "generalized-alpha", "step": 1e-4,
         "rho_inf": 0.8, "damping_model": "deformation", "gravity": [0.0, 0.0, 0.0], "joints": [],
-        "masses": [], "loads": []}
+        "scissors": [], "masses": [], "loads": []}
     assert body == [{"name": "b", "length": 1.0, "root": [0.0, 0.0, 0.0], "span_axis": [1.0, 0.0, 0.0],
-                     "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "angular_velocity": None,
+                     "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "elements": None, "angular_velocity": None,
                      "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
                                  "mass_per_length": None, "rotary_inertia": 0.0}}]

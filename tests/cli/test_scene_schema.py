@@ -19,6 +19,7 @@ from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES, MAX_MEMORY_BYTES, 
 from fmu_common.scene_schema import ACCELERATIONS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import REQUIRED, Key, Table, Tables, Variants, item_label
+from fmu_common.scissors import chain_tables
 from orchestrator.cli import main
 from orchestrator.scene import load_scene, read_scene_file, resolve_scene
 from repository import SCENES
@@ -232,8 +233,17 @@ def test_shipped_scene_resolves_complete_and_to_itself(path):
 
 def _translated(raw):
     """[wing] and [motion] as docs/scenes.md states them: length = aspect_ratio x chord, section.chord = chord,
-    structure.motion.alpha_deg = alpha_deg; frequency = 2 k V / c, heave_amplitude = amplitude x c."""
+    structure.motion.alpha_deg = alpha_deg; frequency = 2 k V / c, heave_amplitude = amplitude x c; a scissor
+    chain's bodies, joints and probes appended (fmu_common.scissors.chain_tables)."""
     raw = copy.deepcopy(raw)
+    resolved = SCENE.resolve("", raw)["structure"] if raw["structure"].get("scissors") else {"scissors": []}
+    for chain in resolved["scissors"]:
+        bodies, joints, probes = chain_tables(resolved, chain)
+        raw["structure"].setdefault("bodies", []).extend(bodies)
+        raw["structure"].setdefault("joints", []).extend(joints)
+        raw.setdefault("probes", []).extend(probes)
+    if "wing" not in raw and "motion" not in raw:
+        return raw
     body = raw["structure"]["bodies"][0]
     wing, heave = raw.get("wing", {}), raw.get("motion")
     if "chord" in wing:

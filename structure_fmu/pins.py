@@ -1,0 +1,145 @@
+"""Pins and sliders: the joints that hold a node anywhere along a body, to a node of another body or to the
+ground, in the rigid and flexible fidelities (Peng et al. 2019, Secs. 2-3).
+
+A pin shares a point: the r slots of its two nodes are made equal by eliminating a free point vector
+(slots.eliminate, Peng et al. 2019, Eqs. 13-14), so that the two nodes coincide to round-off. About the chord
+(`axis = "chord"`) it also shares r_y; about the section normal it keeps the two normals parallel by two
+axis-product rows (AxisProduct, with the ground two fixed-plane rows); `free` shares the point only. A flexible
+node's point is its own free vector, so every pin of the flexible fidelity is eliminated, closed loops
+included. A rigid body's nodes all follow one point and r_x (Otsuka et al. 2019, Eq. 17): its first pin moves
+that point to the pin, and a pin that closes a kinematic loop of rigid bodies has no point vector left to
+eliminate; it becomes three linear rows X_a - X_b = 0 (LinearRow). A planar loop makes one of them redundant
+with the others, which the model drops (`model.independent_rows`).
+
+A slider keeps a node's r on a line or plane through its position at t = 0: fixed in space (linear rows
+(r - r_0) . n = 0) or carried by the frame of a node of another body (SlidingRow).
+"""
+import numpy as np
+
+from fmu_common.errors import SceneError
+from fmu_common.schema import item_label
+from fmu_common.topology import holds_root
+from fmu_common.vectors import perpendiculars
+
+from .constraints import AxisProduct, LinearRow
+from .joint_rows import SlidingRow
+from .motion import Fixed
+from .slots import RX, RY, R, eliminate
+
+GAP_TOLERANCE = 1e-9
+"""m (a point) or - (a chord direction): how far the two sides of a pin may be apart at t = 0."""
+
+NODE_FIDELITIES = ("rigid", "flexible")
+"""The fidelities whose pins and sliders may hold any node (the strain-based fidelity: a root to the ground)."""
+
+
+def _joints(structure, kind):
+    """(dotted key, table) of each joint of type `kind`."""
+    return [(f"structure.joints.{item_label(i, spec)}", spec) for i, spec in enumerate(structure["joints"])
+            if spec["type"] == kind]
+
+
+def add_pins(top, structure) -> None:
+    """Share the points (and chords) of the scene's pins in the StructureTopology `top`, or add their rows;
+    SceneError naming the key for a pin on a point that is not a node, two sides apart at t = 0, or a pin
+    the fidelity cannot hold."""
+    for key, spec in _joints(structure, "pin"):
+        if top.fidelity not in NODE_FIDELITIES:
+            if holds_root(spec):
+                continue       # the strain-based root joint (strain_model); prescribed bodies follow their law
+            where, value = ("other", spec["other"]) if spec["other"] is not None else ("span", spec["span"])
+            raise SceneError(f"{key}.{where}", value, f"a pin of a body's root to the ground in the {top.fidelity} "
+                                                      f"fidelity (pins anywhere: {' or '.join(NODE_FIDELITIES)})")
+        a = top.node_at(f"{key}.span", spec["body"], spec["span"])
+        b = None if spec["other"] is None else top.node_at(f"{key}.other_span", spec["other"], spec["other_span"])
+        if a == b:
+            raise SceneError(f"{key}.other_span", spec["other_span"], "a node other than the pinned one")
+        _Pin(top, key, a, b).add(spec["axis"])
+    top.compact_free()
+
+
+class _Pin:
+    """One pin between node a and node b (None: the ground) of the topology `top`."""
+
+    def __init__(self, top, key, a, b):
+        self.top, self.key, self.a, self.b = top, key, a, b
+        self._fixed = None
+
+    def _ground(self, value, is_position):
+        """A prescribed slot that stays at `value` (3,)."""
+        if self._fixed is None:
+            self._fixed = len(self.top.motions)
+            self.top.motions.append(Fixed())
+        return self.top._new_prescribed(value, is_position, self._fixed)
+
+    def add(self, axis):
+        top, a, b = self.top, self.a, self.b
+        self._share(R, "the two nodes coincide at t = 0", "m apart")
+        _, x_a, y_a = top.node_initial[a]
+        if axis == "chord":
+            self._share(RY, "the chord_axis of the two bodies at the pin is the same at t = 0 (the shared axis)",
+                        "apart (unit vectors)")
+        elif axis == "normal":
+            normal = np.cross(x_a, y_a) / np.linalg.norm(np.cross(x_a, y_a))
+            if b is None:
+                top.linear_rows += [LinearRow((3 * a + RX,), (1.0,), normal, 0.0),
+                                    LinearRow((3 * a + RY,), (1.0,), normal, 0.0)]
+                return
+            _, x_b, y_b = top.node_initial[b]
+            other = np.cross(x_b, y_b) / np.linalg.norm(np.cross(x_b, y_b))
+            gap = np.linalg.norm(np.cross(normal, other))
+            if gap > GAP_TOLERANCE:
+                raise SceneError(f"{self.key}.axis", "normal", f"section normals of the two bodies parallel at t = 0 "
+                                                             f"(the angle between them is {np.degrees(gap):.3g} deg)")
+            top.axis_products += [AxisProduct(3 * a + RX, np.array([0.0, 0.0, 1.0]), 3 * b + RX, c)
+                                  for c in np.eye(3)[:2]]
+
+    def _share(self, kind, allowed, unit):
+        """Make slot `kind` of node a equal to node b's (or to its value at t = 0, fixed)."""
+        top, a, b = self.top, self.a, self.b
+        mine = top.slots[3 * a + kind]
+        value = lambda slot: slot.value(top.free_initial, top.prescribed_initial)
+        theirs = self._ground(value(mine), kind == R) if b is None else top.slots[3 * b + kind]
+        gap = float(np.linalg.norm(value(mine) - value(theirs)))
+        if gap > GAP_TOLERANCE:
+            raise SceneError(self.key if kind == R else f"{self.key}.axis", f"{gap:.3g} {unit}", allowed)
+        difference = mine.plus(theirs, -1.0)
+        if not difference.free:     # already shared, or held by the ground on both sides
+            moving = [j for j in difference.prescribed if not isinstance(top.motions[top.prescribed_motion[j]], Fixed)]
+            if moving:
+                raise SceneError(self.key, "both sides held", "a pin with a free side (both nodes already follow "
+                                                              "prescribed motions)")
+            return
+        candidates = {j for j, point in enumerate(top.free_is_position) if point == (kind == R)}
+        if eliminate(top.slots, difference, candidates) is not None:
+            return
+        # a closed loop of rigid bodies: X_a - X_b = 0 as rows (with the ground: X_a = X_0)
+        slots, coefficients = ((3 * a + kind,), (1.0,)) if b is None else ((3 * a + kind, 3 * b + kind), (1.0, -1.0))
+        offset = value(theirs) if b is None else np.zeros(3)
+        top.linear_rows += [LinearRow(slots, coefficients, e, float(o)) for e, o in zip(np.eye(3), offset)]
+
+
+def add_sliders(top, structure) -> None:
+    """Rows keeping each slider's node on its line (two rows, normals n perpendicular to it) or plane (one):
+    fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow)."""
+    for key, spec in _joints(structure, "slider"):
+        if top.fidelity not in NODE_FIDELITIES:
+            raise SceneError(f"{key}.type", "slider", f"a joint of the {' or '.join(NODE_FIDELITIES)} fidelity "
+                                                      f"(not {top.fidelity})")
+        node = top.node_at(f"{key}.span", spec["body"], spec["span"])
+        if spec["line"] is not None:
+            normals = perpendiculars(np.asarray(spec["line"], float) / np.linalg.norm(spec["line"]))
+        else:
+            normals = [np.asarray(spec["plane_normal"], float) / np.linalg.norm(spec["plane_normal"])]
+        start = top.node_initial[node][0]
+        if spec["other"] is None:
+            top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
+            continue
+        base = top.node_at(f"{key}.other_span", spec["other"], spec["other_span"])
+        if base == node:
+            raise SceneError(f"{key}.other_span", spec["other_span"], "a node other than the sliding one")
+        origin, x0, y0 = top.node_initial[base]
+        frame = np.column_stack([x0, y0, np.cross(x0, y0)])
+        offsets = [float((start - origin) @ frame @ n) for n in normals]
+        top.sliding_rows += [SlidingRow(3 * node + R, 3 * base + R, 3 * base + RX, n, offset)
+                             for n, offset in zip(normals, offsets)]

@@ -1,0 +1,75 @@
+"""Slots: the exchanged coordinates as linear combinations of free and prescribed vectors (Peng et al. 2019,
+Eqs. 13-14: master/slave coordinates).
+
+E (9 n_nodes,) is a sequence of 3-vector slots: slot s = 3 node + k occupies E[3s:3s+3], k = R (the point r, m),
+RX (r_x, -) or RY (r_y, -). Each slot is a linear combination of free vectors q_j (the integrator's
+coordinates) and prescribed vectors p_j(t), so that E = (T kron I3) q + (P kron I3) p(t). A joint that shares
+a point or an axis makes two slots equal by `eliminate`: it solves the difference of the two slots for one of
+its free vectors and substitutes it everywhere, so the shared slots are equal to round-off by construction.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+R, RX, RY = 0, 1, 2  # slot kinds
+
+
+@dataclass
+class Slot:
+    """A slot's combination: free vector index -> coefficient, prescribed vector index -> coefficient."""
+
+    free: dict = field(default_factory=dict)
+    prescribed: dict = field(default_factory=dict)
+
+    def plus(self, other, factor):
+        """self + factor other, without the terms that cancel."""
+        out = Slot(dict(self.free), dict(self.prescribed))
+        for src, dst in ((other.free, out.free), (other.prescribed, out.prescribed)):
+            for j, c in src.items():
+                dst[j] = dst.get(j, 0.0) + factor * c
+                if dst[j] == 0.0:
+                    del dst[j]
+        return out
+
+    def signature(self):
+        return (tuple(sorted((j, round(c, 12)) for j, c in self.free.items())),
+                tuple(sorted((j, round(c, 12)) for j, c in self.prescribed.items())))
+
+    def value(self, free_values, prescribed_values):
+        """The slot's 3-vector for the free and prescribed vectors (lists of (3,) arrays)."""
+        out = np.zeros(3)
+        for j, c in self.free.items():
+            out += c * free_values[j]
+        for j, c in self.prescribed.items():
+            out += c * prescribed_values[j]
+        return out
+
+
+def eliminate(slots: list[Slot], difference: Slot, candidates) -> int | None:
+    """Make `difference` (a combination of slots that must vanish) zero by substituting one free vector: the
+    candidate with the largest index among `candidates` (free vector indices) that appears in it. Updates
+    `slots` in place; returns the eliminated index, or None when no candidate appears (the caller then keeps
+    the equation as constraint rows)."""
+    usable = [j for j in difference.free if j in candidates and abs(difference.free[j]) > 1e-12]
+    if not usable:
+        return None
+    j = max(usable)
+    # q_j = q_j - difference / c_j: the combination without q_j that the equation gives it
+    replacement = Slot({j: 1.0}).plus(difference, -1.0 / difference.free[j])
+    replacement.free.pop(j, None)
+    for s, slot in enumerate(slots):
+        c = slot.free.get(j)
+        if c is not None:
+            rest = Slot(dict(slot.free), dict(slot.prescribed))
+            del rest.free[j]
+            slots[s] = rest.plus(replacement, c)
+    return j
+
+
+def compact(slots: list[Slot], *per_free: list) -> list[list]:
+    """Renumber the free vectors that some slot still uses as 0, 1, ... (in order), in place in `slots`;
+    returns each list of `per_free` (one entry per old free vector) restricted to the used ones."""
+    used = sorted({j for slot in slots for j in slot.free})
+    new = {j: i for i, j in enumerate(used)}
+    slots[:] = [Slot({new[j]: c for j, c in slot.free.items()}, dict(slot.prescribed)) for slot in slots]
+    return [[values[j] for j in used] for values in per_free]
