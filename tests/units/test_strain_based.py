@@ -123,9 +123,10 @@ def test_double_pendulum_conserves_energy_and_keeps_its_joints(overrides):
 @pytest.mark.parametrize("path", sorted(SCENES.glob("*.toml")), ids=lambda p: p.stem)
 def test_every_shipped_scene_takes_the_strain_based_fidelity(path):
     """Every joint of the shipped scenes is supported: each runs a communication step strain-based with its
-    energy and constraints in order (a scissor chain's scene refuses the fidelity, naming it). A rigid scene's RK4 step may exceed the flexible bar's stability limit:
-    the run then stops as diverged, saying when and what to change, and runs with generalized-alpha. A
-    prescribed-motion scene refuses any other fidelity, naming its motion key."""
+    energy and constraints in order (a scissor chain's scene refuses the fidelity, naming it). A rigid scene's
+    RK4 step may exceed the flexible bar's stability limit: the run then stops as diverged, saying when and what
+    to change, and runs with generalized-alpha. A prescribed-motion scene refuses any other fidelity, naming its
+    motion key."""
     raw = load_scene(path)
     if raw["structure"]["fidelity"] == "prescribed":
         with pytest.raises(SceneError, match="prescribed"):
