@@ -87,6 +87,13 @@ def _slider_rule(key: str, slider: dict) -> None:
                                                        "plane_normal (on a plane)")
 
 
+def _other_rule(key: str, joint: dict) -> None:
+    """other_span places the joint on `other`: without `other` (the ground) it must stay 0."""
+    if joint["other"] is None and joint["other_span"] != 0.0:
+        raise SceneError(f"{key}.other_span", joint["other_span"], "0 without `other` (the ground has no nodes); "
+                                                                  "give `other`, the body it is on")
+
+
 def _motion_rule(key: str, motion: dict) -> None:
     """alpha_deg is a constant pitch: it excludes the oscillating pitch and the heave."""
     if motion["alpha_deg"] != 0.0:
@@ -164,8 +171,8 @@ JOINT = Variants("type", {
                                      "section normal r_x x r_y, or free (a ball: only the point is shared)",
                        options=PIN_AXES),
     }, doc="a point shared by the node of `body` at `span` and the node of `other` at `other_span` (or fixed in "
-           "space), free to rotate about one axis or fully (Peng et al. 2019, Sec. 2.2: shared coordinates); the "
-           "two nodes must coincide at t = 0"),
+           "space), free to rotate about one axis or fully (shared coordinates, Peng et al. 2019, Eqs. 13-14); "
+           "the two nodes must coincide at t = 0", rules=(_other_rule,)),
     "driven": Table({
         "body": Name("-", REQUIRED, _BODY_REF),
         "law": Choice("-", "spin_up", "angle law: spin_up is Otsuka et al. 2019, Eq. 27", options=("spin_up",)),
@@ -223,7 +230,7 @@ JOINT = Variants("type", {
         "other_span": non_negative("m", "the node of `other` whose frame carries the line or plane; must be a node",
                                    0.0),
     }, doc="the node of `body` at `span` stays on a line or plane through its position at t = 0, fixed in space or "
-           "in the frame of a node of `other` (ANCF fidelities); it holds no root", rules=(_slider_rule,)),
+           "in the frame of a node of `other` (ANCF fidelities); it holds no root", rules=(_slider_rule, _other_rule)),
 }, doc="what holds a body's root (at most one joint per root), a pin at any node, or a slider")
 
 def _scissor_rule(key: str, chain: dict) -> None:

@@ -135,6 +135,9 @@ def add_sliders(top, structure) -> None:
         if spec["other"] is None:
             top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
             continue
+        if spec["other"] == spec["body"] and top.fidelity == "rigid":
+            raise SceneError(f"{key}.other", spec["other"], "a body other than the sliding one (a rigid body's line "
+                                                           "moves with its node)")
         base = top.node_at(f"{key}.other_span", spec["other"], spec["other_span"])
         if base == node:
             raise SceneError(f"{key}.other_span", spec["other_span"], "a node other than the sliding one")

@@ -146,6 +146,17 @@ def test_a_pin_off_the_nodes_is_refused_naming_its_span():
     assert "a node position of body 'left'" in err.value.allowed
 
 
+@pytest.mark.parametrize("joint", [{"type": "pin", "name": "J", "body": "left", "span": L, "other_span": 0.5},
+                                   {"type": "slider", "name": "J", "body": "left", "span": L, "line": [0, 1, 0],
+                                    "other_span": 0.5}])
+def test_an_other_span_without_an_other_body_is_refused(joint):
+    raw = copy.deepcopy(four_bar())
+    raw["structure"]["joints"].append(joint)
+    with pytest.raises(SceneError) as err:
+        resolve_scene(raw, "x")
+    assert err.value.key == "structure.joints.J.other_span"
+
+
 def test_a_pin_about_the_chord_needs_the_same_chord_at_both_nodes():
     scene = copy.deepcopy(four_bar())
     scene["structure"]["bodies"][2]["chord_axis"] = [0.0, 0.6, 0.8]
