@@ -18,7 +18,7 @@ import numpy as np
 
 from fmu_common.vectors import cross, skew
 
-from .joint_rows import SlidingRow, SlidingRows  # noqa: F401 (SlidingRow: the row type topology.py builds)
+from .joint_rows import SlidingRows
 
 
 @dataclass(frozen=True)

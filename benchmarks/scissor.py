@@ -1,0 +1,279 @@
+"""Scissor structures: the three-SLE array of Peng et al. 2019, Sec. 5 (flexible against rigid bars and an
+independent one-degree-of-freedom model) and the scissor-deployed wing in the wind (deployment time against
+flow speed).
+
+    python benchmarks/scissor.py [--quick] [--jobs 2] [--resume] [--no-plots]
+
+Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --backend direct --set ...` runs:
+  1. scissor_array, 0-0.6 s, flexible (the scene) and rigid (structure.fidelity=rigid) at rho_inf = 0.8 (the
+     scene), 1, 0.5 and 0; the slider travel of a_1 against the rigid mechanism's Lagrange equation
+     (tests/scissor_mechanism.py, imported by putting tests/ on sys.path; its data read from the scene), the
+     flexible minus rigid positions of the pivots a_2..a_4 and the flexible a_2 - a_3, a_3 - a_4 y differences
+     (Peng et al. 2019, Figs. 7 and 8);
+  2. scissor_wing, rigid: the latch time of its revolute joint "deploy" (the deployment time) with uvlm-flat
+     at 0, 5, 10, 15, 20 m/s and in still air without aero (aero.model=none); the flexible plates
+     (generalized-alpha, h = 1e-4 s) at 10 m/s with the scene's rho_inf and with rho_inf = 0.
+--quick: the array to 0.3 s at the scene's rho_inf only, the wing rigid at 0 and 10 m/s and without aero.
+"""
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from report import ROOT, Report, fmt, status
+
+from orchestrator.master import RunResult, StructureCoordinates, run_scene
+from orchestrator.mechanism_view import instant_indices, write_mechanism_view
+from orchestrator.scene import load_scene
+
+REPORT = Report("scissor", __doc__)
+RHOS = (1.0, 0.8, 0.5, 0.0)              # rho_inf of the array (Peng et al. 2019); the scene's is run first
+SPEEDS = (0.0, 5.0, 10.0, 15.0, 20.0)    # m/s, the wing with uvlm-flat
+PIVOTS = ("a2", "a3", "a4")
+POINTS = ("a1", *PIVOTS)
+FLEXIBLE_WING = ("structure.integrator=generalized-alpha", "structure.step=1e-4")
+# Peng et al. 2019, Sec. 5 (their sizes, not given in the paper's text, and a deployment of about 1.5 s):
+# Fig. 7, largest flexible minus rigid difference in x and in y; Fig. 8b, largest flexible a_2 - a_3 and
+# a_3 - a_4 y differences, both at 1.5 s.
+PAPER = {"dx": 0.01498, "dy": 0.02503, "a2_a3": 0.01863, "a3_a4": 0.02203, "at": 1.5}
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run: `scene` (file stem), structure `fidelity`, `rho_inf` (None: the scene's), flow `speed` (m/s,
+    None: the scene's), aero `model` ("": the scene's), `stop` (s)."""
+    scene: str
+    fidelity: str
+    rho_inf: float | None
+    speed: float | None
+    model: str
+    stop: float
+
+    def overrides(self):
+        out = [f"structure.fidelity={self.fidelity}", f"time.stop={self.stop!r}"]
+        out += [] if self.rho_inf is None else [f"structure.rho_inf={self.rho_inf!r}"]
+        out += [] if self.speed is None else [f"flow.speed={self.speed!r}"]
+        out += [f"aero.model={self.model}"] if self.model else []
+        if self.scene == "scissor_wing" and self.fidelity == "flexible":
+            out += FLEXIBLE_WING
+        return out
+
+    @property
+    def label(self):
+        flow = ("" if self.scene == "scissor_array" else ", still air, no aero" if self.model == "none"
+                else f", uvlm-flat {self.speed:g} m/s")
+        rho = "" if self.rho_inf is None else f", rho_inf {self.rho_inf:g}"
+        return f"{self.scene} {self.fidelity}{rho}{flow}"
+
+
+def load(run):
+    return load_scene(ROOT / "scenes" / f"{run.scene}.toml", run.overrides())
+
+
+def work(run):
+    """The run's status, CPU time (s) and either the array's probe tracks and mechanism frames or the wing's
+    deployment time (s)."""
+    cpu = time.process_time()
+    result = run_scene(load(run), backend="direct")
+    cpu = time.process_time() - cpu
+    out = {"status": result.status, "message": result.message, "cpu_s": cpu,
+           "simulated_s": result.simulated_time_s}
+    if run.scene == "scissor_wing":
+        return out | {"deploy_s": result.latch_times.get("deploy")}
+    series = result.series
+    out["t"] = series.time
+    out |= {f"{p}_{axis}": series.column(f"array_{p}_{axis}") for p in POINTS for axis in "xy"}
+    record = result.structure_coordinates
+    chosen = instant_indices(record.t)
+    out["frames"] = {"t": [record.t[i] for i in chosen], "e": [record.e[i] for i in chosen]}
+    return out
+
+
+def lagrange_travel(t):
+    """The slider travel (m) of a_1 at the times t (s) by the one-degree-of-freedom model of the rigid array,
+    with the scene's data; that data (n, L m, m kg, F N, rho I kg m, theta0 deg) and the model's time (s) to a
+    given travel (m)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from scissor_mechanism import simulate, slider_travel, time_to_angle
+
+    scene = load_scene(ROOT / "scenes" / "scissor_array.toml")
+    chain, (load_,) = scene["structure"]["scissors"][0], scene["structure"]["loads"]
+    section = chain["section"]
+    L = chain["bar_length"]
+    data = {"n": chain["count"], "L": L, "m": section["chord"] * section["thickness"] * section["density"] * L,
+            "F": float(np.linalg.norm(load_["force"])), "rotary": section["rotary_inertia"],
+            "theta0": chain["initial_angle_deg"]}
+    theta0 = np.radians(data["theta0"])
+    run = simulate(theta0, t[-1], data["n"], L, data["m"], data["F"], rotary=data["rotary"], t_eval=t)
+    if run.stop is not None:
+        raise RuntimeError(f"the Lagrange model reached its {run.stop} configuration at {run.stop_time} s")
+
+    def time_to(travel):
+        return time_to_angle(theta0, np.arcsin(np.sin(theta0) - travel / L), data["n"], L, data["m"], data["F"],
+                             rotary=data["rotary"])
+
+    return slider_travel(run.theta, theta0, L), data, time_to
+
+
+def peak(values, t):
+    """(max |values|, the time (s) of it)."""
+    k = int(np.argmax(np.abs(values)))
+    return float(abs(values[k])), float(t[k])
+
+
+def array_rows(res, flexible, rigid, reference, time_to):
+    """The table cells of one rho_inf: slider travel and pivot differences, with their arrays for the plots and
+    the pivot maxima (m)."""
+    f, r = res[flexible], res[rigid]
+    if "t" not in f or "t" not in r or len(f["t"]) != len(r["t"]) or len(r["t"]) != len(reference):
+        return None
+    t = np.asarray(f["t"])
+    travel = {k: np.asarray(x["a1_y"][0]) - np.asarray(x["a1_y"]) for k, x in (("flexible", f), ("rigid", r))}
+    d = {f"{p}_{axis}": np.asarray(f[f"{p}_{axis}"]) - np.asarray(r[f"{p}_{axis}"]) for p in PIVOTS for axis in "xy"}
+    steps = {"a2_a3": np.asarray(f["a2_y"]) - np.asarray(f["a3_y"]),
+             "a3_a4": np.asarray(f["a3_y"]) - np.asarray(f["a4_y"])}
+    rigid_error = peak(travel["rigid"] - reference, t)
+    rho = fmt(flexible.rho_inf, "g")
+    travel_row = [rho, fmt(reference[-1], ".5f"), fmt(travel["rigid"][-1], ".5f"), fmt(travel["flexible"][-1], ".5f"),
+                  fmt(rigid_error[0], ".2e"), fmt(rigid_error[0] / reference[-1], ".1e"),
+                  fmt(time_to(travel["flexible"][-1]), ".4f"),
+                  fmt(r["cpu_s"], ".1f"), fmt(f["cpu_s"], ".1f")]
+    pivot_cells, maxima, times = [], [], []
+    for axis in "xy":
+        value, at, pivot = max(peak(d[f"{p}_{axis}"], t) + (p,) for p in PIVOTS)
+        pivot_cells.append(f"{value:.5f} ({pivot}, {at:.3f} s)")
+        maxima.append(value)
+        times.append(at)
+    for key in steps:
+        value, at = peak(steps[key], t)
+        pivot_cells.append(f"{value:.5f} ({at:.3f} s)")
+        maxima.append(value)
+        times.append(at)
+    return {"travel_row": travel_row, "pivot_row": [rho, *pivot_cells], "t": t, "travel": travel, "d": d,
+            "steps": steps, "maxima": maxima, "at_end": all(at == t[-1] for at in times)}
+
+
+def main():
+    args = REPORT.arguments()
+    scene_rho = load_scene(ROOT / "scenes" / "scissor_array.toml")["structure"]["rho_inf"]
+    rhos = (scene_rho, *(r for r in RHOS if r != scene_rho))
+    array_stop, rhos = (0.3, rhos[:1]) if args.quick else (0.6, rhos)
+    array = {rho: (Run("scissor_array", "flexible", rho, None, "", array_stop),
+                   Run("scissor_array", "rigid", rho, None, "", array_stop)) for rho in rhos}
+    wing_scene = load_scene(ROOT / "scenes" / "scissor_wing.toml")
+    wing_stop = wing_scene["time"]["stop"]
+    wing = [Run("scissor_wing", "rigid", None, v, "", wing_stop) for v in ((0.0, 10.0) if args.quick else SPEEDS)]
+    wing.append(Run("scissor_wing", "rigid", None, 0.0, "none", wing_stop))
+    flexible_wing = [] if args.quick else [Run("scissor_wing", "flexible", rho, 10.0, "", wing_stop)
+                                           for rho in (wing_scene["structure"]["rho_inf"], 0.0)]
+    runs = [r for pair in array.values() for r in pair] + wing + flexible_wing
+    res = REPORT.run(runs, work, cost=lambda r: 10 if r.fidelity == "flexible" else 1,
+                     describe=lambda r, x: f"{x['status']}, CPU {x['cpu_s']:.1f} s"
+                     + (f", deployment {fmt(x['deploy_s'], '.4f')} s" if "deploy_s" in x else ""))
+    failed = [r.label for r in runs if "error" in res[r] or res[r]["status"] != "ok"]
+
+    rigid = res[array[rhos[0]][1]]
+    t = np.asarray(rigid["t"]) if "t" in rigid else np.array([0.0, array_stop])
+    reference, data, time_to = lagrange_travel(t)
+    table = {rho: row for rho in rhos if (row := array_rows(res, *array[rho], reference, time_to)) is not None}
+    theta = np.arcsin(np.sin(np.radians(data["theta0"])) - reference[-1] / data["L"])   # rad, rigid, at the stop
+    lengths = [data["n"] * data["L"] * np.cos(a) for a in (np.radians(data["theta0"]), theta)]   # m, b_1 to b_n+1
+    spread = max(np.ptp([row["maxima"][k] for row in table.values()]) for k in range(4)) if table else None
+    shipped = table.get(scene_rho)
+
+    def wing_row(run):
+        x = res[run]
+        structure = run.fidelity + ("" if run.rho_inf is None else f", rho_inf {run.rho_inf:g}")
+        flow = "still air, no aero" if run.model == "none" else f"{run.speed:g} m/s, uvlm-flat"
+        return [structure, flow, fmt(x.get("deploy_s"), ".4f"), fmt(x.get("cpu_s"), ".1f"), short_status(x)]
+
+    if not args.no_plots:
+        plot(table, reference, res, array[rhos[0]][0], wing, flexible_wing)
+    REPORT.render(array_stop=array_stop, data=data, scene_rho=scene_rho, final_angle=np.degrees(theta),
+                  lengths=lengths, spread=spread, rho_list=", ".join(f"{r:g}" for r in table), rho_count=len(table),
+                  maxima=None if shipped is None else shipped["maxima"],
+                  at_end=all(row["at_end"] for row in table.values()),
+                  travel_rows=[row["travel_row"] for row in table.values()],
+                  pivot_rows=[row["pivot_row"] for row in table.values()], paper=PAPER,
+                  wing_rows=[wing_row(r) for r in wing + flexible_wing], wing_stop=wing_stop,
+                  flexible_wing=[(r.rho_inf, res[r]) for r in flexible_wing], rigid_wing={
+                      r.speed if r.model != "none" else "none": res[r].get("deploy_s") for r in wing},
+                  messages=[(r.label, status(res[r])) for r in runs if r.label in failed])
+    return REPORT.finish(failed, len(runs))
+
+
+def short_status(x):
+    """"ok", "error", or the status and the time (s) it was reached: the message follows the table."""
+    if "error" in x:
+        return "error"
+    return "ok" if x["status"] == "ok" else f"{x['status']} at t = {x['simulated_s']:.4g} s"
+
+
+def plot(table, reference, res, flexible, wing, flexible_wing):
+    """img/scissor_slider_travel.png, scissor_pivot_differences.png, scissor_deployment_time.png and
+    scissor_mechanism.png (the flexible array at the scene's rho_inf)."""
+    shipped = table.get(flexible.rho_inf)
+    if shipped is not None:
+        t = shipped["t"]
+        fig, axes = REPORT.figure(1, 2, 11, 4)
+        ax = axes[0, 0]
+        ax.plot(t, reference, "k-", linewidth=3, alpha=0.35, label="Lagrange model (rigid)")
+        for name, style in (("rigid", "C0--"), ("flexible", "C1-")):
+            ax.plot(t, shipped["travel"][name], style, label=f"{name} bars")
+        ax.set(xlabel="t (s)", ylabel="slider travel of a_1 (m)", title=f"rho_inf = {flexible.rho_inf:g}")
+        ax = axes[0, 1]
+        for rho, row in table.items():
+            ax.plot(t, row["travel"]["flexible"] - row["travel"]["rigid"], label=f"flexible - rigid, rho_inf {rho:g}")
+        ax.plot(t, shipped["travel"]["rigid"] - reference, "k:",
+                label=f"rigid - Lagrange, rho_inf {flexible.rho_inf:g}")
+        ax.set(xlabel="t (s)", ylabel="difference in travel (m)", title="differences")
+        REPORT.save(fig, "scissor_slider_travel", legend=8)
+
+        fig, axes = REPORT.figure(2, 2, 11, 8)
+        for ax, axis in zip(axes[0], "xy"):
+            for p in PIVOTS:
+                ax.plot(t, shipped["d"][f"{p}_{axis}"], label=p)
+            ax.set(xlabel="t (s)", ylabel=f"flexible - rigid {axis} (m)",
+                   title=f"pivots, {axis}, rho_inf = {flexible.rho_inf:g}")
+        ax = axes[1, 0]
+        for key, label in (("a2_a3", "a_2 - a_3"), ("a3_a4", "a_3 - a_4")):
+            ax.plot(t, shipped["steps"][key], label=label)
+        ax.set(xlabel="t (s)", ylabel="y difference (m)", title=f"flexible bars, rho_inf = {flexible.rho_inf:g}")
+        ax = axes[1, 1]
+        for rho, row in table.items():
+            ax.plot(t, np.max(np.abs([row["d"][f"{p}_y"] for p in PIVOTS]), axis=0), label=f"rho_inf {rho:g}")
+        ax.set(xlabel="t (s)", ylabel="max over a_2..a_4 of |flexible - rigid y| (m)", title="against rho_inf")
+        REPORT.save(fig, "scissor_pivot_differences", legend=8)
+
+    frames = res[flexible].get("frames")
+    if frames:
+        scene = load(flexible)
+        record = StructureCoordinates(t=frames["t"], e=[np.asarray(e) for e in frames["e"]])
+        x = res[flexible]
+        result = RunResult(x["status"], x["message"], 0.0, x["simulated_s"], scene, None,
+                           structure_coordinates=record)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = REPORT.out / "img" / "scissor_mechanism.png"
+            shutil.copyfile(write_mechanism_view(result, tmp), path)
+        print(f"wrote {path.relative_to(ROOT)}")
+
+    fig, axes = REPORT.figure(1, 1, 6, 4)
+    ax = axes[0, 0]
+    points = [(r.speed, res[r].get("deploy_s")) for r in wing if r.model != "none"]
+    points = [p for p in points if p[1] is not None]
+    if points:
+        ax.plot(*zip(*points), "o-", label="rigid, uvlm-flat")
+    calm = [res[r].get("deploy_s") for r in wing if r.model == "none"]
+    if calm and calm[0] is not None:
+        ax.axhline(calm[0], color="k", linestyle=":", label="rigid, still air without aero")
+    for r, marker in zip(flexible_wing, ("s", "^")):
+        if res[r].get("deploy_s") is not None:
+            ax.plot([r.speed], [res[r]["deploy_s"]], marker, label=f"flexible, rho_inf {r.rho_inf:g}")
+    ax.set(xlabel="flow speed (m/s)", ylabel="deployment time (s)", title="scissor_wing: latch of 'deploy'")
+    REPORT.save(fig, "scissor_deployment_time", legend=8)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
