@@ -293,7 +293,7 @@ def _unit(vector) -> np.ndarray:
 
 
 def _body_order(specs, parent_of):
-    """Body names, every parent before its children; SceneError for a closed loop of joints."""
+    """Body names, every parent before its children; SceneError for a closed loop of parent-child joints."""
     order, placed = [], set()
     while len(order) < len(specs):
         progress = False
@@ -305,5 +305,6 @@ def _body_order(specs, parent_of):
                 progress = True
         if not progress:
             loop = sorted(set(specs) - placed)
-            raise SceneError("structure.joints", loop, "joints must form a tree (no closed loops)")
+            raise SceneError("structure.joints", loop, "revolute, ball and universal joints that form a tree (no "
+                                                       "closed loop of parents and children: close a loop with a pin)")
     return order

@@ -210,3 +210,15 @@ def test_a_scissor_chain_refuses_clashing_names_and_odd_bars():
     with pytest.raises(SceneError) as err:
         resolve_scene(raw, "x")
     assert err.value.key == "structure.scissors.s.elements_per_bar"
+
+
+def test_a_loop_of_parent_child_joints_is_refused_pointing_to_pins():
+    """Revolute, ball and universal joints place a child at its parent's tip: a loop of them has no start."""
+    raw = copy.deepcopy(four_bar())
+    raw["structure"]["joints"] = [{"type": "ball", "name": "AB", "parent": "left", "child": "right"},
+                                  {"type": "ball", "name": "BA", "parent": "right", "child": "left"}]
+    for body in raw["structure"]["bodies"][:2]:
+        body["root"] = body["span_axis"] = body["chord_axis"] = None
+    with pytest.raises(SceneError) as err:
+        StructureTopology.from_scene(resolve_scene(raw, "x"))
+    assert err.value.key == "structure.joints" and "close a loop with a pin" in err.value.allowed
