@@ -58,8 +58,10 @@ class StructureModel:
         self.constraints = Constraints(topology, self.T)
         # the rows the integrators solve: a loop of rigid bodies closed by rows, planar, repeats one of them
         E0 = self.T @ topology.initial_free() + self.P @ np.concatenate(topology.prescribed_initial or [np.zeros(0)])
-        self._rows = independent_rows(self.constraints.jacobian(E0)) if self.constraints.count else np.zeros(0, int)
-        self._dropped = np.setdiff1d(np.arange(self.constraints.count), self._rows)
+        kept = independent_rows(self.constraints.jacobian(E0)) if self.constraints.count else np.zeros(0, int)
+        self._dropped = np.setdiff1d(np.arange(self.constraints.count), kept)
+        self._row_count = len(kept)
+        self._rows = kept if len(self._dropped) else slice(None)     # every row: views, not copies
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
@@ -191,7 +193,7 @@ class StructureModel:
     @property
     def constraint_count(self):
         """Rows the integrators solve: the independent ones (`independent_rows`)."""
-        return len(self._rows)
+        return self._row_count
 
     def constraint_residual(self, q, E):
         """Phi (count,) at the state whose exchanged coordinates are E."""
