@@ -29,17 +29,30 @@ is a smooth function of p. Why this rule:
     (4e-3)^2 = 1.6e-5 relative: the core regularizes, it does not model viscosity. A free wake that
     rolls up may later need a physical core (a larger delta, or one growing with wake age).
 
-Array layout and speed. The kernel works on one contiguous (P, S) array per component, in place, and
+Array layout and speed. The numpy kernel works on one contiguous (P, S) array per component, in place, and
 `influence` reduces over segments block by block (BLOCK_PAIRS pairs), so memory stays at a few MB
-whatever P x S is. Measured on the shared 2-core development machine, one thread: 25-35 million
-point-segment pairs per second for an influence matrix (normal wash, reduction included), against about
-8 million for the plain (P, S, 3) expression (`segment_velocity`, kept for tests and small cases).
+whatever P x S is: 25-35 million point-segment pairs per second for an influence matrix (normal wash,
+reduction included), one thread, against about 8 million for the plain (P, S, 3) expression
+(`segment_velocity`, kept for tests and small cases). From COMPILED_PAIRS pairs a call runs the compiled
+kernels of biot_savart_kernels.py instead (fmu_common.compiled: numba, cached once per machine), the same
+arithmetic pair by pair without temporaries, and known circulations summed without the (P, S) matrix; the
+numpy kernel stays the reference ($WINGSIM_KERNELS = numpy), equal to 1e-15.
 """
+from pathlib import Path
+
 import numpy as np
+import scipy.sparse
+
+from fmu_common import compiled
 
 FOUR_PI = 4.0 * np.pi
 _TINY = np.finfo(float).tiny
 BLOCK_PAIRS = 1 << 16   # point-segment pairs per block in `influence` (0.5 MB per temporary, cache-friendly)
+KERNELS = Path(__file__).with_name("biot_savart_kernels.py")    # the compiled kernels (fmu_common.compiled)
+COMPILED_PAIRS = 50_000
+"""Point-segment pairs from which a call runs the compiled kernels (unless $WINGSIM_KERNELS = numpy): below it
+the numpy kernel takes under about 2 ms, less than loading the compiled ones once in a process (0.4 s: numba
+and the cached machine code), so a small lattice (deploy_rigid's: 4e3 pairs) never loads them."""
 
 
 def _kernel(points, starts, ends, core, semi_infinite):
@@ -136,6 +149,9 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
         return out
     wt = weights.T   # (K, S): reduce as (K, S) @ (S, block) so sparse weights stay on the left
     block = max(1, BLOCK_PAIRS // n_segments)
+    kernels = compiled.load(KERNELS) if n_points * n_segments >= COMPILED_PAIRS else None
+    if kernels is not None:
+        return _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block)
     for lo in range(0, n_points, block):
         hi = min(lo + block, n_points)
         cx, cy, cz, k = _kernel(points[lo:hi], starts, ends, core, semi_infinite)   # (B, S) each
@@ -149,6 +165,28 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
         else:
             components = np.concatenate([cx, cy, cz]) * np.concatenate([k, k, k])    # (3 B, S): one product
             out[lo:hi] = np.asarray(wt @ components.T).T.reshape(3, hi - lo, n_unknowns).transpose(1, 0, 2)
+    return out
+
+
+def _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block):
+    """`influence` by the compiled kernels (biot_savart_kernels.py) into `out`: the same blocks and products, the
+    pairs computed one at a time; known circulations (one dense column) summed without the (P, S) matrix."""
+    contiguous = lambda a: np.ascontiguousarray(a, dtype=float)                                  # noqa: E731
+    points, starts, ends = contiguous(points), contiguous(starts), contiguous(ends)
+    core, semi_infinite = float(core), bool(semi_infinite)
+    wt = weights.T
+    if normals is None and weights.shape[1] == 1 and not scipy.sparse.issparse(weights):
+        out[:, :, 0] = kernels.velocity_sum(points, starts, ends, contiguous(weights).ravel(), core, semi_infinite)
+        return out
+    normals = None if normals is None else contiguous(normals)
+    for lo in range(0, len(points), block):
+        hi = min(lo + block, len(points))
+        if normals is not None:
+            wash = kernels.normal_wash(points[lo:hi], normals[lo:hi], starts, ends, core, semi_infinite)
+            out[lo:hi] = np.asarray(wt @ wash.T).T
+        else:
+            parts = kernels.components(points[lo:hi], starts, ends, core, semi_infinite).reshape(3 * (hi - lo), -1)
+            out[lo:hi] = np.asarray(wt @ parts.T).T.reshape(3, hi - lo, out.shape[2]).transpose(1, 0, 2)
     return out
 
 

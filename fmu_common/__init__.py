@@ -4,11 +4,13 @@
   schema.py           the vocabulary of the scene schema: typed keys, tables, arrays of tables, variants
   scene_schema.py     every scene key declared once, and resolve_scene (docs/scenes.md is generated from it)
   scene_bounds.py     the size bounds of a scene and the rough memory estimate of a run
+  scissors.py         chains of scissor-like elements: the scene shorthand expanded into bodies, pins, probes
   topology.py         the structural topology both units build from a scene: bodies, nodes, elements,
                       reference lines, chords, hinges, initial coordinates and the topology hash
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
                       unit maps panel points and forces to the exchanged coordinates (Eq. 12)
-  vectors.py          3-vector kernels: cross product, rotation about an axis
+  vectors.py          3-vector kernels: cross product, rotation about an axis, perpendiculars
+  compiled.py         which kernels run (compiled by numba or numpy) and the per-machine cache of the compiled
   fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave: layout, refusals, phases, states)
   fmi_state.py        a unit's state as bytes, read back by an unpickler that builds nothing but the state
   fmi_units.py        SI units of FMI variables (UnitReal) and the model description's UnitDefinitions

@@ -8,7 +8,10 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   section.py         beam cross-section properties from a plate or explicit stiffnesses
   element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
   model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4)
-  constraints.py     the nonlinear internal constraints (Eqs. 6, 17) and the joints' axis rows
+  slots.py           the exchanged coordinates as combinations of free and prescribed vectors; shared slots
+  pins.py            pins at any node (shared points, rows closing a loop of rigid bodies) and sliders
+  constraints.py     the nonlinear internal constraints (Eqs. 6, 17), linear rows and the joints' axis rows
+  joint_rows.py      a slider's rows on the frame of another body's node
   joints.py          revolute joints: fold angle, spring actuator, latch
   joint_monitors.py  per-joint constraint monitors (point mismatch, axis products) on E
   strain_kinematics.py  the strain-based recursion: nodal vectors from strains and joint parameters, derivatives

@@ -1,4 +1,7 @@
-"""Biot-Savart law of straight vortex segments (Otsuka et al. 2019, Eq. 19) against closed forms; the vortex core."""
+"""Biot-Savart law of straight vortex segments (Otsuka et al. 2019, Eq. 19) against closed forms; the vortex core;
+the compiled kernels against the numpy reference, and their cache."""
+import os
+
 import numpy as np
 import pytest
 import scipy.sparse
@@ -73,3 +76,84 @@ def test_blocked_influence_equals_the_dense_tensor(monkeypatch):
                                np.einsum("psc,sk->pck", tensor, dense), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(influence(points, starts, ends, weights, 1e-3, normals=normals),
                                np.einsum("psc,pc,sk->pk", tensor, normals, dense), rtol=1e-12, atol=1e-12)
+
+
+@pytest.fixture
+def kernels(monkeypatch):
+    """Every `influence` call on the compiled kernels (whatever its size), the numpy ones by kernels("numpy")."""
+    monkeypatch.setattr(biot_savart, "COMPILED_PAIRS", 0)
+
+    def select(kind):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+    return select
+
+
+@pytest.mark.parametrize("semi_infinite", [False, True])
+def test_the_compiled_kernels_equal_the_numpy_reference(kernels, semi_infinite):
+    """Both kernels on every path of `influence` (normal wash, velocities per unknown, known circulations), with
+    the singular cases mixed in (points at segment ends, zero-length segments): equal to 1e-12 of the largest
+    value (the normal wash bit for bit: the same operations in the same order)."""
+    P, S, K = 41, 67, 11
+    points, starts = RNG.standard_normal((P, 3)), RNG.standard_normal((S, 3))
+    ends = RNG.standard_normal((S, 3))
+    if semi_infinite:
+        ends /= np.linalg.norm(ends, axis=1)[:, None]
+    else:
+        ends[:4] = starts[:4]                                  # zero-length segments
+    points[:3] = starts[5:8]                                   # points at segment starts
+    normals = RNG.standard_normal((P, 3))
+    weights = scipy.sparse.random(S, K, density=0.2, format="csr", random_state=4)
+    gamma = RNG.standard_normal((S, 1))
+    results = {}
+    for kind in ("numpy", "compiled"):
+        kernels(kind)
+        results[kind] = [influence(points, starts, ends, weights, 1e-3, semi_infinite, normals),
+                         influence(points, starts, ends, weights, 1e-3, semi_infinite),
+                         influence(points, starts, ends, gamma, 1e-3, semi_infinite)]
+    for reference, compiled in zip(results["numpy"], results["compiled"]):
+        assert np.abs(compiled - reference).max() <= 1e-12 * np.abs(reference).max()
+    np.testing.assert_array_equal(results["compiled"][0], results["numpy"][0])
+
+
+CACHE_PROBE = """
+import sys
+import numpy as np
+from fmu_common import compiled
+kernels = compiled.load(sys.argv[1])
+points = np.ones((2, 3))
+kernels.normal_wash(points, points, points, points, 0.0, False)
+stats = kernels.normal_wash.stats
+print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), stats.cache_path)
+"""
+
+
+def test_compiled_kernels_are_cached_once_per_machine_whatever_folder_they_run_from(tmp_path):
+    """An FMU unpacks its sources into a fresh folder at every instantiation: a kernel module loaded from two
+    folders compiles once (a cache miss in the first process) and is loaded from the cache by the next, from
+    the other folder (a hit), both through one copy in the cache folder."""
+    import subprocess
+    import sys
+
+    cache = tmp_path / "cache"
+    runs = []
+    for unpacked in ("fmu_a", "fmu_b"):
+        folder = tmp_path / unpacked
+        folder.mkdir()
+        module = folder / biot_savart.KERNELS.name
+        module.write_bytes(biot_savart.KERNELS.read_bytes())
+        env = {**os.environ, "WINGSIM_CACHE_DIR": str(cache), "WINGSIM_KERNELS": "compiled"}
+        out = subprocess.run([sys.executable, "-c", CACHE_PROBE, str(module)], env=env, capture_output=True,
+                             text=True, check=True).stdout.split()
+        runs.append((int(out[0]), int(out[1]), out[2]))
+    (hits_a, misses_a, path_a), (hits_b, misses_b, path_b) = runs
+    assert (hits_a, misses_a) == (0, 1) and (hits_b, misses_b) == (1, 0)
+    assert path_a == path_b and path_a.startswith(str(cache))
+    assert len(list(cache.iterdir())) == 1
+
+
+def test_an_unknown_kernel_choice_is_refused_naming_the_variable(monkeypatch):
+    from fmu_common import compiled
+
+    monkeypatch.setenv("WINGSIM_KERNELS", "fast")
+    with pytest.raises(ValueError, match="WINGSIM_KERNELS"):
+        compiled.selected()
