@@ -111,13 +111,17 @@ class StructureModel:
         self._fixed = (p0, np.zeros_like(p0), np.zeros_like(p0))
         # without moving prescribed vectors, P p(t) is constant and P p' = p'' = 0
         self._fixed_offset = None if self._moving else self.P @ p0.ravel()
+        self._motion_at = (None, None)         # (t, (P p, P p', p'')) of the last t asked
 
     def coordinates(self, q, dq, t):
         """E, dE/dt, and the prescribed acceleration p'' at time t (None when nothing prescribed moves)."""
         if self._fixed_offset is not None:
             return self.T @ q + self._fixed_offset, self.T @ dq, None
-        p, dp, ddp = self.prescribed(t)
-        return self.T @ q + self.P @ p, self.T @ dq + self.P @ dp, ddp
+        if self._motion_at[0] != t:     # a step's Newton iterations and RK4 stages ask for the same t
+            p, dp, ddp = self.prescribed(t)
+            self._motion_at = (t, (self.P @ p, self.P @ dp, ddp))
+        Pp, Pdp, ddp = self._motion_at[1]
+        return self.T @ q + Pp, self.T @ dq + Pdp, ddp
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
