@@ -25,9 +25,11 @@ Elastic energy (Otsuka et al. 2019, Eq. 7) and its definitions, written down her
   Every measure vanishes for any rigid motion, so a rigid motion gives zero elastic force.
 """
 import functools
+from pathlib import Path
 
 import numpy as np
 
+from fmu_common import compiled
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import cross
 
@@ -42,6 +44,7 @@ GAUSS_W = 0.5 * _GAUSS_W
 _PHI = np.stack([1 - GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI), GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI),
                  6 * GAUSS_XI * (1 - GAUSS_XI)])
 AXIAL_GRAM = (_PHI * GAUSS_W) @ _PHI.T
+KERNELS = Path(__file__).with_name("element_kernels.py")    # the compiled elastic force (fmu_common.compiled)
 
 def _cached_per_lengths(build):
     """`build(length)` cached per array of element lengths (constant in a run): the bases below are built
@@ -191,8 +194,14 @@ def elastic_force(e, length, stiffness):
     """Generalized elastic force -dU/de per element, shape (n, 18) (Otsuka et al. 2019, Eq. 4).
 
     Exact gradient of `elastic_energy`; complex-safe, so that a complex step differentiates it exactly (the
-    tests' reference for `elastic_jacobian`).
+    tests' reference for `elastic_jacobian`). Real coordinates run the compiled kernel of element_kernels.py
+    (fmu_common.compiled; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy.
     """
+    kernels = compiled.load(KERNELS) if np.isrealobj(e) else None
+    if kernels is not None:
+        real = lambda a: np.ascontiguousarray(a, dtype=float)          # noqa: E731
+        return kernels.elastic_force(real(e), real(length), real(stiffness), real(_slot_basis(length)), GAUSS_W,
+                                     AXIAL_GRAM)
     m = _measures(e, length)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
     w = GAUSS_W[None, :] * np.asarray(length)[:, None]
