@@ -53,18 +53,22 @@ def load(path: str | Path):
     numpy kernels are selected."""
     if selected() == "numpy":
         return None
-    path = Path(path)
-    key = str(path.resolve())
-    if key not in _loaded:
-        try:
-            import numba
-        except ImportError as missing:
-            raise ImportError(f"the compiled kernels need numba ({missing}); install it, or set "
-                              f"{KERNELS_VARIABLE}=numpy for the numpy kernels") from None
-        source = path.read_bytes()
-        digest = hashlib.sha256(source + numba.__version__.encode() + sys.version.encode()).hexdigest()[:16]
-        _loaded[key] = _import(_stable_copy(path, source, digest) or path, f"_wingsim_kernels_{path.stem}_{digest}")
-    return _loaded[key]
+    module = _loaded.get(path)      # by the path as given (a module constant): no file system call per kernel call
+    if module is None:
+        module = _loaded[path] = _load(Path(path))
+    return module
+
+
+def _load(path: Path):
+    """Import the kernel module at `path` from its cached copy (module docstring)."""
+    try:
+        import numba
+    except ImportError as missing:
+        raise ImportError(f"the compiled kernels need numba ({missing}); install it, or set "
+                          f"{KERNELS_VARIABLE}=numpy for the numpy kernels") from None
+    source = path.read_bytes()
+    digest = hashlib.sha256(source + numba.__version__.encode() + sys.version.encode()).hexdigest()[:16]
+    return _import(_stable_copy(path, source, digest) or path, f"_wingsim_kernels_{path.stem}_{digest}")
 
 
 def _stable_copy(path: Path, source: bytes, digest: str) -> Path | None:
