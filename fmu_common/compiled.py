@@ -7,7 +7,7 @@ modification time, and an FMU unpacks into a fresh temporary folder at every ins
 the kernels would be compiled again by every run. `load` therefore imports a copy of the module kept in a
 per-user folder named by the hash of its source and of the numba and Python versions
 (`<cache>/<module>-<hash>/<module>.py`, written once and never rewritten), so every process, FMU or not, on
-this machine shares one compiled copy; a changed source or a new numba gets a new folder.
+the machine shares one compiled copy; a changed source or a new numba gets a new folder.
 
 The cache folder is $WINGSIM_CACHE_DIR, else $XDG_CACHE_HOME/wingsim, else ~/.cache/wingsim. Where it cannot be
 written, the kernels are compiled in the process (a warning says so once) and run compiled all the same.
