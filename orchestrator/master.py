@@ -253,7 +253,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
         phase = "reading the initial outputs"
         scheme = make_scheme(scene, structure, aero, aero_inputs)
         start_coupling = scheme.start()
-        e = structure.get_outputs()[0]   # one read of e and the monitors, which _record then uses
+        e = structure.get_outputs()[0]   # the structure's e after the scheme's initial exchange
         latch_times = _record(series, structure, aero, times[0], coupling=start_coupling)
         coordinates.append(times[0], e)
         stepping_start = _time.perf_counter()

@@ -18,7 +18,7 @@ import numpy as np
 
 from fmu_common.vectors import cross, skew
 
-from .joint_rows import SlidingRows
+from .joint_rows import GatheredRows, SlidingRows, frame_vector
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ class AxisProduct:
     child_axis: np.ndarray
 
 
-class AxisProducts:
+class AxisProducts(GatheredRows):
     """Vectorized evaluation of the `AxisProduct` rows on E (n,), with their Jacobian on q for E = T q + P p.
 
     Each row gathers the four 3-vectors [r_x^A, r_y^A, r_x^B, r_y^B] (twelve E entries: r_x and r_y of a node
@@ -80,31 +80,18 @@ class AxisProducts:
     """
 
     def __init__(self, rows, T, n):
-        self.count = len(rows)
-        self.n = n
-        node = lambda slot: list(range(3 * slot, 3 * slot + 6))
-        self._index = np.array([node(r.child if r.parent is None else r.parent) + node(r.child) for r in rows],
-                               dtype=int).reshape(-1, 12)
+        node = lambda slot: list(range(3 * slot, 3 * slot + 6))                        # noqa: E731
+        super().__init__([node(r.child if r.parent is None else r.parent) + node(r.child) for r in rows], T, n)
         self._a = np.array([np.zeros(3) if r.parent is None else r.parent_axis for r in rows]).reshape(-1, 3)
         self._ground = np.array([r.parent_axis if r.parent is None else np.zeros(3) for r in rows]).reshape(-1, 3)
         self._b = np.array([r.child_axis for r in rows]).reshape(-1, 3)
         # coefficients of the gradient's four blocks: [a_x, a_y, b_x, b_y] on w, w, u, u and [a_z, a_z, b_z, b_z]
         self._linear = np.concatenate([self._a[:, :2], self._b[:, :2]], axis=1)[:, :, None]
         self._normal = np.repeat(np.stack([self._a[:, 2], self._b[:, 2]], axis=1), 2, axis=1)[:, :, None]
-        self._T = np.asarray(T, dtype=float)[self._index]                              # (m, 12, n_q)
-        self._hessian_entries = (self._index[:, :, None] * n + self._index[:, None, :]).ravel()
-
-    def _gather(self, E):
-        """[r_x^A, r_y^A, r_x^B, r_y^B] of each row, (m, 4, 3)."""
-        return E[self._index].reshape(-1, 4, 3)
 
     def _vectors(self, X):
         """u = v_A(a) (+ a with the ground) and w = v_B(b), each (m, 3), of the gathered X (m, 4, 3)."""
-        a, b = self._a, self._b
-        normals = cross(X[:, 0::2], X[:, 1::2])                 # r_x x r_y at A and B
-        u = a[:, :1] * X[:, 0] + a[:, 1:2] * X[:, 1] + a[:, 2:] * normals[:, 0] + self._ground
-        w = b[:, :1] * X[:, 2] + b[:, 1:2] * X[:, 3] + b[:, 2:] * normals[:, 1]
-        return u, w
+        return (frame_vector(self._a, X[:, 0], X[:, 1]) + self._ground, frame_vector(self._b, X[:, 2], X[:, 3]))
 
     def residual(self, E):
         """Phi (m,)."""
@@ -119,14 +106,6 @@ class AxisProducts:
         uw = np.stack([w, w, u, u], axis=1)
         turned = cross(np.stack([X[:, 1], w, X[:, 3], u], axis=1), np.stack([w, X[:, 0], u, X[:, 2]], axis=1))
         return (self._linear * uw + self._normal * turned).reshape(-1, 12)
-
-    def jacobian(self, E):
-        """G_q = dPhi/dq (m, n_q)."""
-        return np.einsum("mk,mkj->mj", self.gradient(E), self._T)
-
-    def rate(self, E, dE):
-        """dPhi/dt (m,) for the rate dE (n,)."""
-        return np.einsum("mk,mk->m", self.gradient(E), dE[self._index])
 
     def velocity_quadratic(self, dE, E):
         """The part of d2Phi/dt2 quadratic in dE (m,), at E:
@@ -162,11 +141,6 @@ class AxisProducts:
         H[:, 0:3, 3:6] = -a[:, 2, None, None] * skew(w)
         H[:, 6:9, 9:12] = -b[:, 2, None, None] * skew(u)
         return H + np.swapaxes(H, 1, 2)
-
-    def hessian_sum(self, multipliers, E):
-        """sum_i lambda_i d2Phi_i/dE2, dense (n, n)."""
-        values = (np.asarray(multipliers)[:, None, None] * self.hessian(E)).ravel()
-        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
 
 
 class Constraints:

@@ -1,4 +1,5 @@
-"""Sliding rows: a point of one body kept on a line or plane fixed in another body (a slider between bodies).
+"""Joint rows on four gathered 3-vectors of E (`GatheredRows`: the axis products of constraints.py and the sliding
+rows here), and the sliding rows: a point of one body kept on a line or plane fixed in another body.
 
 The row is Phi = (X_p - X_q) . v_Q(c) - offset on the exchanged coordinates E, X = E.reshape(-1, 3): X_p the
 position r of the sliding point's node P, X_q the position r of a node Q of the carrying body, and
@@ -41,28 +42,46 @@ def frame_vector(c, x, y):
     return c[:, :1] * x + c[:, 1:2] * y + c[:, 2:] * cross(x, y)
 
 
-class SlidingRows:
-    """Vectorized evaluation of `SlidingRow`s on E (n,), with their Jacobian on q for E = T q + P p (T (n, n_q)).
+class GatheredRows:
+    """Rows that each read four 3-vector slots of E (n,), twelve entries `index` (m, 12), with E = T q + P p
+    (T (n, n_q)): a subclass gives residual(E), gradient(E) (m, 12), velocity_quadratic(dE, E) and hessian(E)
+    (m, 12, 12) on the gathered entries; the Jacobian on q, the rate and the Hessian sum on E follow here.
+    Entries that coincide in E (two rows' or one row's) are summed where the derivatives are scattered on E or
+    mapped by T."""
 
-    Each row gathers the four 3-vectors [X_p, X_q, r_x^Q, r_y^Q] (twelve E entries); with d = X_p - X_q and
-    v = v_Q(c), Phi = d . v - offset. Entries that coincide in E (two rows' or one row's) are summed where
-    the rows' derivatives are scattered on E or mapped by T.
-    """
-
-    def __init__(self, rows, T, n):
-        self.count = len(rows)
-        self.n = n
-        slot = lambda s: list(range(3 * s, 3 * s + 3))
-        self._index = np.array([slot(r.point) + slot(r.origin) + slot(r.frame) + slot(r.frame + 1) for r in rows],
-                               dtype=int).reshape(-1, 12)
-        self._c = np.array([r.components for r in rows], dtype=float).reshape(-1, 3)
-        self._offset = np.array([r.offset for r in rows], dtype=float)
+    def __init__(self, index, T, n):
+        self._index = np.asarray(index, dtype=int).reshape(-1, 12)
+        self.count, self.n = len(self._index), n
         self._T = np.asarray(T, dtype=float)[self._index]                              # (m, 12, n_q)
         self._hessian_entries = (self._index[:, :, None] * n + self._index[:, None, :]).ravel()
 
     def _gather(self, E):
-        """[X_p, X_q, r_x^Q, r_y^Q] of each row, (m, 4, 3)."""
+        """The four gathered 3-vectors of each row, (m, 4, 3)."""
         return E[self._index].reshape(-1, 4, 3)
+
+    def jacobian(self, E):
+        """G_q = dPhi/dq (m, n_q)."""
+        return np.einsum("mk,mkj->mj", self.gradient(E), self._T)
+
+    def rate(self, E, dE):
+        """dPhi/dt (m,) for the rate dE (n,)."""
+        return np.einsum("mk,mk->m", self.gradient(E), dE[self._index])
+
+    def hessian_sum(self, multipliers, E):
+        """sum_i lambda_i d2Phi_i/dE2, dense (n, n), for the rows' multipliers (m,)."""
+        values = (np.asarray(multipliers)[:, None, None] * self.hessian(E)).ravel()
+        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
+
+
+class SlidingRows(GatheredRows):
+    """Vectorized evaluation of `SlidingRow`s: each row gathers [X_p, X_q, r_x^Q, r_y^Q]; with d = X_p - X_q and
+    v = v_Q(c), Phi = d . v - offset (m)."""
+
+    def __init__(self, rows, T, n):
+        slot = lambda s: list(range(3 * s, 3 * s + 3))                                 # noqa: E731
+        super().__init__([slot(r.point) + slot(r.origin) + slot(r.frame) + slot(r.frame + 1) for r in rows], T, n)
+        self._c = np.array([r.components for r in rows], dtype=float).reshape(-1, 3)
+        self._offset = np.array([r.offset for r in rows], dtype=float)
 
     def residual(self, E):
         """Phi (m,), m."""
@@ -79,14 +98,6 @@ class SlidingRows:
         turned = cross(np.stack([X[:, 3], d], axis=1), np.stack([d, X[:, 2]], axis=1))
         return np.concatenate([v, -v, c[:, :1] * d + c[:, 2:] * turned[:, 0], c[:, 1:2] * d + c[:, 2:] * turned[:, 1]],
                               axis=1)
-
-    def jacobian(self, E):
-        """G_q = dPhi/dq (m, n_q)."""
-        return np.einsum("mk,mkj->mj", self.gradient(E), self._T)
-
-    def rate(self, E, dE):
-        """dPhi/dt (m,), m/s, for the rate dE (n,)."""
-        return np.einsum("mk,mk->m", self.gradient(E), dE[self._index])
 
     def velocity_quadratic(self, dE, E):
         """The part of d2Phi/dt2 that is not (dPhi/dE) E'' (m,), m/s2, at E:
@@ -113,8 +124,3 @@ class SlidingRows:
         H[:, 3:6, 6:12] = -dv
         H[:, 6:9, 9:12] = -c[:, 2, None, None] * skew(X[:, 0] - X[:, 1])
         return H + np.swapaxes(H, 1, 2)
-
-    def hessian_sum(self, multipliers, E):
-        """sum_i lambda_i d2Phi_i/dE2, dense (n, n), for the rows' multipliers (m,)."""
-        values = (np.asarray(multipliers)[:, None, None] * self.hessian(E)).ravel()
-        return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)

@@ -57,8 +57,8 @@ class StructureModel:
         self.mass_prescribed = self.T.T @ self.mass_E @ self.P
         self.constraints = Constraints(topology, self.T)
         # the rows the integrators solve: a loop of rigid bodies closed by rows, planar, repeats one of them
-        E0 = self.T @ topology.initial_free() + self.P @ np.concatenate(topology.prescribed_initial or [np.zeros(0)])
-        kept = independent_rows(self.constraints.jacobian(E0)) if self.constraints.count else np.zeros(0, int)
+        kept = (independent_rows(self.constraints.jacobian(topology.initial_coordinates())) if self.constraints.count
+                else np.zeros(0, int))
         self._dropped = np.setdiff1d(np.arange(self.constraints.count), kept)
         self._row_count = len(kept)
         self._rows = kept if len(self._dropped) else slice(None)     # every row: views, not copies

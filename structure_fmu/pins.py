@@ -63,31 +63,26 @@ class _Pin:
 
     def __init__(self, top, key, a, b):
         self.top, self.key, self.a, self.b = top, key, a, b
-        self._fixed = None
 
-    def _ground(self, value, is_position):
-        """A prescribed slot that stays at `value` (3,)."""
-        if self._fixed is None:
-            self._fixed = len(self.top.motions)
-            self.top.motions.append(Fixed())
-        return self.top._new_prescribed(value, is_position, self._fixed)
+    def _normal(self, node):
+        """The unit section normal r_x x r_y (3,) of `node` at t = 0."""
+        _, x, y = self.top.node_initial[node]
+        normal = np.cross(x, y)
+        return normal / np.linalg.norm(normal)
 
     def add(self, axis):
         top, a, b = self.top, self.a, self.b
         self._share(R, "the two nodes coincide at t = 0", "m apart")
-        _, x_a, y_a = top.node_initial[a]
         if axis == "chord":
             self._share(RY, "the chord_axis of the two bodies at the pin is the same at t = 0 (the shared axis)",
                         "apart (unit vectors)")
         elif axis == "normal":
-            normal = np.cross(x_a, y_a) / np.linalg.norm(np.cross(x_a, y_a))
+            normal = self._normal(a)
             if b is None:
                 top.linear_rows += [LinearRow((3 * a + RX,), (1.0,), normal, 0.0),
                                     LinearRow((3 * a + RY,), (1.0,), normal, 0.0)]
                 return
-            _, x_b, y_b = top.node_initial[b]
-            other = np.cross(x_b, y_b) / np.linalg.norm(np.cross(x_b, y_b))
-            gap = np.linalg.norm(np.cross(normal, other))
+            gap = np.linalg.norm(np.cross(normal, self._normal(b)))
             if gap > GAP_TOLERANCE:
                 raise SceneError(f"{self.key}.axis", "normal", f"section normals of the two bodies parallel at t = 0 "
                                                              f"(the angle between them is {np.degrees(gap):.3g} deg)")
@@ -99,7 +94,7 @@ class _Pin:
         top, a, b = self.top, self.a, self.b
         mine = top.slots[3 * a + kind]
         value = lambda slot: slot.value(top.free_initial, top.prescribed_initial)
-        theirs = self._ground(value(mine), kind == R) if b is None else top.slots[3 * b + kind]
+        theirs = top.new_fixed(value(mine), kind == R) if b is None else top.slots[3 * b + kind]
         gap = float(np.linalg.norm(value(mine) - value(theirs)))
         if gap > GAP_TOLERANCE:
             raise SceneError(self.key if kind == R else f"{self.key}.axis", f"{gap:.3g} {unit}", allowed)

@@ -128,6 +128,7 @@ class StructureSolver:
             return
         if not self._initialized:
             self._initialize(Q)
+        power = None                      # of the step's start, the previous step's end
         while self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
             h = min(self.step_size, t_end - self.state.t)
             if t_end - (self.state.t + h) < 1e-9 * self.step_size:
@@ -140,7 +141,9 @@ class StructureSolver:
                                      _DIVERGENCE_HINT[self.integrator.name]) from None
             self._check(new)
             self._update_latches(previous, new)
-            new.work = previous.work + 0.5 * h * (self._power(previous, Q) + self._power(new, Q))
+            start = self._power(previous, Q) if power is None else power
+            power = self._power(new, Q)
+            new.work = previous.work + 0.5 * h * (start + power)
             self.state = new
 
     def _check(self, state):

@@ -144,6 +144,12 @@ class StructureTopology(topology.Topology):
         self.prescribed_motion.append(motion)
         return Slot(prescribed={len(self.prescribed_initial) - 1: 1.0})
 
+    def new_fixed(self, value, is_position):
+        """A slot of a new prescribed vector that stays at `value` (3,) (m for a point, else -), under a Fixed
+        motion of its own."""
+        self.motions.append(Fixed())
+        return self._new_prescribed(value, is_position, len(self.motions) - 1)
+
     def _add_coordinates(self, body, key, spec, motion_spec):
         """The slots of the body's nodes: its root joint decides whether the root is free, shared or
         prescribed; the other nodes are free (flexible) or follow the root (rigid, prescribed)."""
@@ -200,11 +206,9 @@ class StructureTopology(topology.Topology):
         axis-product rows and, for a revolute, its Hinge."""
         line = next(j for j in self.joint_lines if j.child == spec["child"])
         if line.parent is None:          # the ground: the root point (and a chord axis) stay where they start
-            fixed = len(self.motions)
-            self.motions.append(Fixed())
             tip_x = None
-            point = self._new_prescribed(r0, True, fixed)
-            chord = lambda: self._new_prescribed(y0, False, fixed)
+            point = self.new_fixed(r0, True)
+            chord = lambda: self.new_fixed(y0, False)
         else:
             tip = self.bodies[line.parent].nodes[-1]
             tip_x = 3 * tip + RX
