@@ -164,17 +164,17 @@ class UVLM:
         if self.wake_model == "prescribed":
             return U * dt
         points = state.wake.corners.reshape(-1, 3)
-        circulation = self.rings.incidence @ state.gamma
-        w = self._bound_velocity(points, state.corners, circulation) + wakes.velocity(points, state.wake,
-                                                                                     self.convection_core)
+        # bound rings and wake share the convection core: one sum over the segments of both
+        bound = self._bound_segments(state.corners, self.rings.incidence @ state.gamma)
+        starts, ends, circulation = (np.concatenate(parts) for parts in zip(bound, wakes.live_segments(state.wake)))
+        w = influence(points, starts, ends, circulation[:, None], self.convection_core)[:, :, 0]
         return (U + w).reshape(state.wake.corners.shape) * dt
 
-    def _bound_velocity(self, points, corners, circulation):
-        """Velocity (P, 3) m/s of the bound rings (ring corners (n_corners, 3), unique-segment circulations
-        incidence @ Gamma) at points (P, 3), with the convection core."""
+    def _bound_segments(self, corners, circulation):
+        """(starts (S, 3), ends (S, 3), circulations (S,)) of the bound rings' unique segments that carry a
+        circulation, from the ring corners (n_corners, 3) and the unique-segment circulations incidence @ Gamma."""
         live = circulation != 0.0
-        starts, ends = corners[self.rings.start[live]], corners[self.rings.end[live]]
-        return influence(points, starts, ends, circulation[live, None], self.convection_core)[:, :, 0]
+        return corners[self.rings.start[live]], corners[self.rings.end[live]], circulation[live]
 
     def _solve(self, geometry, dE, U, density, direction, wake, history, steps):
         """Gamma (Otsuka et al. 2019, Eq. 22) and the panel forces (Eqs. 23, 25)."""

@@ -115,6 +115,62 @@ def test_the_compiled_kernels_equal_the_numpy_reference(kernels, semi_infinite):
     np.testing.assert_array_equal(results["compiled"][0], results["numpy"][0])
 
 
+@pytest.mark.parametrize("semi_infinite", [False, True])
+def test_the_compiled_sum_over_blocks_of_points_equals_the_numpy_reference(kernels, semi_infinite):
+    """Known circulations summed at more points than two blocks of the compiled sum (a partial block last), some
+    circulations zero (skipped by the compiled sum): every point equals the numpy reference to 1e-12 of the
+    largest value."""
+    from fmu_common import compiled
+
+    kernels("compiled")
+    P, S = 2 * compiled.load(biot_savart.KERNELS).POINT_BLOCK + 37, 29
+    points, starts, ends = RNG.standard_normal((P, 3)), RNG.standard_normal((S, 3)), RNG.standard_normal((S, 3))
+    if semi_infinite:
+        ends /= np.linalg.norm(ends, axis=1)[:, None]
+    gamma = RNG.standard_normal((S, 1))
+    gamma[::4] = 0.0
+    fast = induced_velocity(points, starts, ends, gamma, 1e-3, semi_infinite)
+    kernels("numpy")
+    reference = induced_velocity(points, starts, ends, gamma, 1e-3, semi_infinite)
+    assert np.abs(fast - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("semi_infinite", [False, True])
+def test_the_compiled_kernels_keep_the_core_behaviour_on_and_near_a_segment(kernels, semi_infinite):
+    """The compiled kernels on the singular points of the module docstring, on every path of `influence`: on the
+    segment's line (middle, ends, extension both sides) exactly zero, never NaN/inf; from 1e-300 to delta off the
+    line finite and at most 1 / (4 pi delta) per unit circulation; a zero-length segment induces nothing
+    (finite segments); all equal to the numpy reference to 1e-12 of the largest value."""
+    core = 1e-3
+    on_line = np.array([[0.5, 0, 0], [0, 0, 0], [1, 0, 0], [-2, 0, 0], [3, 0, 0]])
+    near = np.array([[0.5, 1e-300, 0], [0.5, 0, 1e-300], [0.5, 1e-12, 0], [0.5, core, 0], [0, core, 0]])
+    points = np.concatenate([on_line, near])
+    starts, ends = np.array([[0.0, 0, 0], [0.2, 0.2, 0.2]]), np.array([[1.0, 0, 0], [0.2, 0.2, 0.2]])
+    if semi_infinite:
+        starts, ends = starts[:1], ends[:1]                    # a direction, never of zero length
+    normals = RNG.standard_normal((len(points), 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    unit, gamma = np.eye(len(starts)), np.ones((len(starts), 1))
+    results = {}
+    for kind in ("numpy", "compiled"):
+        kernels(kind)
+        results[kind] = [influence(points, starts, ends, unit, core, semi_infinite, normals),
+                         influence(points, starts, ends, unit, core, semi_infinite),
+                         influence(points, starts, ends, gamma, core, semi_infinite)]
+    for reference, fast in zip(results["numpy"], results["compiled"]):
+        assert np.all(np.isfinite(fast))
+        assert np.all(fast[:len(on_line)] == 0.0)
+        assert np.abs(fast).max() <= 1 / (4 * np.pi * core)
+        assert np.abs(fast - reference).max() <= 1e-12 * np.abs(reference).max()
+    # at h = delta the swirl h / (h^2 + delta^2) peaks at 1 / (2 delta): mid-segment (both ends far) the speed is
+    # 1 / (4 pi delta), abreast of the start half of it (finite or semi-infinite)
+    speeds = np.linalg.norm(results["compiled"][1][len(on_line):], axis=1)      # (near, segments)
+    assert speeds[3, 0] == pytest.approx(1 / (4 * np.pi * core), rel=1e-5)
+    assert speeds[4, 0] == pytest.approx(1 / (8 * np.pi * core), rel=1e-5)
+    if not semi_infinite:
+        assert np.all(speeds[:, 1] == 0.0)
+
+
 CACHE_PROBE = """
 import sys
 import numpy as np
