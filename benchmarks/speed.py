@@ -27,8 +27,8 @@ from orchestrator.build import build_fmus
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
 
-TARGET = {"deploy_rigid": 1.0, "deploy_flexible": 20.0}   # real-time factor through the FMUs
-FMU_OVERHEAD_TARGET = 0.15
+TARGET = {"deploy_rigid": 0.5, "deploy_flexible": 5.0}   # real-time factor through the FMUs
+FMU_OVERHEAD_TARGET = 0.10
 BACKENDS = ("fmu", "direct")
 
 

@@ -44,7 +44,7 @@ GAUSS_W = 0.5 * _GAUSS_W
 _PHI = np.stack([1 - GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI), GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI),
                  6 * GAUSS_XI * (1 - GAUSS_XI)])
 AXIAL_GRAM = (_PHI * GAUSS_W) @ _PHI.T
-KERNELS = Path(__file__).with_name("element_kernels.py")    # the compiled elastic force (fmu_common.compiled)
+KERNELS = Path(__file__).with_name("element_kernels.py")    # the compiled force and tangent (fmu_common.compiled)
 
 def _cached_per_lengths(build):
     """`build(length)` cached per array of element lengths (constant in a run): the bases below are built
@@ -263,8 +263,15 @@ def elastic_jacobian(e, length, stiffness):
     to the slots [d, x^A, y^A, x^B, y^B] by `_field_basis`; the axial quadratic form couples the stretches'
     gradients across points and nodes; torsion is two triple products of nodal vectors. r^A enters only as
     -d (a translation does not strain). Checked against complex-step and finite differences of
-    `elastic_force` (tests/units/test_element.py).
+    `elastic_force` (tests/units/test_element.py). Real coordinates run the compiled kernel of element_kernels.py
+    (fmu_common.compiled; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy; this numpy form is
+    the reference.
     """
+    kernels = compiled.load(KERNELS) if np.isrealobj(e) else None
+    if kernels is not None:
+        real = lambda a: np.ascontiguousarray(a, dtype=float)          # noqa: E731
+        return kernels.elastic_jacobian(real(e), real(length), real(stiffness), real(_slot_basis(length)), GAUSS_W,
+                                        AXIAL_GRAM)
     m = _measures(e, length)
     n, eye = e.shape[0], np.eye(3)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))

@@ -10,16 +10,20 @@ constraints (`constraint_*`) and generalized-alpha's iteration matrix (`iteratio
 * GeneralizedAlpha: the generalized-alpha method of Peng et al. 2019, Eqs. (23)-(25) with spectral radius rho_inf, in
   the index-3 form of Arnold & Bruls (2007) for constrained systems: Newton iterations on q_{n+1} and
   lambda_{n+1} with the iteration matrix beta' M + gamma' C_t + K_t (Peng et al. 2019, Fig. 3), constraint rows scaled
-  by beta' for conditioning. The factorized iteration matrix is reused across steps (modified Newton)
-  and refreshed when convergence slows.
+  by beta' for conditioning. The iteration matrix is factorized banded where its sparsity allows
+  (iteration_lu.py), reused across steps (modified Newton) and refreshed when convergence slows; the iteration
+  stops when the error left, estimated from the observed contraction rate, is below the tolerance (Hairer and
+  Wanner 1996, Sec. IV.8), which ends most steps on a freshly factorized matrix after one correction.
 """
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dposv
 
 from fmu_common.errors import SolverDiverged
+
+from .iteration_lu import IterationLU
 
 
 @dataclass
@@ -133,11 +137,24 @@ class GeneralizedAlpha:
         self.gamma = 0.5 - self.alpha_m + self.alpha_f
         self.beta = 0.25 * (1 - self.alpha_m + self.alpha_f) ** 2
         self.tol, self.max_iterations = tol, max_iterations
-        self._matrix = None          # (h, lu factorization) of the iteration matrix
+        self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
+        self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized
+        self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
         self.newton_iterations = 0   # total, for monitoring
 
     def reset(self):
-        self._matrix = None
+        self._matrix, self._eta = None, 1.0
+
+    @property
+    def memory(self):
+        """What a step starts from besides the State: the factorized iteration matrix and the first correction's
+        error estimate factor (`_newton`). Saved with the solver's state, so that a repeated step repeats bit for
+        bit; the factorization is replaced, never modified, so it is kept by reference."""
+        return self._matrix, self._eta
+
+    @memory.setter
+    def memory(self, saved):
+        self._matrix, self._eta = saved
 
     def initialize(self, model, state, Q):
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
@@ -148,14 +165,10 @@ class GeneralizedAlpha:
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
         S, E = model.iteration_matrix(t, q, dq, latched, lam, beta_p, gamma_p)
-        n, m = len(q), model.constraint_count
-        A = np.zeros((n + m, n + m))
-        A[:n, :n] = S
-        if m:
-            Gq = model.constraint_jacobian(q, E)
-            A[:n, n:] = beta_p * Gq.T
-            A[n:, :n] = beta_p * Gq
-        self._matrix = (h, lu_factor(A))
+        if self._lu is None or self._lu[0] is not model:
+            self._lu = (model, IterationLU(len(q), model.constraint_count, model.iteration_pattern()))
+        G = model.constraint_jacobian(q, E) if model.constraint_count else None
+        self._matrix = (h, self._lu[1].factor(S, G, beta_p))
 
     def step(self, model, state, h, Q):
         """The state at t + h. Newton starts from the constant-acceleration predictor; if that iteration
@@ -202,36 +215,53 @@ class GeneralizedAlpha:
             q_scale = max(1.0, float(np.max(np.abs(q))))
             dq_scale = max(1.0, float(np.max(np.abs(dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
+        matrix_before = None if self._matrix is None else self._matrix[1]
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
         # saves; refreshing only every second step gains at short steps and loses at long ones.
         if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
             self._factor(model, t, q, dq, state.latched, lam, h)
+        # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
+        # contraction rate theta of an earlier step, raised to the power 0.8 at every step so that it drifts
+        # back to 1 and a later step measures theta again (Hairer and Wanner 1996, Sec. IV.8). A tangent
+        # factorized at the predictor makes theta small (Newton converges quadratically), so such a step whose
+        # first correction is well inside the tolerance ends after one iteration. eta is measured on, and used
+        # by, those steps only (a matrix reused from an earlier step contracts more slowly).
+        factorized_here = self._matrix[1] is not matrix_before
+        if factorized_here:
+            self._eta = max(self._eta, np.finfo(float).eps) ** 0.8
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
-        for _ in range(self.max_iterations):
+        m = model.constraint_count
+        rhs = np.empty(n + m)                     # [residual of the equations of motion, beta' Phi]
+        residual, scaled_phi = rhs[:n], rhs[n:]
+        for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            residual = model.mass_matrix(q, t) @ ddq - F
-            phi = np.zeros(0)
-            if model.constraint_count:
-                Gq = model.constraint_jacobian(q, E)
-                residual += Gq.T @ lam
-                phi = model.constraint_residual(q, E)
-            if not (np.all(np.isfinite(residual)) and np.all(np.isfinite(phi))):
+            np.matmul(model.mass_matrix(q, t), ddq, out=residual)
+            residual -= F
+            if m:
+                residual += lam @ model.constraint_jacobian(q, E)
+                np.multiply(model.constraint_residual(q, E), beta_p, out=scaled_phi)
+            if not math.isfinite(rhs.sum()):      # any NaN or inf entry makes the sum NaN or inf
                 raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
-            delta = lu_solve(self._matrix[1], -np.concatenate([residual, beta_p * phi]), check_finite=False)
+            delta = self._matrix[1].solve(rhs)    # the Newton correction is -delta
             dq_step = delta[:n]
-            q += dq_step
-            dq += gamma_p * dq_step
-            ddq += beta_p * dq_step
-            lam += beta_p * delta[n:]
+            q -= dq_step
+            dq -= gamma_p * dq_step
+            ddq -= beta_p * dq_step
+            if m:
+                lam -= beta_p * delta[n:]
             self.newton_iterations += 1
             size = float(np.max(np.abs(dq_step))) if n else 0.0
             first = size if first is None else first
             # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
             # observed contraction rate), is below the tolerance
             rate = size / previous if previous > 0 else 1.0
-            if size <= self.tol * scale or (rate < 0.5 and rate / (1 - rate) * size <= self.tol * scale):
+            if iteration == 1 and factorized_here and fresh == 1:     # theta on this step's own matrix
+                self._eta = rate / (1 - rate) if rate < 1 else 1.0
+            estimate = (self._eta if iteration == 0 and factorized_here else
+                        rate / (1 - rate) if previous > 0 and rate < 0.5 else math.inf)
+            if size <= self.tol * scale or estimate * size <= self.tol * scale:
                 break
             if not np.isfinite(size) or size > 100 * max(first, self.tol * scale):
                 raise _NewtonDiverging(f"Newton iteration diverged ({predictor} predictor, correction "

@@ -12,13 +12,20 @@ parent's tip node A and the child's root node B, in the unit frames F = [x, y, z
                          |r_x^P + r_z^Q|, the same for its anti-parallel axes).
 Joints with the ground are left out (their point and chord are prescribed, or held by the constraint rows).
 """
+import math
+
 import numpy as np
+
+from fmu_common.vectors import cross
 
 
 def _unit_frame(node):
     """[x, y, z] (3, 3) columns, from a node's (3, 3) rows r, r_x, r_y."""
-    x = node[1] / np.linalg.norm(node[1])
-    return np.column_stack([x, node[2], np.cross(x, node[2])])
+    frame = np.empty((3, 3))
+    frame[0] = node[1] / math.sqrt(node[1] @ node[1])
+    frame[1] = node[2]
+    frame[2] = cross(frame[0], node[2])
+    return frame.T
 
 
 def monitor_names(name: str, kind: str) -> list[str]:
@@ -37,11 +44,13 @@ def joint_monitors(joint_lines, bodies, e) -> dict[str, float]:
         if line.parent is None:
             continue
         tip, root = nodes[bodies[line.parent].nodes[-1]], nodes[bodies[line.child].nodes[0]]
-        values = [float(np.linalg.norm(tip[0] - root[0]))]
+        gap = tip[0] - root[0]
+        values = [math.sqrt(gap @ gap)]
         parent, child = _unit_frame(tip), _unit_frame(root)
         if line.kind == "universal":
             values.append(float((parent @ line.axis) @ (child @ line.child_axis)))
         elif line.kind == "revolute":
-            values.append(float(np.linalg.norm(parent @ line.axis - child @ (line.orientation.T @ line.axis))))
+            error = parent @ line.axis - child @ (line.orientation.T @ line.axis)
+            values.append(math.sqrt(error @ error))
         out.update(zip(monitor_names(line.name, line.kind), values))
     return out

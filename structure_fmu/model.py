@@ -12,7 +12,6 @@ from scipy.linalg import cho_factor, cho_solve
 
 from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.shape_functions import shape_row
-from fmu_common.vectors import cross
 
 from . import element
 from .constraints import Constraints
@@ -81,7 +80,8 @@ class StructureModel:
         # flat positions of the element blocks in an (n, n) matrix, to assemble tangents in one bincount
         self._element_entries = (self.dofs[:, :, None] * self.n + self.dofs[:, None, :]).ravel()
         self._dofs_flat = self.dofs.ravel()
-        self.T_sparse = scipy.sparse.csr_array(self.T)     # for the products T^T K T of the tangent
+        self._reduction = _Reduction(self.T)
+        self._rate_dependent = bool(self.hinges or self.damped_bodies)      # C_E is not zero (`tangent_E`)
         self.loads = topology.loads
         self._group_prescribed()
 
@@ -89,12 +89,12 @@ class StructureModel:
     def prescribed(self, t):
         """p, p', p'' (stacked prescribed vectors and rates) at time t, each (3 n_prescribed,)."""
         p, dp, ddp = (a.copy() for a in self._fixed)
-        for motion, rows, p0, is_pos in self._moving:
+        for motion, rows, arms, is_pos in self._moving:
             k = motion.kinematics(t)
-            u = (p0 - is_pos * motion.pivot) @ k.rotation.T
+            u = arms @ k.rotation.T                      # the vectors from the pivot, turned
             p[rows] = u + is_pos * (motion.pivot + k.translation)
-            dp[rows] = cross(k.omega, u) + is_pos * k.velocity
-            ddp[rows] = cross(k.alpha, u) + cross(k.omega, cross(k.omega, u)) + is_pos * k.acceleration
+            dp[rows] = u @ k.spin.T + is_pos * k.velocity
+            ddp[rows] = u @ k.turn.T + is_pos * k.acceleration
         return p.ravel(), dp.ravel(), ddp.ravel()
 
     def _group_prescribed(self):
@@ -106,8 +106,8 @@ class StructureModel:
         self._moving = []
         for m, motion in enumerate(top.motions):
             rows = np.flatnonzero(which == m)
-            if len(rows) and not isinstance(motion, Fixed):
-                self._moving.append((motion, rows, p0[rows], is_pos[rows]))
+            if len(rows) and not isinstance(motion, Fixed):   # position vectors from the pivot; gradients as they are
+                self._moving.append((motion, rows, p0[rows] - is_pos[rows] * motion.pivot, is_pos[rows]))
         self._fixed = (p0, np.zeros_like(p0), np.zeros_like(p0))
         # without moving prescribed vectors, P p(t) is constant and P p' = p'' = 0
         self._fixed_offset = None if self._moving else self.P @ p0.ravel()
@@ -158,14 +158,17 @@ class StructureModel:
     def tangent_E(self, E, dE, latched):
         """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton: K grad grad^T) and
         -dF/d(dE) (damping, actuator C grad grad^T) of `force_E` (point loads, gravity and Q do not depend on E)."""
-        K, C = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
+        n = self.n
+        if self.flexible:
+            jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
+            K = np.bincount(self._element_entries, jac.ravel(), n * n).reshape(n, n)
+        else:
+            K = np.zeros((n, n))
+        C = np.zeros((n, n))
         for idx, _, stiffness, damping, grad in actuator_terms(self.hinges, E, dE, latched):
             outer = np.outer(grad, grad)
             K[np.ix_(idx, idx)] += stiffness * outer
             C[np.ix_(idx, idx)] += damping * outer
-        if self.flexible:
-            jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
-            K += np.bincount(self._element_entries, jac.ravel(), self.n * self.n).reshape(self.n, self.n)
         if self.mass_damping is not None:
             C += self.mass_damping
         else:
@@ -231,9 +234,30 @@ class StructureModel:
         if self.constraints.count:
             multipliers = np.zeros(self.constraints.count)
             multipliers[self._rows] = lam
-            K = K + self.constraints.hessian_sum(multipliers, E)
-        T = self.T_sparse
-        return beta_p * self.mass_q + T.T @ (T.T @ (gamma_p * C + K).T).T, E
+            K += self.constraints.hessian_sum(multipliers, E)
+        if self._rate_dependent:
+            K += gamma_p * C
+        S = self._reduction.congruence(K)
+        S += beta_p * self.mass_q
+        return S, E
+
+    def iteration_pattern(self):
+        """(n_q + m, n_q + m) bool: the entries of generalized-alpha's iteration matrix [[S, G^T], [G, 0]]
+        (structure_fmu.iteration_lu) that can be nonzero, read from the matrix at a generic state (coordinates,
+        rates and multipliers perturbed at random about the initial ones, gamma' = beta' = 1), where no entry
+        vanishes by accident: the elements couple neighbouring nodes, each constraint row a few coordinates."""
+        rng = np.random.default_rng(0)
+        q0 = self.initial_coordinates()
+        n_q, m = len(q0), self.constraint_count
+        q = q0 + 0.1 * rng.standard_normal(n_q)
+        dq, lam = rng.standard_normal(n_q), rng.standard_normal(m)
+        S, E = self.iteration_matrix(0.0, q, dq, {}, lam, 1.0, 1.0)
+        pattern = np.zeros((n_q + m, n_q + m), dtype=bool)
+        pattern[:n_q, :n_q] = S != 0
+        if m:
+            G = self.constraint_jacobian(q, E) != 0
+            pattern[n_q:, :n_q], pattern[:n_q, n_q:] = G, G.T
+        return pattern
 
     def acceleration_E(self, q, dq, ddq, t):
         """d2E/dt2 (n,) for q'' = ddq: T q'' + P p''(t)."""
@@ -268,6 +292,39 @@ class StructureModel:
             else:
                 spring += 0.5 * h.stiffness * theta**2 + h.torque * theta
         return elastic + potential + spring
+
+
+class _Reduction:
+    """T^T X T (n_q, n_q) for X (n, n) on E, by the cheapest exact route for the coordinate map T (n, n_q): where
+    each row of T holds at most one coefficient (a slot of E is one free coordinate, or prescribed; a shared slot
+    repeats a column), a gather of X's entries, summed by bincount where columns repeat or weights are not 1;
+    a sparse product otherwise (a rigid body's slots combine its point's coordinates)."""
+
+    def __init__(self, T):
+        n, n_q = T.shape
+        self.n_q = n_q
+        nonzero = T != 0
+        self._sparse = None
+        if nonzero.sum(axis=1).max(initial=0) > 1:
+            self._sparse = scipy.sparse.csr_array(T)
+            return
+        rows = np.flatnonzero(nonzero.any(axis=1))
+        cols = np.argmax(nonzero[rows], axis=1) if len(rows) else np.zeros(0, dtype=int)
+        weights = T[rows, cols]
+        self._source = (rows[:, None] * n + rows[None, :]).ravel()
+        self._gather_only = bool(np.array_equal(cols, np.arange(n_q)) and np.all(weights == 1.0))
+        self._target = (cols[:, None] * n_q + cols[None, :]).ravel()
+        self._weights = np.outer(weights, weights).ravel()
+
+    def congruence(self, X):
+        """T^T X T (n_q, n_q)."""
+        if self._sparse is not None:
+            T = self._sparse
+            return T.T @ (T.T @ X.T).T
+        values = X.take(self._source)
+        if self._gather_only:
+            return values.reshape(self.n_q, self.n_q)
+        return np.bincount(self._target, values * self._weights, self.n_q * self.n_q).reshape(self.n_q, self.n_q)
 
 
 REDUNDANCY_TOLERANCE = 1e-8

@@ -4,11 +4,12 @@ A law gives, at time t, the rotation R about a pivot and a translation h, with t
 x(t) = pivot + R(t) (x0 - pivot) + h(t) for a material point, g(t) = R(t) g0 for a gradient vector.
 Angular velocity omega and acceleration alpha are in the global frame (rad/s, rad/s^2).
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from fmu_common.vectors import rotation_about
+from fmu_common.vectors import skew
 
 
 @dataclass(frozen=True)
@@ -19,6 +20,8 @@ class Kinematics:
     translation: np.ndarray       # h, m
     velocity: np.ndarray          # dh/dt, m/s
     acceleration: np.ndarray      # d2h/dt2, m/s^2
+    spin: np.ndarray              # [omega]x (3, 3), 1/s: dR/dt = spin R
+    turn: np.ndarray              # [alpha]x + [omega]x^2 (3, 3), 1/s^2: d2R/dt2 = turn R
 
 
 class Fixed:
@@ -27,8 +30,27 @@ class Fixed:
     pivot = np.zeros(3)
 
     def kinematics(self, t):
-        z = np.zeros(3)
-        return Kinematics(np.eye(3), z, z, z, z, z)
+        z, zz = np.zeros(3), np.zeros((3, 3))
+        return Kinematics(np.eye(3), z, z, z, z, z, zz, zz)
+
+
+class _AxisRotation:
+    """Rotation by theta(t) about a fixed unit axis: R = I + sin(theta) K + (1 - cos(theta)) K^2 (Rodrigues), with
+    K = [axis]x and K^2 built once (these run once per time step)."""
+
+    def __init__(self, axis):
+        self.axis = np.asarray(axis, float)
+        self._K = skew(self.axis)
+        self._K2 = self._K @ self._K
+        self._I = np.eye(3)
+
+    def kinematics(self, theta, dtheta, ddtheta, translation, velocity, acceleration):
+        """Kinematics for the angle theta (rad) and its rates (rad/s, rad/s^2), and the translation h (m) and its
+        rates."""
+        K, K2 = self._K, self._K2
+        rotation = self._I + math.sin(theta) * K + (1.0 - math.cos(theta)) * K2
+        return Kinematics(rotation, dtheta * self.axis, ddtheta * self.axis, translation, velocity, acceleration,
+                          dtheta * K, ddtheta * K + (dtheta * dtheta) * K2)
 
 
 class SpinUp:
@@ -41,6 +63,8 @@ class SpinUp:
     def __init__(self, axis, pivot, omega, ramp_time):
         self.axis, self.pivot = np.asarray(axis, float), np.asarray(pivot, float)
         self.omega, self.ramp_time = float(omega), float(ramp_time)
+        self._rotation = _AxisRotation(self.axis)
+        self._still = np.zeros(3)
 
     def angle(self, t):
         """theta, dtheta/dt, d2theta/dt2 (rad, rad/s, rad/s^2)."""
@@ -53,9 +77,8 @@ class SpinUp:
         return ws * (t - Ts / 2), ws, 0.0
 
     def kinematics(self, t):
-        theta, dtheta, ddtheta = self.angle(t)
-        z = np.zeros(3)
-        return Kinematics(rotation_about(self.axis, theta), dtheta * self.axis, ddtheta * self.axis, z, z, z)
+        z = self._still
+        return self._rotation.kinematics(*self.angle(t), z, z, z)
 
 
 class HeavePitch:
@@ -71,6 +94,7 @@ class HeavePitch:
         self.pivot = np.asarray(pivot, float)
         self.heave_amplitude, self.pitch_amplitude = float(heave_amplitude), float(pitch_amplitude)
         self.frequency, self.phase = float(frequency), float(phase)
+        self._rotation = _AxisRotation(self.pitch_axis)
 
     def kinematics(self, t):
         w = self.frequency
@@ -79,5 +103,4 @@ class HeavePitch:
         a = self.pitch_amplitude
         theta, dtheta, ddtheta = a * sp, a * w * cp, -a * w * w * sp
         h = self.heave_amplitude * self.heave_axis
-        return Kinematics(rotation_about(self.pitch_axis, theta), dtheta * self.pitch_axis,
-                          ddtheta * self.pitch_axis, s * h, w * c * h, -w * w * s * h)
+        return self._rotation.kinematics(theta, dtheta, ddtheta, s * h, w * c * h, -w * w * s * h)

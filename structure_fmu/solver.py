@@ -148,7 +148,7 @@ class StructureSolver:
 
     def _check(self, state):
         hint = _DIVERGENCE_HINT[self.integrator.name]
-        if not (np.isfinite(state.q).all() and np.isfinite(state.dq).all()):
+        if not math.isfinite(state.q.sum() + state.dq.sum()):     # NaN or inf in any entry
             raise SolverDiverged(state.t, "the state became NaN/inf", hint)
         E, _, _, residual = self._evaluated(state)
         if residual > 1e-4:
@@ -243,12 +243,12 @@ class StructureSolver:
                 "latch_times": dict(self.state.latch_times)}
 
     def get_state(self):
-        """Complete internal state, deep-copied. The cached Newton matrix is saved by reference (it is
-        replaced, never modified in place), so that a rolled-back step repeats bit for bit."""
-        return (self.state.copy(), self._initialized, getattr(self.integrator, "_matrix", None), self._last_Q.copy())
+        """Complete internal state, deep-copied, with the integrator's `memory` (generalized-alpha's Newton matrix,
+        by reference: it is replaced, never modified in place), so that a rolled-back step repeats bit for bit."""
+        return (self.state.copy(), self._initialized, getattr(self.integrator, "memory", None), self._last_Q.copy())
 
     def set_state(self, saved) -> None:
-        state, initialized, matrix, last_Q = saved
+        state, initialized, memory, last_Q = saved
         self.state, self._initialized, self._last_Q = state.copy(), initialized, last_Q.copy()
-        if hasattr(self.integrator, "_matrix"):
-            self.integrator._matrix = matrix
+        if hasattr(self.integrator, "memory"):
+            self.integrator.memory = memory

@@ -288,6 +288,11 @@ class StrainBasedModel(StructureModel):
             S = S + self._constraints.hessian_sum(lam)
         return S, E
 
+    def iteration_pattern(self):
+        """None: the configuration-dependent mass B^T M_E B couples every coordinate of a body and its
+        descendants, so the iteration matrix is factorized dense (structure_fmu.iteration_lu)."""
+        return None
+
     def rates_of(self, q, dE, t):
         B = self.velocity_map(q, t)
         Ht = self._configuration(q, t)[2]

@@ -178,6 +178,24 @@ def test_uniform_stretch_gives_axial_energy():
     assert U == pytest.approx(0.5 * 2e5 * strain**2 * l, rel=1e-6)
 
 
+def test_the_slot_basis_has_the_zero_pattern_the_compiled_kernels_skip():
+    """element_kernels.py loops over the slots [d, r_x^A, r_y^A, r_x^B, r_y^B] each field is made of: r' and r''
+    from d, r_x^A, r_x^B (Hermite functions in x), r_y from r_y^A, r_y^B (linear in x), every other entry of
+    element._slot_basis exactly zero, for any lengths; and each slot does enter its fields (r_y is the linear
+    interpolation (1 - xi) r_y^A + xi r_y^B)."""
+    curve, chord = [0, 1, 3], [2, 4]
+    g = len(element.GAUSS_W)
+    length = 10.0 ** np.random.default_rng(17).uniform(-3.0, 1.0, 11)
+    basis = element._slot_basis(length)
+    assert basis.shape == (11, 3 * g, 5)
+    assert np.all(basis[:, :2 * g, chord] == 0.0)
+    assert np.all(basis[:, 2 * g:, curve] == 0.0)
+    assert np.all(np.abs(basis[:, :g, curve]).max(axis=1) > 0.0)
+    assert np.all(np.abs(basis[:, g:2 * g, curve]).max(axis=1) > 0.0)
+    np.testing.assert_allclose(basis[:, 2 * g:, chord], np.broadcast_to(
+        np.stack([1.0 - element.GAUSS_XI, element.GAUSS_XI], axis=-1), (11, g, 2)), rtol=1e-15, atol=1e-15)
+
+
 def test_the_compiled_elastic_force_equals_the_numpy_reference(monkeypatch):
     """element_kernels.py against element.elastic_force's numpy form on random elements (every term active:
     stretch, both bendings, torsion): equal to 1e-12 of the largest component."""
@@ -189,3 +207,22 @@ def test_the_compiled_elastic_force_equals_the_numpy_reference(monkeypatch):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
         forces[kind] = element.elastic_force(e, length, stiffness)
     assert np.abs(forces["compiled"] - forces["numpy"]).max() <= 1e-12 * np.abs(forces["numpy"]).max()
+
+
+@pytest.mark.parametrize("term", ["all", "axial", "flap", "chordwise", "torsion"])
+def test_the_compiled_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term):
+    """element_kernels.py's tangent against element.elastic_jacobian's numpy form on random stretched, bent and
+    twisted elements of different lengths and stiffnesses: every term together, then each alone (so that a
+    wrong block of a small term cannot hide under the axial one), equal to 1e-12 of the largest entry."""
+    rng = np.random.default_rng(13)
+    length = rng.uniform(0.02, 0.5, 7)
+    e = np.stack([straight(x) for x in length]) + 0.1 * rng.standard_normal((7, 18))
+    stiffness = rng.uniform(0.5, 2.0, (7, 4)) * np.array([1e6, 2.0, 50.0, 3.0])
+    if term != "all":
+        stiffness[:, ["axial", "flap", "chordwise", "torsion"].index(term) != np.arange(4)] = 0.0
+    tangents = {}
+    for kind in ("numpy", "compiled"):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+        tangents[kind] = element.elastic_jacobian(e, length, stiffness)
+    assert np.abs(tangents["numpy"]).max() > 0
+    assert np.abs(tangents["compiled"] - tangents["numpy"]).max() <= 1e-12 * np.abs(tangents["numpy"]).max()

@@ -27,6 +27,9 @@ class Oscillator:
     def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
         return np.array([[beta_p + self.k]]), q
 
+    def iteration_pattern(self):
+        return None
+
 
 def step(integrator, model, q, v, a, h):
     """One step from q (m), v (m/s), the auxiliary acceleration a (m/s^2), in equilibrium (q'' = -k q)."""
