@@ -213,3 +213,26 @@ def test_an_unknown_kernel_choice_is_refused_naming_the_variable(monkeypatch):
     monkeypatch.setenv("WINGSIM_KERNELS", "fast")
     with pytest.raises(ValueError, match="WINGSIM_KERNELS"):
         compiled.selected()
+
+
+SMALL_RUN_PROBE = """
+import sys
+from orchestrator.master import run_scene
+from orchestrator.scene import load_scene
+result = run_scene(load_scene(sys.argv[1], ["time.stop=0.02"]), backend="direct")
+print(result.status, "numba" in sys.modules)
+"""
+
+
+def test_the_rigid_deployment_runs_without_loading_the_compiled_kernels():
+    """deploy_rigid's lattice stays below COMPILED_PAIRS, so a run never imports numba (0.4 s to load even from
+    the cache, longer than the run's stepping): its first run after install is not slowed by a compilation."""
+    import subprocess
+    import sys
+
+    from repository import SCENES
+
+    out = subprocess.run([sys.executable, "-c", SMALL_RUN_PROBE, str(SCENES / "deploy_rigid.toml")],
+                         env={**os.environ, "WINGSIM_KERNELS": "compiled"}, capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["ok", "False"]
