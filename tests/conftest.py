@@ -81,3 +81,16 @@ def fmu_checker() -> Path:
     if not FMU_CHECKER.is_file():
         pytest.skip(f"the FMI Compliance Checker is not installed at {FMU_CHECKER}")
     return FMU_CHECKER
+
+
+@pytest.fixture
+def kernels(monkeypatch):
+    """kernels(kind): every Biot-Savart `influence` call on the `kind` kernels ("numpy" or "compiled", whatever its
+    size; aero_fmu.biot_savart.COMPILED_PAIRS set to 0), until the test ends."""
+    from aero_fmu import biot_savart
+
+    monkeypatch.setattr(biot_savart, "COMPILED_PAIRS", 0)
+
+    def select(kind):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+    return select

@@ -78,16 +78,6 @@ def test_blocked_influence_equals_the_dense_tensor(monkeypatch):
                                np.einsum("psc,pc,sk->pk", tensor, normals, dense), rtol=1e-12, atol=1e-12)
 
 
-@pytest.fixture
-def kernels(monkeypatch):
-    """Every `influence` call on the compiled kernels (whatever its size), the numpy ones by kernels("numpy")."""
-    monkeypatch.setattr(biot_savart, "COMPILED_PAIRS", 0)
-
-    def select(kind):
-        monkeypatch.setenv("WINGSIM_KERNELS", kind)
-    return select
-
-
 @pytest.mark.parametrize("semi_infinite", [False, True])
 def test_the_compiled_kernels_equal_the_numpy_reference(kernels, semi_infinite):
     """Both kernels on every path of `influence` (normal wash, velocities per unknown, known circulations), with

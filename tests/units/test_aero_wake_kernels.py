@@ -4,23 +4,12 @@ leg by leg, and a whole free-wake run equal with both kernels."""
 import numpy as np
 import pytest
 
-from aero_fmu import biot_savart
 from aero_fmu.biot_savart import segment_velocity
 from aero_fmu.solver import AeroSolver
 from flat_wing import wing_scene
 from structure_fmu.solver import StructureSolver
 
 MOTION = {"heave_amplitude": 0.1, "pitch_amplitude_deg": 5.0, "frequency": 0.7}
-
-
-@pytest.fixture
-def kernels(monkeypatch):
-    """kernels(kind): every `influence` call on the `kind` kernels ("numpy" or "compiled", whatever its size)."""
-    monkeypatch.setattr(biot_savart, "COMPILED_PAIRS", 0)
-
-    def select(kind):
-        monkeypatch.setenv("WINGSIM_KERNELS", kind)
-    return select
 
 
 def free_wake_run(steps, M=3, N=6):
