@@ -1,5 +1,5 @@
 """Kernels on 3-vectors both units use: the cross product on stacks of vectors, the cross-product matrix, a
-rotation about an axis."""
+rotation about an axis (Rodrigues)."""
 import numpy as np
 
 
@@ -27,7 +27,13 @@ def skew(v):
 def rotation_about(axis, angle):
     """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
     k = skew(axis)
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+    return rodrigues(k, k @ k, np.sin(angle), np.cos(angle))
+
+
+def rodrigues(k, k2, sine, cosine):
+    """R = I + sin(theta) K + (1 - cos(theta)) K^2 (3, 3) from K = [axis]x and K^2 of a unit axis and the sine and
+    cosine of the angle: the rotation about a fixed axis whose K, K^2 are built once (motion.py)."""
+    return np.eye(3) + sine * k + (1 - cosine) * k2
 
 
 def perpendiculars(axis):

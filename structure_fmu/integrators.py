@@ -215,12 +215,12 @@ class GeneralizedAlpha:
             q_scale = max(1.0, float(np.max(np.abs(q))))
             dq_scale = max(1.0, float(np.max(np.abs(dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
-        matrix_before = None if self._matrix is None else self._matrix[1]
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
         # saves; refreshing only every second step gains at short steps and loses at long ones.
-        if self._matrix is None or self._matrix[0] != h or predictor == "displacement":
+        factorized_here = self._matrix is None or self._matrix[0] != h or predictor == "displacement"
+        if factorized_here:
             self._factor(model, t, q, dq, state.latched, lam, h)
         # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
         # contraction rate theta of an earlier step, raised to the power 0.8 at every step so that it drifts
@@ -228,7 +228,6 @@ class GeneralizedAlpha:
         # factorized at the predictor makes theta small (Newton converges quadratically), so such a step whose
         # first correction is well inside the tolerance ends after one iteration. eta is measured on, and used
         # by, those steps only (a matrix reused from an earlier step contracts more slowly).
-        factorized_here = self._matrix[1] is not matrix_before
         if factorized_here:
             self._eta = max(self._eta, np.finfo(float).eps) ** 0.8
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized

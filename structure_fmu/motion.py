@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fmu_common.vectors import skew
+from fmu_common.vectors import rodrigues, skew
 
 
 @dataclass(frozen=True)
@@ -35,20 +35,19 @@ class Fixed:
 
 
 class _AxisRotation:
-    """Rotation by theta(t) about a fixed unit axis: R = I + sin(theta) K + (1 - cos(theta)) K^2 (Rodrigues), with
-    K = [axis]x and K^2 built once (these run once per time step)."""
+    """Rotation by theta(t) about a fixed unit axis (fmu_common.vectors.rodrigues), with K = [axis]x and K^2 built
+    once (these run once per time step)."""
 
     def __init__(self, axis):
         self.axis = np.asarray(axis, float)
         self._K = skew(self.axis)
         self._K2 = self._K @ self._K
-        self._I = np.eye(3)
 
     def kinematics(self, theta, dtheta, ddtheta, translation, velocity, acceleration):
         """Kinematics for the angle theta (rad) and its rates (rad/s, rad/s^2), and the translation h (m) and its
         rates."""
         K, K2 = self._K, self._K2
-        rotation = self._I + math.sin(theta) * K + (1.0 - math.cos(theta)) * K2
+        rotation = rodrigues(K, K2, math.sin(theta), math.cos(theta))
         return Kinematics(rotation, dtheta * self.axis, ddtheta * self.axis, translation, velocity, acceleration,
                           dtheta * K, ddtheta * K + (dtheta * dtheta) * K2)
 
