@@ -10,11 +10,10 @@
   loads.py          Q (Eq. 12), lift, drag, moments, coefficients
   lattice.py        vortex-ring lattice of each body as fixed shape-function matrices (Eqs. 12, 20, 21, 24)
   biot_savart.py    velocity of straight vortex segments with a Scully core (Eq. 19)
-  biot_savart_kernels.py  the same, compiled by numba for large calls (loaded by fmu_common.compiled)
+  biot_savart.c     the same in C, pair by pair (compiled and loaded by fmu_common.c_library)
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   aero_slave.py     the FMI slave over AeroSolver
 
 It imports only fmu_common (what both units share: topology, shape functions, errors, FMI plumbing, compiled
-kernels) and
-its own modules, never the structure unit.
+kernels) and its own modules, never the structure unit.
 """

@@ -29,31 +29,29 @@ is a smooth function of p. Why this rule:
     (4e-3)^2 = 1.6e-5 relative: the core regularizes, it does not model viscosity. A free wake that
     rolls up may later need a physical core (a larger delta, or one growing with wake age).
 
-Array layout and speed. The numpy kernel works on one contiguous (P, S) array per component, in place, and
-`influence` reduces over segments block by block (BLOCK_PAIRS pairs), so memory stays at a few MB
-whatever P x S is: 25-35 million point-segment pairs per second for an influence matrix (normal wash,
-reduction included), one thread, against about 8 million for the plain (P, S, 3) expression
-(`segment_velocity`, kept for tests and small cases). From COMPILED_PAIRS pairs a call runs the compiled
-kernels of biot_savart_kernels.py instead (fmu_common.compiled: numba, cached once per machine), the same
-arithmetic pair by pair without temporaries, vectorized over pairs (SIMD: with 512-bit vectors 8 times the rate
-of one pair at a time, above 1e9 pairs per second for known circulations), and known circulations summed
-without the (P, S) matrix; the numpy kernel stays the reference ($WINGSIM_KERNELS = numpy), equal to 1e-15.
+Array layout and speed. Unless $WINGSIM_KERNELS = numpy, `influence` runs the C kernels of biot_savart.c
+(fmu_common.c_library: compiled once per machine, and into every aero FMU by its build; loaded in about a
+millisecond): the same arithmetic pair by pair without temporaries, vectorized over pairs (SIMD; 5e8-7e8
+point-segment pairs per second for influence matrices, 1e9 for known circulations, one thread), known
+circulations summed without the (P, S) matrix, equal to the numpy kernel bit for bit in the influence matrices
+and to 1e-15 in the sums. The numpy kernel is the reference: it works on one contiguous (P, S) array per
+component, in place, and reduces over segments block by block (BLOCK_PAIRS pairs), so memory stays at a few MB
+whatever P x S is (25-35 million pairs per second, against about 8 million for the plain (P, S, 3) expression
+of `segment_velocity`, kept for tests and small cases).
 """
+import ctypes
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse
 
-from fmu_common import compiled
+from fmu_common import c_library, compiled
 
 FOUR_PI = 4.0 * np.pi
 _TINY = np.finfo(float).tiny
 BLOCK_PAIRS = 1 << 16   # point-segment pairs per block in `influence` (0.5 MB per temporary, cache-friendly)
-KERNELS = Path(__file__).with_name("biot_savart_kernels.py")    # the compiled kernels (fmu_common.compiled)
-COMPILED_PAIRS = 50_000
-"""Point-segment pairs from which a call runs the compiled kernels (unless $WINGSIM_KERNELS = numpy): below it
-the numpy kernel takes under about 2 ms, less than loading the compiled ones once in a process (0.4 s: numba
-and the cached machine code), so a small lattice (deploy_rigid's: 4e3 pairs) never loads them."""
+C_SOURCE = Path(__file__).with_name("biot_savart.c")    # the compiled kernels (fmu_common.c_library)
+_ARRAY = ctypes.c_void_p    # a C-contiguous float64 array, passed as its data address
 
 
 def _kernel(points, starts, ends, core, semi_infinite):
@@ -150,7 +148,7 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
         return out
     wt = weights.T   # (K, S): reduce as (K, S) @ (S, block) so sparse weights stay on the left
     block = max(1, BLOCK_PAIRS // n_segments)
-    kernels = compiled.load(KERNELS) if n_points * n_segments >= COMPILED_PAIRS else None
+    kernels = c_kernels()
     if kernels is not None:
         return _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block)
     for lo in range(0, n_points, block):
@@ -169,26 +167,56 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
     return out
 
 
+def c_kernels():
+    """The C library of biot_savart.c (fmu_common.c_library), its functions typed; None when $WINGSIM_KERNELS
+    selects the numpy kernels."""
+    if compiled.selected() == "numpy":
+        return None
+    library = c_library.load(C_SOURCE)
+    if not hasattr(library, "typed"):
+        n, real, flag = ctypes.c_long, ctypes.c_double, ctypes.c_int
+        library.normal_wash.argtypes = [n, _ARRAY, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]
+        library.components.argtypes = [n, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]
+        library.velocity_sum.argtypes = [n, _ARRAY, n, _ARRAY, _ARRAY, _ARRAY, real, flag, _ARRAY]
+        library.typed = True
+    return library
+
+
 def _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block):
-    """`influence` by the compiled kernels (biot_savart_kernels.py) into `out`: the same blocks and products, the
-    pairs computed one at a time; known circulations (one dense column) summed without the (P, S) matrix."""
+    """`influence` by the C kernels (biot_savart.c) into `out`: the same blocks and products, the pairs computed
+    one at a time; known circulations (one dense column) summed without the (P, S) matrix."""
     contiguous = lambda a: np.ascontiguousarray(a, dtype=float)                                  # noqa: E731
+    # the arrays whose addresses the C calls get are held in variables until the calls return
     points, starts, ends = contiguous(points), contiguous(starts), contiguous(ends)
-    core, semi_infinite = float(core), bool(semi_infinite)
+    n_segments, core, semi_infinite = len(starts), float(core), int(bool(semi_infinite))
+    segments = (n_segments, starts.ctypes.data, ends.ctypes.data)
     wt = weights.T
     if normals is None and weights.shape[1] == 1 and not scipy.sparse.issparse(weights):
-        out[:, :, 0] = kernels.velocity_sum(points, starts, ends, contiguous(weights).ravel(), core, semi_infinite)
+        sums, gamma = np.empty((len(points), 3)), contiguous(weights)
+        _check(kernels.velocity_sum(len(points), points.ctypes.data, *segments, gamma.ctypes.data, core,
+                                    semi_infinite, sums.ctypes.data))
+        out[:, :, 0] = sums
         return out
     normals = None if normals is None else contiguous(normals)
     for lo in range(0, len(points), block):
         hi = min(lo + block, len(points))
+        at = points[lo:hi].ctypes.data
         if normals is not None:
-            wash = kernels.normal_wash(points[lo:hi], normals[lo:hi], starts, ends, core, semi_infinite)
+            wash = np.empty((hi - lo, n_segments))
+            _check(kernels.normal_wash(hi - lo, at, normals[lo:hi].ctypes.data, *segments, core, semi_infinite,
+                                       wash.ctypes.data))
             out[lo:hi] = np.asarray(wt @ wash.T).T
         else:
-            parts = kernels.components(points[lo:hi], starts, ends, core, semi_infinite).reshape(3 * (hi - lo), -1)
+            parts = np.empty((3 * (hi - lo), n_segments))
+            _check(kernels.components(hi - lo, at, *segments, core, semi_infinite, parts.ctypes.data))
             out[lo:hi] = np.asarray(wt @ parts.T).T.reshape(3, hi - lo, out.shape[2]).transpose(1, 0, 2)
     return out
+
+
+def _check(status):
+    """MemoryError for a C kernel's status -1 (its segment table could not be allocated)."""
+    if status != 0:
+        raise MemoryError("the Biot-Savart C kernel could not allocate its segment table")
 
 
 def induced_velocity(points, starts, ends, gamma, core=0.0, semi_infinite=False):

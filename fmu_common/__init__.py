@@ -10,7 +10,8 @@
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
                       unit maps panel points and forces to the exchanged coordinates (Eq. 12)
   vectors.py          3-vector kernels: cross product, rotation about an axis, perpendiculars
-  compiled.py         which kernels run (compiled by numba or numpy) and the per-machine cache of the compiled
+  compiled.py         which kernels run (compiled or numpy) and the per-machine cache of the numba kernels
+  c_library.py        C kernels: compiled once per machine (or into an FMU by its build), loaded with ctypes
   fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave: layout, refusals, phases, states)
   fmi_state.py        a unit's state as bytes, read back by an unpickler that builds nothing but the state
   fmi_units.py        SI units of FMI variables (UnitReal) and the model description's UnitDefinitions

@@ -1,7 +1,9 @@
 """Compiled kernels: which kernels a process runs (compiled or the numpy reference) and where their machine code
-is cached, so that the compilation is paid once per machine, not per run nor per FMU instantiation.
+is cached, so that the compilation is paid once per machine, not per run nor per FMU instantiation. The compiled
+kernels are numba modules (the structure's element kernels, loaded here) and C files (the aero unit's Biot-Savart
+kernels, fmu_common.c_library, whose libraries share the cache folder).
 
-A kernel module (e.g. aero_fmu/biot_savart_kernels.py) is plain Python whose functions numba compiles
+A numba kernel module (e.g. structure_fmu/element_kernels.py) is plain Python whose functions numba compiles
 (`numba.njit(cache=True)`); `load(path)` imports it. numba keys its on-disk cache by the module's file path and
 modification time, and an FMU unpacks into a fresh temporary folder at every instantiation: imported from there,
 the kernels would be compiled again by every run. `load` therefore imports a copy of the module kept in a
@@ -14,7 +16,7 @@ written, the kernels are compiled in the process (a warning says so once) and ru
 
 $WINGSIM_KERNELS selects the kernels: `compiled` (the default) or `numpy`, the pure-numpy reference that every
 kernel keeps beside it (tests check both agree to 1e-12 relative). `compiled` without numba installed is an
-error naming the variable; `numpy` never imports numba.
+error naming the variable; `numpy` never imports numba nor compiles C.
 """
 from __future__ import annotations
 

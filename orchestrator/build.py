@@ -5,7 +5,8 @@ Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
 `resources/` first on `sys.path`; the two scripts have distinct names, `structure_slave.py` and
 `aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`fmu_common/` and
 `structure_fmu/`; `fmu_common/` and `aero_fmu/` for the aero unit, never the structure solver; copied as
-*.py files only), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
+their *.py files and C kernels, each *.c with its library compiled beside it by fmu_common.c_library, so that
+an FMU never compiles when it starts), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
 The FMUs do not bundle Python, numpy or scipy: they run in the Python environment they were built in.
 Their Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without
@@ -24,6 +25,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from fmu_common import c_library
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from orchestrator import native_binary
 
@@ -112,12 +114,13 @@ def _package_dir(package: str) -> Path:
 
 
 def _sources(kind: str) -> list[tuple[str, Path]]:
-    """(archive name, file) of the slave script and every *.py of the embedded packages, sorted."""
+    """(archive name, file) of the slave script and every *.py and *.c (C kernels) of the embedded packages,
+    sorted."""
     script = _slave_script(kind)
     files = [(script.name, script)]
     for package in UNITS[kind][2]:
         root = _package_dir(package)
-        for f in sorted(root.rglob("*.py")):
+        for f in sorted([*root.rglob("*.py"), *root.rglob("*.c")]):
             if "__pycache__" in f.parts or f == script:
                 continue
             files.append((f"{package}/{f.relative_to(root).as_posix()}", f))
@@ -136,7 +139,7 @@ def _build_info(kind: str, scene: dict) -> dict:
 
 def source_digest(kind: str) -> str:
     """The `sources_sha256` an FMU of `kind` built now from the installed sources carries: SHA-256 of the
-    slave script and the embedded packages' *.py files, names and contents."""
+    slave script and the embedded packages' *.py and *.c files, names and contents."""
     h = hashlib.sha256()
     for name, f in _sources(kind):
         h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
@@ -163,6 +166,8 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
             target = stage / archive_name
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(f, target)
+            if target.suffix == ".c":
+                _c_kernel(target, dest)
         project_files += [stage / p for p in packages]
         partial = out_dir / f".building-{os.getpid()}-{fmu_name}"
         try:
@@ -195,6 +200,17 @@ def _native_binary(fmu: Path, dest: Path) -> None:
               "hosts (wingsim run, fmpy, libcosimpy), not in C tools such as the FMI Compliance Checker, "
               "and a call the unit refuses returns fmi2OK with the reason logged at error status.",
               file=sys.stderr)
+
+
+def _c_kernel(source: Path, dest: Path) -> None:
+    """Compile the C kernel `source` beside it (fmu_common.c_library), so that the FMU loads it without compiling;
+    without a C compiler the FMU compiles it at its first instantiation on a machine that has one, and says so."""
+    try:
+        c_library.compile_into(source, source.parent)
+    except c_library.CLibraryUnavailable as missing:
+        print(f"warning: {dest}: the C kernel {source.name} was not compiled into the FMU ({missing}). The FMU "
+              "compiles it at its first instantiation where a C compiler is found, else runs with "
+              "WINGSIM_KERNELS=numpy only.", file=sys.stderr)
 
 
 def _check_scene(kind: str, scene: dict) -> None:

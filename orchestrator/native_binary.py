@@ -13,7 +13,6 @@ import hashlib
 import importlib.util
 import os
 import shlex
-import shutil
 import subprocess
 import sys
 import sysconfig
@@ -21,6 +20,8 @@ import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
+
+from fmu_common import c_library
 
 SHIM_SOURCE = Path(__file__).with_name("fmi_shim.c")
 PLATFORM_DIR = "binaries/linux64"
@@ -85,14 +86,14 @@ def unavailable_reason() -> str | None:
 
 
 def c_compiler() -> list[str]:
-    """The system C compiler as a command: ``$CC`` split like a shell word list, else ``cc``; raises
+    """The system C compiler as a command (fmu_common.c_library.c_compiler: $CC, else cc); raises
     ShimUnavailable when it is not on PATH (or the platform is not Linux)."""
     if not sys.platform.startswith("linux"):
         raise ShimUnavailable(f"the shim is built for Linux only, not {sys.platform}")
-    cc = shlex.split(os.environ.get("CC", "") or "cc")
-    if not cc or shutil.which(cc[0]) is None:
-        raise ShimUnavailable(f"no C compiler: {cc[0] if cc else 'cc'} (from $CC, else cc) was not found")
-    return cc
+    try:
+        return c_library.c_compiler()
+    except c_library.CLibraryUnavailable as missing:
+        raise ShimUnavailable(str(missing)) from None
 
 
 def _libpython() -> str:

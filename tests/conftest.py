@@ -85,12 +85,8 @@ def fmu_checker() -> Path:
 
 @pytest.fixture
 def kernels(monkeypatch):
-    """kernels(kind): every Biot-Savart `influence` call on the `kind` kernels ("numpy" or "compiled", whatever its
-    size; aero_fmu.biot_savart.COMPILED_PAIRS set to 0), until the test ends."""
-    from aero_fmu import biot_savart
-
-    monkeypatch.setattr(biot_savart, "COMPILED_PAIRS", 0)
-
+    """kernels(kind): the process runs the `kind` kernels ("numpy" or "compiled", $WINGSIM_KERNELS) until the
+    test ends."""
     def select(kind):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
     return select

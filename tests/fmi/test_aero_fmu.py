@@ -143,11 +143,23 @@ def test_the_aero_fmu_alone_never_imports_the_structure_unit(fmu_dir, tmp_path):
     assert all(f"resources{os.sep}" in (path or "resources" + os.sep) for path in modules.values())
 
 
-def test_aero_fmu_runs_alone_in_a_fresh_host_from_its_embedded_packages(fmu_dir, tmp_path):
-    """Any FMI host: the aero FMU alone, inputs at their start values (the scene's initial geometry)."""
+def test_aero_fmu_runs_alone_in_a_fresh_host_from_its_embedded_packages(fmu_dir, tmp_path, monkeypatch):
+    """Any FMI host: the aero FMU alone, inputs at their start values (the scene's initial geometry). Its C
+    kernel is compiled into it by the build: it runs with no C compiler and an empty kernel cache, which it
+    leaves empty."""
+    from aero_fmu.biot_savart import C_SOURCE
+    from fmu_common.c_library import library_name
+
+    with zipfile.ZipFile(fmu_dir / "aero.fmu") as z:
+        assert f"resources/aero_fmu/{library_name(C_SOURCE)}" in z.namelist()
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    monkeypatch.setenv("WINGSIM_CACHE_DIR", str(cache))
+    monkeypatch.setenv("WINGSIM_KERNELS", "compiled")
     solver_file, cl = simulate_in_fresh_python(fmu_dir / "aero.fmu", 0.3, 0.1, "aero_fmu.solver", "CL", tmp_path)
     assert f"resources{os.sep}aero_fmu" in solver_file
     assert np.isfinite(cl)
+    assert not cache.exists()
 
 
 # --- the two backends -----------------------------------------------------------------------------

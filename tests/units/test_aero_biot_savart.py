@@ -1,6 +1,10 @@
 """Biot-Savart law of straight vortex segments (Otsuka et al. 2019, Eq. 19) against closed forms; the vortex core;
-the compiled kernels against the numpy reference, and their cache."""
+the compiled (C) kernels against the numpy reference, and how their library is compiled, cached and found."""
+import ctypes
 import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -110,10 +114,9 @@ def test_the_compiled_sum_over_blocks_of_points_equals_the_numpy_reference(kerne
     """Known circulations summed at more points than two blocks of the compiled sum (a partial block last), some
     circulations zero (skipped by the compiled sum): every point equals the numpy reference to 1e-12 of the
     largest value."""
-    from fmu_common import compiled
-
     kernels("compiled")
-    P, S = 2 * compiled.load(biot_savart.KERNELS).POINT_BLOCK + 37, 29
+    point_block = ctypes.c_long.in_dll(biot_savart.c_kernels(), "point_block").value
+    P, S = 2 * point_block + 37, 29
     points, starts, ends = RNG.standard_normal((P, 3)), RNG.standard_normal((S, 3)), RNG.standard_normal((S, 3))
     if semi_infinite:
         ends /= np.linalg.norm(ends, axis=1)[:, None]
@@ -161,40 +164,65 @@ def test_the_compiled_kernels_keep_the_core_behaviour_on_and_near_a_segment(kern
         assert np.all(speeds[:, 1] == 0.0)
 
 
-CACHE_PROBE = """
+LOAD_PROBE = """
 import sys
-import numpy as np
-from fmu_common import compiled
-kernels = compiled.load(sys.argv[1])
-points = np.ones((2, 3))
-kernels.normal_wash(points, points, points, points, 0.0, False)
-stats = kernels.normal_wash.stats
-print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), stats.cache_path)
+from fmu_common import c_library
+print(c_library.load(sys.argv[1])._name)
 """
 
 
-def test_compiled_kernels_are_cached_once_per_machine_whatever_folder_they_run_from(tmp_path):
-    """An FMU unpacks its sources into a fresh folder at every instantiation: a kernel module loaded from two
-    folders compiles once (a cache miss in the first process) and is loaded from the cache by the next, from
-    the other folder (a hit), both through one copy in the cache folder."""
-    import subprocess
-    import sys
+def _load_in_a_process(source, cache, **env):
+    """The path of the library a fresh process loads for the C file `source`, with the cache folder `cache`."""
+    env = {**os.environ, "WINGSIM_CACHE_DIR": str(cache), "WINGSIM_KERNELS": "compiled", **env}
+    return subprocess.run([sys.executable, "-c", LOAD_PROBE, str(source)], env=env, capture_output=True, text=True,
+                          check=True).stdout.strip()
 
+
+def test_the_c_kernels_are_compiled_once_per_machine_whatever_folder_they_run_from(tmp_path):
+    """An FMU unpacks its sources into a fresh folder at every instantiation: the C file run from two folders is
+    compiled once, into the cache folder, and the second process loads that library without compiling (without
+    a compiler: $CC names none)."""
     cache = tmp_path / "cache"
-    runs = []
+    sources = []
     for unpacked in ("fmu_a", "fmu_b"):
-        folder = tmp_path / unpacked
-        folder.mkdir()
-        module = folder / biot_savart.KERNELS.name
-        module.write_bytes(biot_savart.KERNELS.read_bytes())
-        env = {**os.environ, "WINGSIM_CACHE_DIR": str(cache), "WINGSIM_KERNELS": "compiled"}
-        out = subprocess.run([sys.executable, "-c", CACHE_PROBE, str(module)], env=env, capture_output=True,
-                             text=True, check=True).stdout.split()
-        runs.append((int(out[0]), int(out[1]), out[2]))
-    (hits_a, misses_a, path_a), (hits_b, misses_b, path_b) = runs
-    assert (hits_a, misses_a) == (0, 1) and (hits_b, misses_b) == (1, 0)
-    assert path_a == path_b and path_a.startswith(str(cache))
-    assert len(list(cache.iterdir())) == 1
+        (tmp_path / unpacked).mkdir()
+        sources.append(tmp_path / unpacked / biot_savart.C_SOURCE.name)
+        sources[-1].write_bytes(biot_savart.C_SOURCE.read_bytes())
+    first = _load_in_a_process(sources[0], cache)
+    second = _load_in_a_process(sources[1], cache, CC=str(tmp_path / "no-such-cc"))
+    assert first == second and first.startswith(str(cache))
+    assert [p.name for p in cache.iterdir()] == [Path(first).name]
+
+
+def test_a_library_beside_its_source_is_loaded_first_and_a_changed_source_gets_a_new_one(tmp_path):
+    """A built FMU carries each C kernel's library beside its source: it is loaded from there, with no compiler
+    and nothing written to the cache. An edited source is another library (its name carries the digest)."""
+    from fmu_common import c_library
+
+    source = tmp_path / "fmu" / biot_savart.C_SOURCE.name
+    source.parent.mkdir()
+    source.write_bytes(biot_savart.C_SOURCE.read_bytes())
+    built = c_library.compile_into(source, source.parent)
+    cache = tmp_path / "cache"
+    assert _load_in_a_process(source, cache, CC=str(tmp_path / "no-such-cc")) == str(built)
+    assert not cache.exists()
+    source.write_bytes(source.read_bytes() + b"\n/* edited */\n")
+    assert c_library.library_name(source) != built.name
+
+
+def test_without_a_compiler_the_c_kernels_are_refused_naming_the_numpy_choice(tmp_path):
+    """No library anywhere and no C compiler: the error says so and names WINGSIM_KERNELS=numpy; with numpy
+    selected the same call runs (no compiler needed)."""
+    probe = ("import numpy as np\nfrom aero_fmu.biot_savart import induced_velocity\n"
+             "print(induced_velocity(np.ones((1, 3)), np.zeros((1, 3)), [[1.0, 0, 0]], [1.0]))")
+    env = {**os.environ, "WINGSIM_CACHE_DIR": str(tmp_path / "cache"), "CC": str(tmp_path / "no-such-cc"),
+           "WINGSIM_KERNELS": "compiled"}
+    run = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
+    assert run.returncode != 0
+    assert "no C compiler" in run.stderr and "WINGSIM_KERNELS=numpy" in run.stderr
+    run = subprocess.run([sys.executable, "-c", probe], env={**env, "WINGSIM_KERNELS": "numpy"},
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
 
 
 def test_an_unknown_kernel_choice_is_refused_naming_the_variable(monkeypatch):
@@ -214,12 +242,10 @@ print(result.status, "numba" in sys.modules)
 """
 
 
-def test_the_rigid_deployment_runs_without_loading_the_compiled_kernels():
-    """deploy_rigid's lattice stays below COMPILED_PAIRS, so a run never imports numba (0.4 s to load even from
-    the cache, longer than the run's stepping): its first run after install is not slowed by a compilation."""
-    import subprocess
-    import sys
-
+def test_the_rigid_deployment_runs_without_loading_numba():
+    """A rigid deployment needs no numba kernel (the structure's element kernels are for flexible bodies; the
+    aero unit's are C, loaded in a millisecond), so a run never imports numba, 0.4 s to load even from its cache,
+    longer than the run's stepping."""
     from repository import SCENES
 
     out = subprocess.run([sys.executable, "-c", SMALL_RUN_PROBE, str(SCENES / "deploy_rigid.toml")],
