@@ -183,10 +183,10 @@ class Unit:
         monitor_vrs = ([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
                        + [vr[fmi_name(f"latch_time_{h}")] for h in self.hinges] + [vr[name] for name in monitors]
                        + [vr[fmi_name(name)] for name in sensor_names])
-        # get_outputs reads the monitors in the same call and keeps them until the unit steps or is set
-        # (its outputs change only then): one fmi2GetReal per unit and step instead of two
+        # get_outputs reads the monitors in the same call and keeps both until the unit steps or is set (its
+        # outputs change only then): one fmi2GetReal per unit and step, however often the master asks
         self._get_out = port.reader(output_vrs + monitor_vrs)
-        self._n_outputs, self._monitor_values = len(output_vrs), None
+        self._n_outputs, self._values = len(output_vrs), None
         self._set_in = port.writer([v for b in spec.inputs for v in block_vr[b]])
         self._get_mon = port.reader(monitor_vrs)
         self.topology_hash = port.get_string(vr["topology_hash"])
@@ -206,9 +206,10 @@ class Unit:
 
     def get_outputs(self) -> tuple[np.ndarray, ...]:
         """The output blocks in order (structure: e, de; aero: Q), fresh arrays."""
-        out = self._get_out()  # a fresh array, not the transfer buffer
-        self._monitor_values = out[self._n_outputs:]
-        return tuple(out[k * self.n:(k + 1) * self.n] for k in range(len(self._spec.outputs)))
+        if self._values is None:
+            self._values = self._get_out()  # a fresh array, not the transfer buffer
+        out = self._values
+        return tuple(out[k * self.n:(k + 1) * self.n].copy() for k in range(len(self._spec.outputs)))
 
     def set_inputs(self, *blocks) -> None:
         """The input blocks in order (structure: Q; aero: e, de), each of shape (n,)."""
@@ -220,15 +221,15 @@ class Unit:
         for name, a in zip(names, arrays):
             if a.shape != (self.n,):
                 raise UnitError(f"{self._port.label}: {name} has shape {a.shape}, expected ({self.n},)")
-        self._monitor_values = None
+        self._values = None
         self._set_in(arrays[0] if len(arrays) == 1 else np.concatenate(arrays))
 
     def do_step(self, t: float, h: float) -> None:
-        self._monitor_values = None
+        self._values = None
         self._port.do_step(float(t), float(h))
 
     def monitors(self) -> dict:
-        m = self._get_mon() if self._monitor_values is None else self._monitor_values
+        m = self._get_mon() if self._values is None else self._values[self._n_outputs:]
         h = len(self.hinges)
         angles, latch_times = m[:h], m[h:2 * h]          # the order of monitor_vrs in __init__
         k, p = 2 * h + len(self._monitor_names), 3 * len(self.probes)      # p: values per kind of probe output
@@ -248,7 +249,7 @@ class Unit:
         return self._port.get_state()
 
     def set_state(self, state) -> None:
-        self._monitor_values = None
+        self._values = None
         self._port.set_state(state)
 
     def serialize_state(self, state) -> bytes:
