@@ -64,8 +64,9 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
     gamma = model.constraint_gamma(q, dq, E, dE, ddp)
     MinvF = model.solve_mass(q, t, F)
     MinvGt = model.solve_mass(q, t, Gq.T)
-    lam = _schur_solve(Gq @ MinvGt, Gq @ MinvF - gamma)
-    return MinvF - MinvGt @ lam, lam
+    # np.dot rather than @: a third of the operator's overhead on these few-row arrays (4-5 calls per step)
+    lam = _schur_solve(np.dot(Gq, MinvGt), np.dot(Gq, MinvF) - gamma)
+    return MinvF - np.dot(MinvGt, lam), lam
 
 
 def project(model, t, q, dq, iterations=4, tol=1e-13):
@@ -75,7 +76,8 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
     for _ in range(iterations):
         E, dE, _ = model.coordinates(q, dq, t)
         phi = model.constraint_residual(q, E)
-        if np.abs(phi).max() < tol:
+        # every |Phi_i| < tol (false for NaN), by float comparisons: a third of numpy's abs().max() on few rows
+        if all(-tol < value < tol for value in phi.tolist()):
             break
         Gq = model.constraint_jacobian(q, E)
         MinvGt = model.solve_mass(q, t, Gq.T)
@@ -101,15 +103,19 @@ class RK4:
     def step(self, model, state, h, Q):
         t, q, v = state.t, state.q, state.dq
         f = lambda tt, qq, vv: constrained_accelerations(model, tt, qq, vv, Q, state.latched)
+        half = 0.5 * h
         a1, lam = f(t, q, v)
-        v2 = v + h / 2 * a1
-        a2 = f(t + h / 2, q + h / 2 * v, v2)[0]
-        v3 = v + h / 2 * a2
-        a3 = f(t + h / 2, q + h / 2 * v2, v3)[0]
+        v2 = v + half * a1
+        a2 = f(t + half, q + half * v, v2)[0]
+        v3 = v + half * a2
+        a3 = f(t + half, q + half * v2, v3)[0]
         v4 = v + h * a3
         a4 = f(t + h, q + h * v3, v4)[0]
-        q_new = q + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
-        v_new = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+        # the weights h/6 (1, 2, 2, 1) with the stage rates v_i = v + c_i h a_{i-1} substituted:
+        # v + 2 v2 + 2 v3 + v4 = 6 v + h (a1 + a2 + a3)
+        a23 = a2 + a3
+        q_new = q + h * v + h * h / 6 * (a1 + a23)
+        v_new = v + h / 6 * (a1 + a4 + 2.0 * a23)
         q_new, v_new = project(model, t + h, q_new, v_new)
         return State(t + h, q_new, v_new, a1, a1, lam, state.latched, state.latch_times)
 

@@ -16,16 +16,8 @@ import math
 
 import numpy as np
 
-from fmu_common.vectors import cross
-
-
-def _unit_frame(node):
-    """[x, y, z] (3, 3) columns, from a node's (3, 3) rows r, r_x, r_y."""
-    frame = np.empty((3, 3))
-    frame[0] = node[1] / math.sqrt(node[1] @ node[1])
-    frame[1] = node[2]
-    frame[2] = cross(frame[0], node[2])
-    return frame.T
+# plain float arithmetic on 3-tuples, shared with the fold angles: a few joints, read at every communication step
+from .joints import dot, frame_direction, unit_frame
 
 
 def monitor_names(name: str, kind: str) -> list[str]:
@@ -38,19 +30,22 @@ def joint_monitors(joint_lines, bodies, e) -> dict[str, float]:
     """{monitor name: value} (module docstring) of the joints `joint_lines` (Topology.joint_lines) between the
     `bodies` (Topology.bodies: name -> Body with its global node indices) at the exchanged coordinates e
     (9 n_nodes,)."""
-    nodes = np.asarray(e, dtype=float).reshape(-1, 3, 3)
+    e = np.asarray(e, dtype=float)
     out = {}
     for line in joint_lines:
         if line.parent is None:
             continue
-        tip, root = nodes[bodies[line.parent].nodes[-1]], nodes[bodies[line.child].nodes[0]]
-        gap = tip[0] - root[0]
-        values = [math.sqrt(gap @ gap)]
-        parent, child = _unit_frame(tip), _unit_frame(root)
-        if line.kind == "universal":
-            values.append(float((parent @ line.axis) @ (child @ line.child_axis)))
-        elif line.kind == "revolute":
-            error = parent @ line.axis - child @ (line.orientation.T @ line.axis)
-            values.append(math.sqrt(error @ error))
+        a, b = 9 * bodies[line.parent].nodes[-1], 9 * bodies[line.child].nodes[0]
+        tip, root = e[a:a + 9].tolist(), e[b:b + 9].tolist()           # r, r_x, r_y of each node
+        values = [math.dist(tip[:3], root[:3])]
+        if line.kind in ("universal", "revolute"):
+            (xa, _, za), (xb, _, zb) = unit_frame(tip[3:6], tip[6:]), unit_frame(root[3:6], root[6:])
+            axis = line.axis.tolist()
+            parent = frame_direction(axis, xa, tip[6:], za)                # F_A a
+            if line.kind == "universal":
+                values.append(dot(parent, frame_direction(line.child_axis.tolist(), xb, root[6:], zb)))
+            else:
+                turned = frame_direction(axis, *line.orientation.tolist())     # O^T a
+                values.append(math.dist(parent, frame_direction(turned, xb, root[6:], zb)))
         out.update(zip(monitor_names(line.name, line.kind), values))
     return out

@@ -37,18 +37,21 @@ def fold_angle(x):
 def fold_angle_gradient(x):
     """(theta, d theta/dx (9,)) of a chord-axis hinge for x = [a, b, n] (9,), the stacked 3-vectors."""
     a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
-    axb, s, c = _sine_cosine(*values)
+    (p0, p1, p2), s, c = _sine_cosine(*values)
     w = 1.0 / (s * s + c * c)
     cw, sw = c * w, s * w                   # d atan2(s, c) = (c ds - s dc) / (s^2 + c^2)
-    ds = (b1 * n2 - b2 * n1, b2 * n0 - b0 * n2, b0 * n1 - b1 * n0,          # d s / d a = b x n
-          n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0)          # d s / d b = n x a
-    dc = (b0, b1, b2, a0, a1, a2)
-    grad = np.array([cw * x - sw * y for x, y in zip(ds, dc)] + [cw * x for x in axb])   # d s / d n = a x b
+    # d s / d a = b x n, d s / d b = n x a, d s / d n = a x b = p; d c / d a = b, d c / d b = a (written out:
+    # this runs at every acceleration evaluation, and one list is the cheapest way to build the array)
+    grad = np.array([cw * (b1 * n2 - b2 * n1) - sw * b0, cw * (b2 * n0 - b0 * n2) - sw * b1,
+                     cw * (b0 * n1 - b1 * n0) - sw * b2, cw * (n1 * a2 - n2 * a1) - sw * a0,
+                     cw * (n2 * a0 - n0 * a2) - sw * a1, cw * (n0 * a1 - n1 * a0) - sw * a2,
+                     cw * p0, cw * p1, cw * p2])
     return math.atan2(s, c), grad
 
 
-# Plain float arithmetic on 3-tuples below: on single 3-vectors it is several times faster than numpy calls.
-def _dot(a, b):
+# Plain float arithmetic on 3-tuples below (also the joint monitors'): on single 3-vectors it is several times
+# faster than numpy calls.
+def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -56,16 +59,17 @@ def _cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _unit_frame(rx, ry):
+def unit_frame(rx, ry):
     """(x = r_x / |r_x|, |r_x|, z = x x r_y) of a node with gradients r_x, r_y."""
-    length = math.sqrt(_dot(rx, rx))
+    length = math.sqrt(dot(rx, rx))
     x = (rx[0] / length, rx[1] / length, rx[2] / length)
     return x, length, _cross(x, ry)
 
 
-def _direction(c, x, y, z):
+def frame_direction(c, x, y, z):
     """c_x x + c_y y + c_z z."""
-    return tuple(c[0] * x[k] + c[1] * y[k] + c[2] * z[k] for k in range(3))
+    c0, c1, c2 = c
+    return (c0 * x[0] + c1 * y[0] + c2 * z[0], c0 * x[1] + c1 * y[1] + c2 * z[1], c0 * x[2] + c1 * y[2] + c2 * z[2])
 
 
 def _direction_gradient(x, length, ry, c, g):
@@ -73,7 +77,7 @@ def _direction_gradient(x, length, ry, c, g):
     x = r_x / |r_x|, for frame components c and a fixed vector g."""
     ry_g, g_x = _cross(ry, g), _cross(g, x)
     d_x = [c[0] * g[k] + c[2] * ry_g[k] for k in range(3)]
-    along = _dot(d_x, x)
+    along = dot(d_x, x)
     return [(d_x[k] - along * x[k]) / length for k in range(3)] + [c[1] * g[k] + c[2] * g_x[k] for k in range(3)]
 
 
@@ -84,17 +88,17 @@ def axis_angle_gradient(x, hinge):
     values = x.tolist()
     ground = hinge.parent_slot is None
     rxb, ryb = values[-6:-3], values[-3:]
-    xb, lb, zb = _unit_frame(rxb, ryb)
+    xb, lb, zb = unit_frame(rxb, ryb)
     q, p = hinge.child_reference.tolist(), hinge.reference.tolist()
     binormal = _cross(hinge.axis.tolist(), p)                    # a x p
-    Q = _direction(q, xb, ryb, zb)
+    Q = frame_direction(q, xb, ryb, zb)
     if ground:
         C, S = p, binormal
     else:
         rxa, rya = values[:3], values[3:6]
-        xa, la, za = _unit_frame(rxa, rya)
-        C, S = _direction(p, xa, rya, za), _direction(binormal, xa, rya, za)
-    s, c = _dot(Q, S), _dot(Q, C)
+        xa, la, za = unit_frame(rxa, rya)
+        C, S = frame_direction(p, xa, rya, za), frame_direction(binormal, xa, rya, za)
+    s, c = dot(Q, S), dot(Q, C)
     ds, dc = _direction_gradient(xb, lb, ryb, q, S), _direction_gradient(xb, lb, ryb, q, C)
     if not ground:
         ds = _direction_gradient(xa, la, rya, binormal, Q) + ds
@@ -142,7 +146,7 @@ def actuator_terms(hinges, E, dE, latched):
     d torque / d theta' N m s/rad, grad = d theta / dE[idx] (k,))."""
     for h in hinges:
         theta, idx, grad = hinge_angle_gradient(h, E)
-        torque, stiffness = actuator_torque(h, theta, float(grad @ dE[idx]), latched.get(h.name, False))
+        torque, stiffness = actuator_torque(h, theta, float(np.dot(grad, dE[idx])), latched.get(h.name, False))
         yield idx, torque, stiffness, h.damping, grad
 
 

@@ -60,7 +60,7 @@ class StructureModel:
                 else np.zeros(0, int))
         self._dropped = np.setdiff1d(np.arange(self.constraints.count), kept)
         self._row_count = len(kept)
-        self._rows = kept if len(self._dropped) else slice(None)     # every row: views, not copies
+        self._rows = kept if len(self._dropped) else None     # None: every row, used as evaluated
         self.hinges = [replace(h, **(hinge_parameters or {}).get(h.name, {})) for h in topology.hinges]
         self.damped_bodies = []
         # "deformation": -alpha (I-P)^T M (I-P) de (damping.py); "mass-proportional": -alpha M de, the
@@ -115,8 +115,9 @@ class StructureModel:
 
     def coordinates(self, q, dq, t):
         """E, dE/dt, and the prescribed acceleration p'' at time t (None when nothing prescribed moves)."""
+        # np.dot rather than @ in the per-stage paths: a third of the operator's overhead on these small arrays
         if self._fixed_offset is not None:
-            return self.T @ q + self._fixed_offset, self.T @ dq, None
+            return np.dot(self.T, q) + self._fixed_offset, np.dot(self.T, dq), None
         if self._motion_at[0] != t:     # a step's Newton iterations and RK4 stages ask for the same t
             p, dp, ddp = self.prescribed(t)
             self._motion_at = (t, (self.P @ p, self.P @ dp, ddp))
@@ -142,7 +143,7 @@ class StructureModel:
 
     def force_E(self, E, dE, t, Q, latched):
         """Generalized force on E (n,): elastic, gravity, point loads, actuators, damping and external Q."""
-        F = self.gravity_E + self.external_force_E(t, Q)
+        F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
         if self.flexible:
             e_el = E[self.dofs]
             F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
@@ -179,7 +180,7 @@ class StructureModel:
     def force_q(self, q, dq, t, Q, latched):
         """Reduced force T^T F - T^T M_E P p'' (the inertia of the prescribed motion) and the current E, dE, p''."""
         E, dE, ddp = self.coordinates(q, dq, t)
-        F = self.T.T @ self.force_E(E, dE, t, Q, latched)
+        F = np.dot(self.T.T, self.force_E(E, dE, t, Q, latched))
         if ddp is not None:
             F -= self.mass_prescribed @ ddp
         return F, E, dE, ddp
@@ -195,36 +196,40 @@ class StructureModel:
 
     def solve_mass(self, q, t, b):
         """M_q^-1 b at q and t (s), for b (n_q,) or (n_q, k)."""
-        return self.mass_inverse @ b
+        return np.dot(self.mass_inverse, b)
 
     @property
     def constraint_count(self):
         """Rows the integrators solve: the independent ones (`independent_rows`)."""
         return self._row_count
 
+    def _kept(self, values):
+        """The rows of `values` (count of all rows, ...) that the integrators solve."""
+        return values if self._rows is None else values[self._rows]
+
     def constraint_residual(self, q, E):
         """Phi (count,) at the state whose exchanged coordinates are E."""
-        return self.constraints.residual(E)[self._rows]
+        return self._kept(self.constraints.residual(E))
 
     def constraint_violation(self, q, E):
         """Largest |Phi| of every row, the redundant ones the integrators leave out included (the monitor)."""
-        rows = self.constraints.residual(E)[self._dropped] if len(self._dropped) else np.zeros(0)
-        return float(np.abs(np.concatenate([self.constraint_residual(q, E), rows])).max(initial=0.0))
+        residual = self.constraints.residual(E) if len(self._dropped) else self.constraint_residual(q, E)
+        return float(np.abs(residual).max(initial=0.0))
 
     def constraint_jacobian(self, q, E):
         """Phi_q (count, n_q)."""
-        return self.constraints.jacobian(E)[self._rows]
+        return self._kept(self.constraints.jacobian(E))
 
     def constraint_rate(self, q, dq, E, dE):
         """dPhi/dt (count,)."""
-        return self.constraints.rate(E, dE)[self._rows]
+        return self._kept(self.constraints.rate(E, dE))
 
     def constraint_gamma(self, q, dq, E, dE, ddp):
         """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints (count,)."""
         gamma = -self.constraints.velocity_quadratic(dE, E)
         if ddp is not None:
             gamma -= self.constraints.rate(E, self.P @ ddp)
-        return gamma[self._rows]
+        return self._kept(gamma)
 
     def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
         """(beta' M_q + gamma' C_t + K_t (n_q, n_q), E): generalized-alpha's iteration matrix without the
@@ -232,8 +237,10 @@ class StructureModel:
         E, dE, _ = self.coordinates(q, dq, t)
         K, C = self.tangent_E(E, dE, latched)
         if self.constraints.count:
-            multipliers = np.zeros(self.constraints.count)
-            multipliers[self._rows] = lam
+            multipliers = lam
+            if self._rows is not None:      # zero on the rows left out
+                multipliers = np.zeros(self.constraints.count)
+                multipliers[self._rows] = lam
             K += self.constraints.hessian_sum(multipliers, E)
         if self._rate_dependent:
             K += gamma_p * C
@@ -261,6 +268,8 @@ class StructureModel:
 
     def acceleration_E(self, q, dq, ddq, t):
         """d2E/dt2 (n,) for q'' = ddq: T q'' + P p''(t)."""
+        if self._fixed_offset is not None:          # p'' = 0
+            return np.dot(self.T, ddq)
         _, _, ddp = self.coordinates(q, dq, t)
         return self.T @ ddq + (self.P @ ddp if ddp is not None else 0.0)
 
@@ -283,7 +292,7 @@ class StructureModel:
         {hinge: rad} of E (`StructureTopology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
         elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
             if self.flexible else 0.0
-        potential = -float(self.gravity_E @ E)
+        potential = -float(np.dot(self.gravity_E, E))
         spring = 0.0
         for h in self.hinges:
             theta = angles[h.name]

@@ -52,6 +52,8 @@ class Sensors:
         self._gauge_rows = np.array([topology.point_rows(g["body"], g["span"])[1:] for g in gauges]
                                     ).reshape(len(gauges), 3, n_slots)        # r', r'', r_y at each gauge
         self._surface_distance = np.array([g["surface_distance"] for g in gauges], dtype=float)   # m
+        # the probes' rows, then the gauges' rows: what `outputs` reads from e, in one product
+        self._position_rows = np.concatenate([self._probe_rows, self._gauge_rows.reshape(-1, n_slots)])
 
     @classmethod
     def from_scene(cls, scene: dict, topology) -> "Sensors":
@@ -65,14 +67,17 @@ class Sensors:
     def velocities(self, de: np.ndarray) -> np.ndarray:
         """Probe global velocities (n_probes, 3), m/s, from the coordinate rates de (n,): the same rows; also
         the accelerations (m/s^2) from dde."""
-        return self._probe_rows @ np.asarray(de, dtype=float).reshape(-1, 3)
+        return np.dot(self._probe_rows, np.asarray(de, dtype=float).reshape(-1, 3))
 
     def strains(self, e: np.ndarray) -> np.ndarray:
         """Surface strain of each gauge (n_gauges,), 1: d kappa_y, positive when the gauged (-n) face
         stretches (`flap_curvature`)."""
         if not self.gauge_names:
             return np.zeros(0)
-        derivatives = self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3)     # (n_gauges, 3, 3)
+        return self._strains(self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3))
+
+    def _strains(self, derivatives):
+        """`strains` from r', r'', r_y at each gauge (n_gauges, 3, 3)."""
         return self._surface_distance * flap_curvature(derivatives)
 
     def output_declarations(self) -> list[tuple[str, str, str]]:
@@ -97,5 +102,8 @@ class Sensors:
     def outputs(self, e: np.ndarray, de: np.ndarray, dde: np.ndarray) -> np.ndarray:
         """All readings flat, in the order of ``output_names``: positions (m), velocities (m/s), accelerations
         (m/s^2), strains (1)."""
-        return np.concatenate([self.positions(e).ravel(), self.velocities(de).ravel(), self.velocities(dde).ravel(),
-                               self.strains(e)])
+        n_probes, n_gauges = len(self.probe_names), len(self.gauge_names)
+        at_e = np.dot(self._position_rows, np.asarray(e, dtype=float).reshape(-1, 3))
+        strains = self._strains(at_e[n_probes:].reshape(n_gauges, 3, 3)) if n_gauges else np.zeros(0)
+        return np.concatenate([at_e[:n_probes].ravel(), self.velocities(de).ravel(), self.velocities(dde).ravel(),
+                               strains])

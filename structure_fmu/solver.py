@@ -160,7 +160,7 @@ class StructureSolver:
     def _power(self, state, Q):
         """Power (W) of the external forces (point loads and Q, `StructureModel.external_force_E`) at a state:
         the external work is its trapezoidal integral over the internal steps, second order like the steps."""
-        return float(self.model.external_force_E(state.t, Q) @ self._evaluated(state)[1])
+        return float(np.dot(self.model.external_force_E(state.t, Q), self._evaluated(state)[1]))
 
     def _update_latches(self, previous, new):
         hinges = [h for h in self.model.hinges if h.stop_angle is not None and not previous.latched.get(h.name)]
@@ -234,7 +234,7 @@ class StructureSolver:
 
     def monitors(self) -> dict:
         E, dE, angles, residual = self._evaluated(self.state)
-        kinetic = 0.5 * float(dE @ (self.model.mass_E @ dE))
+        kinetic = 0.5 * float(np.dot(dE, np.dot(self.model.mass_E, dE)))
         return {"energy": kinetic + self.model.potential_energy(self.state.q, E, self.state.latched, angles),
                 "kinetic_energy": kinetic,
                 "external_work": self.state.work,
