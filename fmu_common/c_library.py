@@ -5,10 +5,11 @@ loaded with ctypes (no import cost: a process loads it in about a millisecond, w
 library's file name carries a digest of the source, the compiler flags and the platform
 (`<stem>-<digest>.so`), and it is looked for, in this order:
 
-1. beside the source: an FMU's build compiles its C kernels into the FMU (`compile_into`), so an FMU never
-   compiles at instantiation, whatever folder it unpacks into;
+1. beside the source: an FMU's build puts its C kernels' libraries into the FMU (`library_file`), so an FMU
+   never compiles at instantiation, whatever folder it unpacks into;
 2. in the per-user cache folder of the compiled kernels (`fmu_common.compiled.cache_folder`), where `load`
-   compiles it the first time (about 0.3 s, written atomically, never rewritten): in-process runs and tests.
+   compiles it the first time (about 0.5 s, written atomically, never rewritten): in-process runs, tests and the
+   FMU builds. `start_compiling` begins that compilation in the background, for a caller with other work.
    Where that folder cannot be written, the library is compiled in every process (a warning says so).
 
 A changed source or other flags get a new file name. Compiling needs the system C compiler ($CC, else cc),
@@ -37,6 +38,7 @@ lets the square roots vectorize (they set no errno then, and their results are t
 SUFFIX = ".so"
 
 _loaded: dict[str, ctypes.CDLL] = {}
+_compiling: dict[Path, "_Compilation"] = {}     # started by `start_compiling`, by resolved source path
 
 
 class CLibraryUnavailable(RuntimeError):
@@ -69,15 +71,11 @@ def load(source: str | Path) -> ctypes.CDLL:
 
 
 def _load(source: Path) -> ctypes.CDLL:
-    name = library_name(source)
-    for folder in (source.parent, cache_folder()):
-        if (folder / name).is_file():
-            return _open(folder / name)
     try:
-        return _open(compile_into(source, cache_folder()))
+        return _open(library_file(source))
     except OSError as err:
-        warnings.warn(f"C kernels: cannot write the cache folder {cache_folder()} ({err}); {name} is compiled in "
-                      f"every process (set {CACHE_VARIABLE} to a writable folder)", stacklevel=3)
+        warnings.warn(f"C kernels: cannot write the cache folder {cache_folder()} ({err}); {source.name} is "
+                      f"compiled in every process (set {CACHE_VARIABLE} to a writable folder)", stacklevel=3)
     folder = tempfile.mkdtemp(prefix="wingsim_c_")
     try:
         return _open(compile_into(source, folder))
@@ -85,30 +83,74 @@ def _load(source: Path) -> ctypes.CDLL:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def library_file(source: str | Path) -> Path:
+    """The library of the C file `source`: beside it, else in the cache folder, where it is compiled if absent
+    (or where the compilation `start_compiling` began is awaited). CLibraryUnavailable if it cannot be compiled;
+    OSError if the cache folder cannot be written."""
+    source = Path(source).resolve()
+    found = _found(source)
+    if found is not None:
+        return found
+    pending = _compiling.pop(source, None)
+    return (pending or _Compilation(source, cache_folder())).wait()
+
+
+def start_compiling(source: str | Path) -> None:
+    """Begin compiling the C file `source` into the cache folder in the background, unless its library is found,
+    so that the compiler runs while the caller does other work (the FMU build); the next `library_file` or
+    `load` of it waits for it and reports its errors."""
+    source = Path(source).resolve()
+    if source in _compiling or _found(source) is not None:
+        return
+    try:
+        _compiling[source] = _Compilation(source, cache_folder())
+    except (CLibraryUnavailable, OSError):
+        pass                # not started: `library_file` tries again and raises the same error, where it is needed
+
+
 def compile_into(source: str | Path, folder: str | Path) -> Path:
     """Compile the C file `source` into `folder`/`library_name(source)` (atomically) and return that path;
     CLibraryUnavailable without a compiler or when the compilation fails."""
-    source, folder = Path(source), Path(folder)
-    target = folder / library_name(source)
-    folder.mkdir(parents=True, exist_ok=True)
-    try:
-        compiler = c_compiler()
-    except CLibraryUnavailable as missing:
-        raise CLibraryUnavailable(f"the C kernel {source.name} needs compiling: {missing}; install one, or set "
-                                  f"{KERNELS_VARIABLE}=numpy for the numpy kernels") from None
-    partial = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    command = compiler + list(FLAGS) + ["-o", str(partial), str(source), "-lm"]
-    try:
-        proc = subprocess.run(command, capture_output=True, text=True)
-    except OSError as err:
-        raise CLibraryUnavailable(f"compiling the C kernel {source.name} failed to start ({err}); "
-                                  f"{KERNELS_VARIABLE}=numpy runs the numpy kernels") from None
-    if proc.returncode != 0:
-        partial.unlink(missing_ok=True)
-        raise CLibraryUnavailable(f"compiling the C kernel {source.name} failed ({shlex.join(command)}):\n"
-                                  f"{proc.stderr.strip()}\n{KERNELS_VARIABLE}=numpy runs the numpy kernels")
-    os.replace(partial, target)
-    return target
+    return _Compilation(Path(source), Path(folder)).wait()
+
+
+def _found(source: Path) -> Path | None:
+    """The library of `source` beside it or in the cache folder, if it is there."""
+    name = library_name(source)
+    for folder in (source.parent, cache_folder()):
+        if (folder / name).is_file():
+            return folder / name
+    return None
+
+
+class _Compilation:
+    """The compiler running on `source`, writing `folder`/`library_name(source)` (renamed into place when done)."""
+
+    def __init__(self, source: Path, folder: Path):
+        self.source, self.target = source, folder / library_name(source)
+        try:
+            compiler = c_compiler()
+        except CLibraryUnavailable as missing:
+            raise CLibraryUnavailable(f"the C kernel {source.name} needs compiling: {missing}; install one, or set "
+                                      f"{KERNELS_VARIABLE}=numpy for the numpy kernels") from None
+        folder.mkdir(parents=True, exist_ok=True)
+        self.partial = self.target.with_name(f".{self.target.name}.{os.getpid()}.tmp")
+        self.command = compiler + list(FLAGS) + ["-o", str(self.partial), str(source), "-lm"]
+        try:
+            self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        except OSError as err:
+            raise CLibraryUnavailable(f"compiling the C kernel {source.name} failed to start ({err}); "
+                                      f"{KERNELS_VARIABLE}=numpy runs the numpy kernels") from None
+
+    def wait(self) -> Path:
+        """The library's path once the compiler has finished; CLibraryUnavailable if it failed."""
+        _, errors = self.process.communicate()
+        if self.process.returncode != 0:
+            self.partial.unlink(missing_ok=True)
+            raise CLibraryUnavailable(f"compiling the C kernel {self.source.name} failed ({shlex.join(self.command)}):"
+                                      f"\n{errors.strip()}\n{KERNELS_VARIABLE}=numpy runs the numpy kernels")
+        os.replace(self.partial, self.target)
+        return self.target
 
 
 def _open(path: Path) -> ctypes.CDLL:

@@ -5,8 +5,9 @@ Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
 `resources/` first on `sys.path`; the two scripts have distinct names, `structure_slave.py` and
 `aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`fmu_common/` and
 `structure_fmu/`; `fmu_common/` and `aero_fmu/` for the aero unit, never the structure solver; copied as
-their *.py files and C kernels, each *.c with its library compiled beside it by fmu_common.c_library, so that
-an FMU never compiles when it starts), `scene.json`, and `build_info.json` (digests used by `fmus_up_to_date`).
+their *.py files and C kernels, each *.c with its library beside it, compiled once per machine by
+fmu_common.c_library, so that an FMU never compiles when it starts), `scene.json`, and `build_info.json`
+(digests used by `fmus_up_to_date`).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
 The FMUs do not bundle Python, numpy or scipy: they run in the Python environment they were built in.
 Their Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without
@@ -54,6 +55,10 @@ def build_fmus(scene: dict, out_dir: Path) -> list[Path]:
     Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails.
     """
     kinds = units_needed(scene)
+    for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
+        for _, source in _sources(kind):
+            if source.suffix == ".c":
+                c_library.start_compiling(source)
     for kind in kinds:  # fail before building anything
         _require(kind, scene)
     out_dir = Path(out_dir)
@@ -167,7 +172,7 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(f, target)
             if target.suffix == ".c":
-                _c_kernel(target, dest)
+                _c_kernel(f, target.parent, dest)
         project_files += [stage / p for p in packages]
         partial = out_dir / f".building-{os.getpid()}-{fmu_name}"
         try:
@@ -202,12 +207,13 @@ def _native_binary(fmu: Path, dest: Path) -> None:
               file=sys.stderr)
 
 
-def _c_kernel(source: Path, dest: Path) -> None:
-    """Compile the C kernel `source` beside it (fmu_common.c_library), so that the FMU loads it without compiling;
-    without a C compiler the FMU compiles it at its first instantiation on a machine that has one, and says so."""
+def _c_kernel(source: Path, folder: Path, dest: Path) -> None:
+    """Put the library of the C kernel `source` (fmu_common.c_library: compiled once per machine) into `folder`
+    beside its copy, so that the FMU loads it without compiling; without a C compiler the FMU compiles it at its
+    first instantiation on a machine that has one, and says so."""
     try:
-        c_library.compile_into(source, source.parent)
-    except c_library.CLibraryUnavailable as missing:
+        shutil.copyfile(c_library.library_file(source), folder / c_library.library_name(source))
+    except (c_library.CLibraryUnavailable, OSError) as missing:
         print(f"warning: {dest}: the C kernel {source.name} was not compiled into the FMU ({missing}). The FMU "
               "compiles it at its first instantiation where a C compiler is found, else runs with "
               "WINGSIM_KERNELS=numpy only.", file=sys.stderr)

@@ -144,7 +144,24 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return validate_main(args.fmus)
 
 
+def _start_compiling_kernels() -> None:
+    """Begin the C kernels' one-time compilation (fmu_common.c_library) in the background, so that the compiler
+    runs while Python imports and checks the rest; nothing when they are compiled already or the numpy kernels
+    are chosen (an invalid choice is reported where the kernels are used)."""
+    import aero_fmu
+    from fmu_common import c_library, compiled
+
+    try:
+        if compiled.selected() == "numpy":
+            return
+    except ValueError:
+        return
+    for source in Path(aero_fmu.__file__).parent.glob("*.c"):
+        c_library.start_compiling(source)
+
+
 def cmd_build(args: argparse.Namespace) -> int:
+    _start_compiling_kernels()
     from orchestrator.build import build_fmus
     from orchestrator.results import check_out_dir
     from orchestrator.scene import load_scene
@@ -194,6 +211,7 @@ def _build_if_needed(scene: dict, fmu_dir: Path):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    _start_compiling_kernels()
     from orchestrator.master import RunResult, new_series, run_scene
     from orchestrator.plots import write_plots
     from orchestrator.progress import Progress

@@ -252,3 +252,24 @@ def test_the_rigid_deployment_runs_without_loading_numba():
                          env={**os.environ, "WINGSIM_KERNELS": "compiled"}, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out == ["ok", "False"]
+
+
+def test_a_compilation_started_in_the_background_is_awaited_and_its_errors_reported_where_needed(tmp_path,
+                                                                                                 monkeypatch):
+    """`start_compiling` returns at once; `library_file` then waits for that compilation and gives the library in
+    the cache folder, or raises the compiler's error (a source that does not compile) naming the numpy choice."""
+    from fmu_common import c_library
+
+    monkeypatch.setenv("WINGSIM_CACHE_DIR", str(tmp_path / "cache"))
+    good, bad = tmp_path / "good.c", tmp_path / "bad.c"
+    good.write_text("double twice(double x) { return 2.0 * x; }\n")
+    bad.write_text("double twice(double x) { return 2.0 * ; }\n")
+    for source in (good, bad):
+        c_library.start_compiling(source)
+    library = c_library.library_file(good)
+    assert library == tmp_path / "cache" / c_library.library_name(good)
+    twice = ctypes.CDLL(str(library)).twice
+    twice.restype, twice.argtypes = ctypes.c_double, [ctypes.c_double]
+    assert twice(1.25) == 2.5
+    with pytest.raises(c_library.CLibraryUnavailable, match="(?s)bad.c.*error.*WINGSIM_KERNELS=numpy"):
+        c_library.library_file(bad)
