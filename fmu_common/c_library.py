@@ -18,6 +18,7 @@ CLibraryUnavailable naming $WINGSIM_KERNELS=numpy, the numpy kernels that need n
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import hashlib
 import os
@@ -105,7 +106,18 @@ def start_compiling(source: str | Path) -> None:
     try:
         _compiling[source] = _Compilation(source, cache_folder())
     except (CLibraryUnavailable, OSError):
-        pass                # not started: `library_file` tries again and raises the same error, where it is needed
+        return              # not started: `library_file` tries again and raises the same error, where it is needed
+    if len(_compiling) == 1:
+        atexit.register(_abandon_compilations)
+
+
+def _abandon_compilations() -> None:
+    """At exit, stop the compilations nobody waited for (the command ended first) and remove their partial files."""
+    for pending in _compiling.values():
+        pending.process.kill()
+        pending.process.wait()
+        pending.partial.unlink(missing_ok=True)
+    _compiling.clear()
 
 
 def compile_into(source: str | Path, folder: str | Path) -> Path:

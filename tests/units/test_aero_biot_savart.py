@@ -273,3 +273,13 @@ def test_a_compilation_started_in_the_background_is_awaited_and_its_errors_repor
     assert twice(1.25) == 2.5
     with pytest.raises(c_library.CLibraryUnavailable, match="(?s)bad.c.*error.*WINGSIM_KERNELS=numpy"):
         c_library.library_file(bad)
+
+
+def test_a_process_that_ends_before_its_compilation_leaves_no_partial_file(tmp_path):
+    """A command that started the C kernels' compilation and ended first (a scene error, say) stops the compiler
+    at exit: the cache folder holds no partial library."""
+    cache = tmp_path / "cache"
+    code = ("from fmu_common import c_library\nfrom aero_fmu.biot_savart import C_SOURCE\n"
+            "c_library.start_compiling(C_SOURCE)\n")
+    subprocess.run([sys.executable, "-c", code], env={**os.environ, "WINGSIM_CACHE_DIR": str(cache)}, check=True)
+    assert cache.is_dir() and list(cache.iterdir()) == []
