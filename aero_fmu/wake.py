@@ -100,17 +100,14 @@ def live_segments(wake: ShedWake):
     return starts[live], ends[live], circulation[live]
 
 
-def velocity(points, wake: ShedWake, core, head_core=None):
+def velocity(points, wake: ShedWake, core, head_core):
     """Velocity (P, 3) m/s induced by the wake at points (P, 3), Otsuka et al. 2019, Eq. (19) with a Scully core (m);
-    the head row's spanwise segments with `head_core` if given (the bound core, so that they cancel the
-    bound trailing segments they lie on exactly in steady flow)."""
+    the head row's spanwise segments with `head_core` (the bound core, so that they cancel the bound trailing
+    segments they lie on exactly in steady flow)."""
     if wake.n_rows == 0:
         return np.zeros((len(points), 3))
-    if head_core is None:                                         # one core: one sum over all segments
-        starts, ends, circulation = live_segments(wake)
-        return influence(points, starts, ends, circulation[:, None], core)[:, :, 0]
     starts, ends, circulation, head = segments(wake)
-    live = circulation != 0.0
+    live = circulation != 0.0                                     # e.g. the inner trailing legs in 2D flow
     cores = [(live & ~head, core), (live & head, head_core)]
     return sum(influence(points, starts[m], ends[m], circulation[m, None], c)[:, :, 0] for m, c in cores)
 

@@ -107,10 +107,9 @@ def start_compiling(source: str | Path) -> None:
         _compiling[source] = _Compilation(source, cache_folder())
     except (CLibraryUnavailable, OSError):
         return              # not started: `library_file` tries again and raises the same error, where it is needed
-    if len(_compiling) == 1:
-        atexit.register(_abandon_compilations)
 
 
+@atexit.register
 def _abandon_compilations() -> None:
     """At exit, stop the compilations nobody waited for (the command ended first) and remove their partial files."""
     for pending in _compiling.values():

@@ -16,7 +16,8 @@ written, the kernels are compiled in the process (a warning says so once) and ru
 
 $WINGSIM_KERNELS selects the kernels: `compiled` (the default) or `numpy`, the pure-numpy reference that every
 kernel keeps beside it (tests check both agree to 1e-12 relative). `compiled` without numba installed is an
-error naming the variable; `numpy` never imports numba nor compiles C.
+error naming the variable; `numpy` never imports numba and runs without a C compiler (an FMU build still puts
+the C kernels into the FMU, for the hosts that select them).
 """
 from __future__ import annotations
 

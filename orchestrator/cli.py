@@ -146,16 +146,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def _start_compiling_kernels() -> None:
     """Begin the C kernels' one-time compilation (fmu_common.c_library) in the background, so that the compiler
-    runs while Python imports and checks the rest; nothing when they are compiled already or the numpy kernels
-    are chosen (an invalid choice is reported where the kernels are used)."""
+    runs while Python imports and checks the rest (every FMU build needs them); nothing when they are compiled
+    already or no compiler is found (the error comes where the kernels are used)."""
     import aero_fmu
-    from fmu_common import c_library, compiled
+    from fmu_common import c_library
 
-    try:
-        if compiled.selected() == "numpy":
-            return
-    except ValueError:
-        return
     for source in Path(aero_fmu.__file__).parent.glob("*.c"):
         c_library.start_compiling(source)
 
