@@ -1,25 +1,34 @@
-/* The native binary of a wingsim FMU: loads the Python the FMU was built with, then forwards every
- * FMI 2.0 Co-Simulation call to pythonfmu's unchanged binary beside it.
+/* The native binary of a wingsim FMU: checks what the Python slave cannot and forwards every FMI 2.0
+ * Co-Simulation call, in one of two ways chosen when `wingsim build` compiles it
+ * (orchestrator/native_binary.py):
  *
- * pythonfmu's binary leaves the Python C API to be supplied by the host process, so a host without
- * Python (a C tool started with an empty environment) cannot load it. This shim, compiled by
- * `wingsim build` (orchestrator/native_binary.py), brings the build interpreter's libpython into the
- * process when no interpreter runs yet, initialised with the build environment's python as program
- * name (its pyvenv.cfg and site-packages, whatever the host's environment says), and checks what the
- * Python slave cannot: the component and FMU state pointers, the GUID, the FMU type, the build
- * environment. It never links libpython: every Python function is looked up with dlsym.
+ * - ordinary FMU: to pythonfmu's unchanged binary beside it, in the host process. pythonfmu's binary
+ *   leaves the Python C API to be supplied by the host, so a host without Python (a C tool started with
+ *   an empty environment) cannot load it: this shim brings the build interpreter's libpython into the
+ *   process when no interpreter runs yet, initialised with the build environment's python as program
+ *   name (its pyvenv.cfg and site-packages, whatever the host's environment says). It never links
+ *   libpython: every Python function is looked up with dlsym.
+ * - standalone FMU (SHIM_WORKER defined): to the unit's own worker process, which runs the Python
+ *   runtime the FMU carries (worker_client.c, fmi_worker.c). Nothing of Python enters the host process.
  *
- * Status rule: a forwarded call returns the worse of pythonfmu's status and the worst status the
+ * Either way it checks the component and FMU state pointers, the GUID, the FMU type and the resource
+ * location.
+ *
+ * Status rule: a forwarded call returns the worse of the inner status and the worst status the
  * instance logged during that call, because the Python slaves refuse a call by logging an error
  * (pythonfmu 0.7.0 maps every return of a Python method to fmi2OK).
  *
  * Compile-time constants (all C string literals):
- *   SHIM_LIBPYTHON  absolute path of the build interpreter's shared libpython
- *   SHIM_PYTHON     the build environment's python executable (sys.executable)
  *   SHIM_GUID       the GUID of the FMU's modelDescription.xml
  *   SHIM_INNER      file name of pythonfmu's binary, in the folder of this one
+ *   SHIM_LIBPYTHON  ordinary FMU: absolute path of the build interpreter's shared libpython
+ *   SHIM_PYTHON     ordinary FMU: the build environment's python executable (sys.executable)
+ *   SHIM_WORKER     standalone FMU: file name of the worker executable, in the folder of this one
  */
+#define _GNU_SOURCE 1
+#ifndef SHIM_WORKER
 #include <Python.h> /* the PyConfig layout of the build interpreter; no function of it is linked */
+#endif
 
 #include <dlfcn.h>
 #include <pthread.h>
@@ -29,10 +38,13 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "fmi2Functions.h"
+#include "fmi2_table.h"
 
-#if !defined(SHIM_LIBPYTHON) || !defined(SHIM_PYTHON) || !defined(SHIM_GUID) || !defined(SHIM_INNER)
-#error "SHIM_LIBPYTHON, SHIM_PYTHON, SHIM_GUID and SHIM_INNER must be defined"
+#if !defined(SHIM_GUID) || !defined(SHIM_INNER)
+#error "SHIM_GUID and SHIM_INNER must be defined"
+#endif
+#if !defined(SHIM_WORKER) && (!defined(SHIM_LIBPYTHON) || !defined(SHIM_PYTHON))
+#error "an ordinary FMU's shim needs SHIM_LIBPYTHON and SHIM_PYTHON"
 #endif
 
 #define CATEGORY_ERROR "logStatusError"
@@ -41,47 +53,13 @@
 #define MESSAGE_SIZE (2 * PATH_SIZE + 1024)
 
 /* ------------------------------------------------------------------------------------------------ */
-/* pythonfmu's binary: loaded by the first fmi2Instantiate, unloaded with the shim. */
-
-typedef struct {
-    fmi2SetDebugLoggingTYPE *SetDebugLogging;
-    fmi2InstantiateTYPE *Instantiate;
-    fmi2FreeInstanceTYPE *FreeInstance;
-    fmi2SetupExperimentTYPE *SetupExperiment;
-    fmi2EnterInitializationModeTYPE *EnterInitializationMode;
-    fmi2ExitInitializationModeTYPE *ExitInitializationMode;
-    fmi2TerminateTYPE *Terminate;
-    fmi2ResetTYPE *Reset;
-    fmi2GetRealTYPE *GetReal;
-    fmi2GetIntegerTYPE *GetInteger;
-    fmi2GetBooleanTYPE *GetBoolean;
-    fmi2GetStringTYPE *GetString;
-    fmi2SetRealTYPE *SetReal;
-    fmi2SetIntegerTYPE *SetInteger;
-    fmi2SetBooleanTYPE *SetBoolean;
-    fmi2SetStringTYPE *SetString;
-    fmi2GetFMUstateTYPE *GetFMUstate;
-    fmi2SetFMUstateTYPE *SetFMUstate;
-    fmi2FreeFMUstateTYPE *FreeFMUstate;
-    fmi2SerializedFMUstateSizeTYPE *SerializedFMUstateSize;
-    fmi2SerializeFMUstateTYPE *SerializeFMUstate;
-    fmi2DeSerializeFMUstateTYPE *DeSerializeFMUstate;
-    fmi2GetDirectionalDerivativeTYPE *GetDirectionalDerivative;
-    fmi2SetRealInputDerivativesTYPE *SetRealInputDerivatives;
-    fmi2GetRealOutputDerivativesTYPE *GetRealOutputDerivatives;
-    fmi2DoStepTYPE *DoStep;
-    fmi2CancelStepTYPE *CancelStep;
-    fmi2GetStatusTYPE *GetStatus;
-    fmi2GetRealStatusTYPE *GetRealStatus;
-    fmi2GetIntegerStatusTYPE *GetIntegerStatus;
-    fmi2GetBooleanStatusTYPE *GetBooleanStatus;
-    fmi2GetStringStatusTYPE *GetStringStatus;
-} InnerFunctions;
+/* The inner functions: pythonfmu's binary, loaded by the first fmi2Instantiate and unloaded with the
+ * shim; or the worker client's. */
 
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded = 0;                   /* Python runs and the inner functions are resolved */
 static char load_error[MESSAGE_SIZE];    /* why loading failed; loading is not retried after that */
-static InnerFunctions inner;
+static Fmi2Table inner;
 
 /* ------------------------------------------------------------------------------------------------ */
 /* Instances */
@@ -251,6 +229,7 @@ static void remove_state(Instance *inst, fmi2FMUstate state)
     if (i >= 0) inst->states[i] = inst->states[--inst->n_states];
 }
 
+#ifndef SHIM_WORKER
 /* ------------------------------------------------------------------------------------------------ */
 /* Loading Python and pythonfmu's binary */
 
@@ -376,15 +355,6 @@ static int inner_path(char *path, size_t size)
     return 1;
 }
 
-#define RESOLVE(name)                                                                              \
-    do {                                                                                           \
-        inner.name = (fmi2##name##TYPE *)dlsym(handle, "fmi2" #name);                              \
-        if (inner.name == NULL) {                                                                  \
-            snprintf(load_error, sizeof load_error, "%s does not provide fmi2" #name, path);       \
-            return 0;                                                                              \
-        }                                                                                          \
-    } while (0)
-
 /* pythonfmu 0.7.0 keeps its interpreter guard in a static shared_ptr, destroyed by an exit handler, and
  * resets it again from its ELF destructor. Unloaded by dlclose, the destructor runs first: fine. Still
  * loaded at exit, the exit handler runs first and the destructor then resets a destroyed pointer: a use
@@ -426,38 +396,11 @@ static int load_inner(void)
         return 0;
     }
     inner_handle = handle;
-    RESOLVE(SetDebugLogging);
-    RESOLVE(Instantiate);
-    RESOLVE(FreeInstance);
-    RESOLVE(SetupExperiment);
-    RESOLVE(EnterInitializationMode);
-    RESOLVE(ExitInitializationMode);
-    RESOLVE(Terminate);
-    RESOLVE(Reset);
-    RESOLVE(GetReal);
-    RESOLVE(GetInteger);
-    RESOLVE(GetBoolean);
-    RESOLVE(GetString);
-    RESOLVE(SetReal);
-    RESOLVE(SetInteger);
-    RESOLVE(SetBoolean);
-    RESOLVE(SetString);
-    RESOLVE(GetFMUstate);
-    RESOLVE(SetFMUstate);
-    RESOLVE(FreeFMUstate);
-    RESOLVE(SerializedFMUstateSize);
-    RESOLVE(SerializeFMUstate);
-    RESOLVE(DeSerializeFMUstate);
-    RESOLVE(GetDirectionalDerivative);
-    RESOLVE(SetRealInputDerivatives);
-    RESOLVE(GetRealOutputDerivatives);
-    RESOLVE(DoStep);
-    RESOLVE(CancelStep);
-    RESOLVE(GetStatus);
-    RESOLVE(GetRealStatus);
-    RESOLVE(GetIntegerStatus);
-    RESOLVE(GetBooleanStatus);
-    RESOLVE(GetStringStatus);
+    const char *missing = fmi2_table_resolve(handle, &inner);
+    if (missing != NULL) {
+        snprintf(load_error, sizeof load_error, "%s does not provide %s", path, missing);
+        return 0;
+    }
     release_python_guard = (void (*)(void))dlsym(handle, "finalizePythonInterpreter");
     if (release_python_guard != NULL) atexit(reset_guard_at_exit);
     return 1;
@@ -473,6 +416,25 @@ static int ensure_loaded(void)
     pthread_mutex_unlock(&load_lock);
     return ok;
 }
+
+/* pythonfmu releases its slave when it returns fmi2Fatal: freeing it again would corrupt Python */
+#define INNER_RELEASES_ON_FATAL 1
+#else
+#include "worker_client.c"
+
+/* The worker client: each instance starts its own worker in fmi2Instantiate. */
+static int ensure_loaded(void)
+{
+    pthread_mutex_lock(&load_lock);
+    inner = worker_table;
+    loaded = 1;
+    pthread_mutex_unlock(&load_lock);
+    return 1;
+}
+
+/* the worker keeps track of pythonfmu's fmi2Fatal itself; the client always ends the worker */
+#define INNER_RELEASES_ON_FATAL 0
+#endif
 
 /* ------------------------------------------------------------------------------------------------ */
 /* The resource location: pythonfmu strips "file://" and decodes only "%20"; other spellings of a
@@ -606,8 +568,11 @@ void fmi2FreeInstance(fmi2Component c)
     pthread_mutex_unlock(&instances_lock);
     if (!found) return;
     /* After returning fmi2Fatal (a Python exception) pythonfmu 0.7.0 has released its Python slave
-     * already; freeing it again corrupts Python's reference counts, so that one is left as it is. */
-    if (!inst->released) {
+     * already; freeing it again corrupts Python's reference counts, so that one is left as it is. A
+     * worker ends with its instance, states and all. */
+    if (!INNER_RELEASES_ON_FATAL) {
+        inner.FreeInstance(inst->component);
+    } else if (!inst->released) {
         for (size_t i = 0; i < inst->n_states; ++i) {
             fmi2FMUstate s = inst->states[i];
             inner.FreeFMUstate(inst->component, &s);
@@ -751,7 +716,8 @@ static fmi2Status take_state(Instance *inst, const char *function, fmi2Status st
                              fmi2FMUstate made, fmi2FMUstate *FMUstate)
 {
     if (status > fmi2Warning || made == NULL) {
-        if (made != NULL && !inst->released) inner.FreeFMUstate(inst->component, &made);
+        if (made != NULL && !(INNER_RELEASES_ON_FATAL && inst->released))
+            inner.FreeFMUstate(inst->component, &made);
         if (status <= fmi2Warning) {
             log_to(&inst->host, inst->name, fmi2Error, "%s: the Python slave returned no state", function);
             status = fmi2Error;

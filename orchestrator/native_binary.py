@@ -6,6 +6,10 @@ host can load it. `install_shim(fmu)` compiles `fmi_shim.c` with the system C co
 binary beside it as `<id>_pythonfmu.so`. The shim starts this interpreter's shared libpython, with this
 environment's python as program name, in a host without Python; in a Python host it uses the host's
 interpreter. Either way the FMU runs on the machine and in the Python environment it was built in.
+
+The same source, compiled with `worker=` (`compile_shim`), is the binary of a standalone FMU
+(`orchestrator.standalone`): it forwards to the unit's worker process (`fmi_worker.c`, `compile_worker`)
+instead of pythonfmu's binary. `source_digest` covers every C file of both.
 """
 from __future__ import annotations
 
@@ -24,8 +28,13 @@ from pathlib import Path
 from fmu_common import c_library
 
 SHIM_SOURCE = Path(__file__).with_name("fmi_shim.c")
+WORKER_SOURCE = Path(__file__).with_name("fmi_worker.c")
+NATIVE_SOURCES = (SHIM_SOURCE, WORKER_SOURCE, *(Path(__file__).with_name(name) for name in (
+    "fmi2_table.h", "worker_channel.h", "worker_client.c")))
+"""The C sources of the native binaries: the shim, the worker, and what they include."""
 PLATFORM_DIR = "binaries/linux64"
 INNER_SUFFIX = "_pythonfmu"
+WORKER_SUFFIX = "_worker"
 
 
 class ShimUnavailable(RuntimeError):
@@ -34,13 +43,21 @@ class ShimUnavailable(RuntimeError):
 
 
 def source_digest() -> str:
-    """SHA-256 of the shim's source: an FMU built with another shim is out of date."""
-    return hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest()
+    """SHA-256 of the native binaries' sources: an FMU built with another shim or worker is out of date."""
+    h = hashlib.sha256()
+    for source in NATIVE_SOURCES:
+        h.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def inner_name(model_identifier: str) -> str:
     """File name of pythonfmu's binary inside the FMU once the shim replaces it."""
     return f"{model_identifier}{INNER_SUFFIX}.so"
+
+
+def worker_name(model_identifier: str) -> str:
+    """File name of a standalone FMU's worker executable, beside its binary."""
+    return f"{model_identifier}{WORKER_SUFFIX}"
 
 
 def install_shim(fmu: Path, libpython: str | None = None, python: str | None = None) -> None:
@@ -52,7 +69,7 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
     """
     fmu = Path(fmu)
     compiler = c_compiler()
-    libpython = libpython or _libpython()
+    libpython = libpython or shared_libpython()
     python = python or sys.executable
     if not python:
         raise ShimUnavailable("this interpreter does not know its own executable (sys.executable is empty)")
@@ -63,23 +80,47 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
         pythonfmu_binary = z.read(kept if kept in names else f"{PLATFORM_DIR}/{model_identifier}.so")
     with tempfile.TemporaryDirectory(prefix="wingsim_shim_") as tmp:
         shim = Path(tmp) / f"{model_identifier}.so"
-        defines = {"SHIM_LIBPYTHON": libpython, "SHIM_PYTHON": python, "SHIM_GUID": guid,
-                   "SHIM_INNER": inner_name(model_identifier)}
-        command = compiler + ["-shared", "-fPIC", "-O2", "-pthread", "-Wall",
-                              "-I", str(fmi_headers()), "-I", str(_python_headers())]
-        command += [f"-D{name}={_c_string(value)}" for name, value in defines.items()]
-        command += ["-o", str(shim), str(SHIM_SOURCE), "-ldl"]
-        proc = subprocess.run(command, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise RuntimeError(f"compiling the FMU's native binary failed ({shlex.join(command)}):\n"
-                               f"{proc.stderr.strip()}")
+        compile_shim(shim, guid, model_identifier, libpython=libpython, python=python, compiler=compiler)
         _replace_binary(fmu, model_identifier, shim.read_bytes(), pythonfmu_binary)
+
+
+def compile_shim(out: Path, guid: str, model_identifier: str, libpython: str | None = None,
+                 python: str | None = None, worker: bool = False, compiler: list[str] | None = None) -> None:
+    """Compile `fmi_shim.c` into `out` for the FMU (`guid`, `model_identifier`): an ordinary FMU's binary
+    (this interpreter's `libpython` and `python` compiled in), or with `worker` a standalone FMU's, which
+    forwards to its worker process and needs nothing of Python. RuntimeError if the compiler fails."""
+    defines = {"SHIM_GUID": guid, "SHIM_INNER": inner_name(model_identifier)}
+    includes = ["-I", str(fmi_headers())]
+    if worker:
+        defines["SHIM_WORKER"] = worker_name(model_identifier)
+    else:
+        defines.update(SHIM_LIBPYTHON=libpython, SHIM_PYTHON=python)
+        includes += ["-I", str(_python_headers())]
+    command = (compiler or c_compiler()) + ["-shared", "-fPIC", "-O2", "-pthread", "-Wall", *includes]
+    command += [f"-D{name}={_c_string(value)}" for name, value in defines.items()]
+    _compile(command + ["-o", str(out), str(SHIM_SOURCE), "-ldl"])
+
+
+def compile_worker(out: Path, libpython: Path) -> None:
+    """Compile a standalone FMU's worker (`fmi_worker.c`) into `out`, linked against `libpython` (found at run
+    time in `runtime/lib` beside the worker). RuntimeError if the compiler fails."""
+    command = c_compiler() + ["-O2", "-pthread", "-Wall", "-I", str(fmi_headers()), "-I", str(_python_headers()),
+                              "-o", str(out), str(WORKER_SOURCE), str(libpython), "-ldl",
+                              "-Wl,--disable-new-dtags,-rpath,$ORIGIN/runtime/lib"]
+    _compile(command)
+
+
+def _compile(command: list[str]) -> None:
+    proc = subprocess.run(command, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"compiling the FMU's native binary failed ({shlex.join(command)}):\n"
+                           f"{proc.stderr.strip()}")
 
 
 def unavailable_reason() -> str | None:
     """What is missing to build the shim with this interpreter, or None if nothing is."""
     try:
-        c_compiler(), _libpython(), _python_headers(), fmi_headers()
+        c_compiler(), shared_libpython(), _python_headers(), fmi_headers()
     except ShimUnavailable as missing:
         return str(missing)
     return None
@@ -96,7 +137,8 @@ def c_compiler() -> list[str]:
         raise ShimUnavailable(str(missing)) from None
 
 
-def _libpython() -> str:
+def shared_libpython() -> str:
+    """This interpreter's shared libpython (path); ShimUnavailable if it has none."""
     if not sysconfig.get_config_var("Py_ENABLE_SHARED"):
         raise ShimUnavailable(f"this Python ({sys.executable}) has no shared libpython "
                               "(it was built without --enable-shared)")

@@ -1,0 +1,511 @@
+/* The worker process of a standalone wingsim FMU: the unit's Python, started from the runtime the FMU
+ * carries, serving the FMI calls of one instance that the FMU's binary in the host process sends over
+ * the channel of worker_channel.h.
+ *
+ * Started by worker_client.c (one worker per fmi2Instantiate) as
+ *     <binaries>/<id>_worker <pythonfmu binary> <runtime folder>
+ * with an empty environment but for the WINGSIM_* variables, one BLAS thread and LD_LIBRARY_PATH (the
+ * runtime's library folder, for the extension modules' own needs), in a process group of its own (a terminal's Ctrl-C reaches the host, not the worker), and these descriptors:
+ *     0  /dev/null        1, 2  a file the client reads when the worker fails (its output)
+ *     3  lifeline: the read end of a pipe whose write end only the host holds; when the host process
+ *        ends in whatever way (exit, crash, SIGKILL) the read returns and the worker exits at once
+ *     4  the channel's shared memory file
+ *     5  the write end of a pipe the client polls: it hangs up when the worker ends, in whatever way
+ * It links the runtime's libpython (RPATH $ORIGIN/runtime/lib), starts it isolated (no environment
+ * variable, no site, no user folder, no signal handler: the module search path is the runtime's
+ * standard library, its extension modules and its site-packages), loads pythonfmu's binary, which
+ * imports the slave from the FMU's resources, and forwards each request to it: the unit behaves as the
+ * ordinary FMU does, in a Python that nothing in the host can change.
+ *
+ * A request (after the op code): u32 prefetch (1: after the call, return the values of the prefetch
+ * list), u32 has_list (1: a new prefetch list of Real value references follows, as an array), then the
+ * operation's arguments. A response: i32 status, the operation's results, the messages logged during
+ * the call (u32 count, then i32 status, string category, string message each), then u32 valid and the
+ * prefetched values as an array (valid 0 when the prefetch was not asked for, or logged anything or
+ * returned anything but fmi2OK: the client then asks again when the host reads). The worker exits after
+ * answering OP_FREE_INSTANCE. If Python or pythonfmu's binary cannot be loaded, every request is
+ * answered with fmi2Error and the reason logged.
+ */
+#define _GNU_SOURCE
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <dlfcn.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "fmi2_table.h"
+#include "worker_channel.h"
+
+#define TEXT(x) #x
+#define NUMBER_TEXT(x) TEXT(x)
+#define STDLIB "lib/python" NUMBER_TEXT(PY_MAJOR_VERSION) "." NUMBER_TEXT(PY_MINOR_VERSION)
+#define LIFELINE_FD 3
+#define CHANNEL_FD 4
+#define DEATH_FD 5
+#define MESSAGE_SIZE 8192
+
+/* ---- messages logged during the current call ---------------------------------------------------- */
+
+typedef struct {
+    int32_t status;
+    char *category, *message;
+} Record;
+
+static Record *records = NULL;
+static size_t n_records = 0, cap_records = 0;
+static int capturing_prefetch = 0;     /* the prefetch's own messages go to `prefetch_logged` */
+static int prefetch_logged = 0;
+
+static void add_record(int32_t status, const char *category, const char *message)
+{
+    if (capturing_prefetch) {
+        prefetch_logged = 1;
+        return;
+    }
+    if (n_records == cap_records) {
+        size_t cap = cap_records ? 2 * cap_records : 16;
+        Record *grown = realloc(records, cap * sizeof *grown);
+        if (grown == NULL) return;
+        records = grown;
+        cap_records = cap;
+    }
+    Record r = {status, strdup(category != NULL ? category : ""), strdup(message != NULL ? message : "")};
+    if (r.category == NULL || r.message == NULL) {
+        free(r.category);
+        free(r.message);
+        return;
+    }
+    records[n_records++] = r;
+}
+
+static void clear_records(void)
+{
+    for (size_t i = 0; i < n_records; ++i) {
+        free(records[i].category);
+        free(records[i].message);
+    }
+    n_records = 0;
+}
+
+/* pythonfmu passes its message as a printf format without arguments: it is kept as such (the host's
+ * logger gets it as its format, as from the ordinary FMU). */
+static void worker_logger(fmi2ComponentEnvironment env, fmi2String instance_name, fmi2Status status,
+                          fmi2String category, fmi2String message, ...)
+{
+    (void)env;
+    (void)instance_name;
+    add_record((int32_t)status, category, message);
+}
+
+static void log_error(const char *format, ...)
+{
+    char text[MESSAGE_SIZE], escaped[2 * MESSAGE_SIZE];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    size_t k = 0;                     /* a printf format for the host: '%' doubled */
+    for (const char *p = text; *p != '\0' && k + 2 < sizeof escaped; ++p) {
+        if (*p == '%') escaped[k++] = '%';
+        escaped[k++] = *p;
+    }
+    escaped[k] = '\0';
+    add_record(fmi2Error, "logStatusError", escaped);
+}
+
+/* ---- the host's lifeline -------------------------------------------------------------------------- */
+
+static void *watch_lifeline(void *unused)
+{
+    (void)unused;
+    char byte;
+    while (read(LIFELINE_FD, &byte, 1) < 0 && errno == EINTR) {
+    }
+    _exit(0);   /* the host is gone: nothing to finish, nobody to answer */
+}
+
+/* ---- Python and pythonfmu's binary ---------------------------------------------------------------- */
+
+static Fmi2Table fmi;
+
+static char startup_error[MESSAGE_SIZE];
+
+static int config_failed(PyStatus status, const char *step)
+{
+    if (!PyStatus_Exception(status)) return 0;
+    snprintf(startup_error, sizeof startup_error, "starting the FMU's Python failed in %s: %s",
+             status.func != NULL ? status.func : step, status.err_msg != NULL ? status.err_msg : "it asked to exit");
+    return 1;
+}
+
+static PyStatus append_path(PyConfig *config, const char *runtime, const char *sub)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/%s", runtime, sub);
+    wchar_t *wide = Py_DecodeLocale(path, NULL);
+    if (wide == NULL) return PyStatus_NoMemory();
+    PyStatus status = PyWideStringList_Append(&config->module_search_paths, wide);
+    PyMem_RawFree(wide);
+    return status;
+}
+
+/* Start the runtime's Python, isolated from everything outside `runtime`. */
+static int start_python(const char *program, const char *runtime)
+{
+    PyPreConfig preconfig;
+    PyPreConfig_InitIsolatedConfig(&preconfig);
+    preconfig.utf8_mode = 1;
+    if (config_failed(Py_PreInitialize(&preconfig), "Py_PreInitialize")) return 0;
+
+    PyConfig config;
+    PyConfig_InitIsolatedConfig(&config);
+    config.site_import = 0;              /* no site-packages but the runtime's, no .pth files */
+    config.write_bytecode = 0;           /* the unpacked FMU may be read-only; its modules are compiled */
+    config.install_signal_handlers = 0;
+    config.module_search_paths_set = 1;
+    PyStatus status = PyConfig_SetBytesString(&config, &config.program_name, program);
+    if (!PyStatus_Exception(status)) status = PyConfig_SetBytesString(&config, &config.home, runtime);
+    if (!PyStatus_Exception(status)) status = append_path(&config, runtime, STDLIB);
+    if (!PyStatus_Exception(status))
+        status = append_path(&config, runtime, STDLIB "/lib-dynload");
+    if (!PyStatus_Exception(status)) status = append_path(&config, runtime, "site-packages");
+    if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(&config);
+    PyConfig_Clear(&config);
+    if (config_failed(status, "Py_InitializeFromConfig")) return 0;
+    PyEval_SaveThread();                 /* pythonfmu takes the GIL itself in each call */
+    return 1;
+}
+
+static int load_pythonfmu(const char *path)
+{
+    void *handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (handle == NULL) {
+        snprintf(startup_error, sizeof startup_error, "cannot load pythonfmu's binary: %s", dlerror());
+        return 0;
+    }
+    const char *missing = fmi2_table_resolve(handle, &fmi);
+    if (missing != NULL) {
+        snprintf(startup_error, sizeof startup_error, "%s does not provide %s", path, missing);
+        return 0;
+    }
+    return 1;
+}
+
+/* ---- serving requests ----------------------------------------------------------------------------- */
+
+static Channel channel;
+static fmi2Component component = NULL;   /* pythonfmu's instance */
+static int released = 0;                 /* pythonfmu returned fmi2Fatal: it has released its slave */
+static fmi2CallbackFunctions callbacks = {worker_logger, calloc, free, NULL, NULL};
+
+static unsigned char *request_copy = NULL;   /* the request, copied: the response is written over it */
+static size_t request_cap = 0;
+static fmi2ValueReference *prefetch_list = NULL;
+static uint32_t n_prefetch = 0;
+static void *scratch = NULL;                 /* results of a call before they are written */
+static size_t scratch_cap = 0;
+
+static void *scratch_of(size_t bytes)
+{
+    if (bytes > scratch_cap) {
+        void *grown = realloc(scratch, bytes);
+        if (grown == NULL) return NULL;
+        scratch = grown;
+        scratch_cap = bytes;
+    }
+    return scratch;
+}
+
+static fmi2Status note(fmi2Status status)
+{
+    if (status == fmi2Fatal) released = 1;
+    return status;
+}
+
+/* The outputs of one operation into `w`; returns the call's status. */
+static fmi2Status serve(uint32_t op, Reader *r, Writer *w)
+{
+    uint32_t n, m, k;
+    const fmi2ValueReference *vr;
+    char name[1024], guid[256], location[PATH_MAX + 16];
+
+    if (op == OP_INSTANTIATE) {
+        take_string(r, name, sizeof name);
+        int32_t type = take_i32(r);
+        take_string(r, guid, sizeof guid);
+        take_string(r, location, sizeof location);
+        int32_t visible = take_i32(r);
+        if (r->failed) return fmi2Error;
+        /* logging stays on in pythonfmu: it drops errors too otherwise; the host side filters */
+        component = fmi.Instantiate(name, (fmi2Type)type, guid, location, &callbacks, visible, fmi2True);
+        return component != NULL ? fmi2OK : fmi2Error;
+    }
+    if (component == NULL || released) {
+        log_error("the unit's instance %s", component == NULL ? "was not created" : "failed before (fmi2Fatal)");
+        return fmi2Error;
+    }
+    switch (op) {
+    case OP_SETUP_EXPERIMENT: {
+        int32_t has_tolerance = take_i32(r);
+        double tolerance = take_f64(r), start = take_f64(r);
+        int32_t has_stop = take_i32(r);
+        double stop = take_f64(r);
+        return note(fmi.SetupExperiment(component, has_tolerance, tolerance, start, has_stop, stop));
+    }
+    case OP_ENTER_INITIALIZATION_MODE: return note(fmi.EnterInitializationMode(component));
+    case OP_EXIT_INITIALIZATION_MODE: return note(fmi.ExitInitializationMode(component));
+    case OP_TERMINATE: return note(fmi.Terminate(component));
+    case OP_RESET: return note(fmi.Reset(component));
+    case OP_DO_STEP: {
+        double t = take_f64(r), h = take_f64(r);
+        int32_t no_prior = take_i32(r);
+        return note(fmi.DoStep(component, t, h, no_prior));
+    }
+    case OP_CANCEL_STEP: return note(fmi.CancelStep(component));
+    case OP_GET_REAL: case OP_GET_INTEGER: case OP_GET_BOOLEAN: case OP_GET_STRING: {
+        vr = take_array(r, &n, sizeof *vr);
+        size_t size = op == OP_GET_REAL ? sizeof(fmi2Real) : op == OP_GET_STRING ? sizeof(fmi2String)
+                                                                                   : sizeof(fmi2Integer);
+        void *values = scratch_of(n * size + 8);
+        if (r->failed || values == NULL) return fmi2Error;
+        fmi2Status s = op == OP_GET_REAL      ? fmi.GetReal(component, vr, n, values)
+                       : op == OP_GET_INTEGER ? fmi.GetInteger(component, vr, n, values)
+                       : op == OP_GET_BOOLEAN ? fmi.GetBoolean(component, vr, n, values)
+                                              : fmi.GetString(component, vr, n, values);
+        if (op == OP_GET_STRING) {
+            put_u32(w, n);
+            for (uint32_t i = 0; i < n; ++i) put_string(w, ((fmi2String *)values)[i]);
+        } else {
+            put_array(w, values, n, size);
+        }
+        return note(s);
+    }
+    case OP_SET_REAL: case OP_SET_INTEGER: case OP_SET_BOOLEAN: {
+        vr = take_array(r, &n, sizeof *vr);
+        const void *values = take_array(r, &m, op == OP_SET_REAL ? sizeof(fmi2Real) : sizeof(fmi2Integer));
+        if (r->failed || m != n) return fmi2Error;
+        return note(op == OP_SET_REAL      ? fmi.SetReal(component, vr, n, values)
+                    : op == OP_SET_INTEGER ? fmi.SetInteger(component, vr, n, values)
+                                           : fmi.SetBoolean(component, vr, n, values));
+    }
+    case OP_SET_STRING: {
+        vr = take_array(r, &n, sizeof *vr);
+        fmi2String *values = scratch_of((size_t)n * sizeof *values + 8);
+        if (r->failed || values == NULL) return fmi2Error;
+        for (uint32_t i = 0; i < n; ++i) {   /* NUL-terminated copies, kept until the call returns */
+            uint32_t length = take_u32(r);
+            const char *text = take(r, length);
+            char *copy = text != NULL ? strndup(text, length) : NULL;
+            if (copy == NULL) {
+                for (uint32_t j = 0; j < i; ++j) free((char *)values[j]);
+                return fmi2Error;
+            }
+            values[i] = copy;
+        }
+        fmi2Status s = note(fmi.SetString(component, vr, n, values));
+        for (uint32_t i = 0; i < n; ++i) free((char *)values[i]);
+        return s;
+    }
+    case OP_GET_FMU_STATE: {
+        fmi2FMUstate state = NULL;
+        fmi2Status s = note(fmi.GetFMUstate(component, &state));
+        put_u64(w, (uint64_t)(uintptr_t)state);
+        return s;
+    }
+    case OP_SET_FMU_STATE: return note(fmi.SetFMUstate(component, (fmi2FMUstate)(uintptr_t)take_u64(r)));
+    case OP_FREE_FMU_STATE: {
+        fmi2FMUstate state = (fmi2FMUstate)(uintptr_t)take_u64(r);
+        return note(fmi.FreeFMUstate(component, &state));
+    }
+    case OP_SERIALIZED_FMU_STATE_SIZE: {
+        size_t size = 0;
+        fmi2Status s = note(fmi.SerializedFMUstateSize(component, (fmi2FMUstate)(uintptr_t)take_u64(r), &size));
+        put_u64(w, size);
+        return s;
+    }
+    case OP_SERIALIZE_FMU_STATE: {
+        fmi2FMUstate state = (fmi2FMUstate)(uintptr_t)take_u64(r);
+        size_t size = (size_t)take_u64(r);
+        fmi2Byte *bytes = scratch_of(size + 1);
+        if (r->failed || bytes == NULL) return fmi2Error;
+        fmi2Status s = note(fmi.SerializeFMUstate(component, state, bytes, size));
+        put_array(w, bytes, (uint32_t)size, 1);
+        return s;
+    }
+    case OP_DESERIALIZE_FMU_STATE: {
+        const fmi2Byte *bytes = take_array(r, &n, 1);
+        if (r->failed) return fmi2Error;
+        fmi2FMUstate state = NULL;
+        fmi2Status s = note(fmi.DeSerializeFMUstate(component, bytes, n, &state));
+        put_u64(w, (uint64_t)(uintptr_t)state);
+        return s;
+    }
+    case OP_GET_DIRECTIONAL_DERIVATIVE: {
+        const fmi2ValueReference *unknown = take_array(r, &n, sizeof *unknown);
+        const fmi2ValueReference *known = take_array(r, &m, sizeof *known);
+        const fmi2Real *dv = take_array(r, &k, sizeof *dv);
+        fmi2Real *out = scratch_of((size_t)n * sizeof *out + 8);
+        if (r->failed || k != m || out == NULL) return fmi2Error;
+        fmi2Status s = note(fmi.GetDirectionalDerivative(component, unknown, n, known, m, dv, out));
+        put_array(w, out, n, sizeof *out);
+        return s;
+    }
+    case OP_SET_REAL_INPUT_DERIVATIVES: {
+        vr = take_array(r, &n, sizeof *vr);
+        const fmi2Integer *order = take_array(r, &m, sizeof *order);
+        const fmi2Real *values = take_array(r, &k, sizeof *values);
+        if (r->failed || m != n || k != n) return fmi2Error;
+        return note(fmi.SetRealInputDerivatives(component, vr, n, order, values));
+    }
+    case OP_GET_REAL_OUTPUT_DERIVATIVES: {
+        vr = take_array(r, &n, sizeof *vr);
+        const fmi2Integer *order = take_array(r, &m, sizeof *order);
+        fmi2Real *out = scratch_of((size_t)n * sizeof *out + 8);
+        if (r->failed || m != n || out == NULL) return fmi2Error;
+        fmi2Status s = note(fmi.GetRealOutputDerivatives(component, vr, n, order, out));
+        put_array(w, out, n, sizeof *out);
+        return s;
+    }
+    case OP_GET_STATUS: case OP_GET_REAL_STATUS: case OP_GET_INTEGER_STATUS: case OP_GET_BOOLEAN_STATUS:
+    case OP_GET_STRING_STATUS: {
+        fmi2StatusKind kind = (fmi2StatusKind)take_i32(r);
+        fmi2Status s;
+        if (op == OP_GET_REAL_STATUS) {
+            fmi2Real value = 0.0;
+            s = fmi.GetRealStatus(component, kind, &value);
+            put_f64(w, value);
+        } else if (op == OP_GET_STRING_STATUS) {
+            fmi2String value = NULL;
+            s = fmi.GetStringStatus(component, kind, &value);
+            put_string(w, value);
+        } else {
+            fmi2Integer value = 0;   /* fmi2Status, fmi2Integer and fmi2Boolean are all int */
+            s = op == OP_GET_STATUS           ? fmi.GetStatus(component, kind, (fmi2Status *)&value)
+                : op == OP_GET_INTEGER_STATUS ? fmi.GetIntegerStatus(component, kind, &value)
+                                              : fmi.GetBooleanStatus(component, kind, &value);
+            put_i32(w, value);
+        }
+        return note(s);
+    }
+    default:
+        log_error("unknown request %u (the FMU's binary and worker come from different builds)", op);
+        return fmi2Error;
+    }
+}
+
+/* The values of the prefetch list after the call, unless reading them logged or failed. */
+static void prefetch(Writer *w)
+{
+    fmi2Real *values = scratch_of((size_t)n_prefetch * sizeof *values + 8);
+    if (values == NULL || component == NULL || released || n_prefetch == 0) {
+        put_u32(w, 0);
+        return;
+    }
+    capturing_prefetch = 1;
+    prefetch_logged = 0;
+    fmi2Status s = fmi.GetReal(component, prefetch_list, n_prefetch, values);
+    capturing_prefetch = 0;
+    if (s != fmi2OK || prefetch_logged) {
+        note(s);
+        put_u32(w, 0);
+        return;
+    }
+    put_u32(w, 1);
+    put_array(w, values, n_prefetch, sizeof *values);
+}
+
+/* Answer the request in the channel: 1, or 0 after OP_FREE_INSTANCE (the worker then exits); -1 when
+ * the request cannot be read or answered (out of memory): the worker exits without an answer and the
+ * client reports it ended. */
+static int handle(void)
+{
+    if (!channel_sync(&channel)) return -1;
+    size_t length = channel.head->length;
+    if (length > request_cap) {
+        unsigned char *grown = realloc(request_copy, length);
+        if (grown == NULL) return -1;
+        request_copy = grown;
+        request_cap = length;
+    }
+    memcpy(request_copy, channel.data, length);
+    Reader r = {request_copy, 0, length, 0};
+    uint32_t op = take_u32(&r), wants_prefetch = take_u32(&r), has_list = take_u32(&r);
+    if (has_list) {
+        uint32_t n;
+        const fmi2ValueReference *list = take_array(&r, &n, sizeof *list);
+        fmi2ValueReference *copy = n > 0 ? malloc(n * sizeof *copy) : NULL;
+        if (list != NULL && (copy != NULL || n == 0)) {
+            if (n > 0) memcpy(copy, list, n * sizeof *copy);
+            free(prefetch_list);
+            prefetch_list = copy;
+            n_prefetch = n;
+        }
+    }
+
+    Writer w = {&channel, 0, 0};
+    put_i32(&w, 0);                   /* the status, written last */
+    fmi2Status status;
+    if (startup_error[0] != '\0') {
+        log_error("%s", startup_error);
+        status = fmi2Error;
+    } else if (op == OP_FREE_INSTANCE) {
+        if (component != NULL && !released) fmi.FreeInstance(component);
+        component = NULL;
+        status = fmi2OK;
+    } else {
+        status = serve(op, &r, &w);
+        if (r.failed && status < fmi2Error) {
+            log_error("request %u was incomplete (the FMU's binary and worker come from different builds)", op);
+            status = fmi2Error;
+        }
+    }
+    put_u32(&w, (uint32_t)n_records);
+    for (size_t i = 0; i < n_records; ++i) {
+        put_i32(&w, records[i].status);
+        put_string(&w, records[i].category);
+        put_string(&w, records[i].message);
+    }
+    clear_records();
+    if (wants_prefetch && startup_error[0] == '\0') prefetch(&w);
+    else put_u32(&w, 0);
+    if (w.failed) return -1;
+    memcpy(channel.data, &(int32_t){(int32_t)status}, sizeof(int32_t));
+    channel.head->length = w.pos;
+    return op != OP_FREE_INSTANCE;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc != 3) {
+        fprintf(stderr, "usage: %s PYTHONFMU_BINARY RUNTIME_FOLDER (started by a wingsim FMU)\n", argv[0]);
+        return 2;
+    }
+    pthread_t watcher;
+    if (pthread_create(&watcher, NULL, watch_lifeline, NULL) != 0) return 3;
+    fcntl(LIFELINE_FD, F_SETFD, FD_CLOEXEC);   /* a process Python starts must not hold the lifeline */
+    fcntl(CHANNEL_FD, F_SETFD, FD_CLOEXEC);
+    fcntl(DEATH_FD, F_SETFD, FD_CLOEXEC);
+    struct stat info;
+    channel.fd = CHANNEL_FD;
+    if (fstat(CHANNEL_FD, &info) != 0 || !channel_map(&channel, (size_t)info.st_size)) return 4;
+    if (channel.head->magic != CHANNEL_MAGIC || channel.head->version != CHANNEL_VERSION) return 5;
+
+    if (start_python(argv[0], argv[2])) load_pythonfmu(argv[1]);
+    for (uint32_t answered = atomic_load(&channel.head->response);;) {
+        channel_wait(&channel.head->request, answered, &channel.head->worker_sleeps, NULL, NULL);
+        uint32_t request = atomic_load(&channel.head->request);
+        int go_on = handle();
+        if (go_on < 0) _exit(1);
+        answered = request;
+        channel_signal(&channel.head->response, request, &channel.head->client_sleeps);
+        if (go_on == 0) break;
+    }
+    _exit(0);   /* no exit handlers: pythonfmu's would run after its own destructor (fmi_shim.c) */
+}

@@ -1,0 +1,102 @@
+"""Standalone FMUs: units that carry their whole runtime and run it in a worker process of their own.
+
+`make_standalone(fmu)` rewrites an FMU built by `orchestrator.build` so that it needs no Python on the target
+machine and nothing from the host's:
+
+    binaries/linux64/<id>.so            the shim compiled with `worker` (native_binary.compile_shim): in the
+                                        host process, it starts the worker at fmi2Instantiate and forwards
+                                        every call to it (worker_client.c); nothing of Python enters the host
+    binaries/linux64/<id>_worker        the worker (fmi_worker.c): starts the runtime's Python isolated and
+                                        serves the calls with pythonfmu's binary, as an ordinary FMU does
+    binaries/linux64/<id>_pythonfmu.so  pythonfmu's binary, unchanged
+    binaries/linux64/runtime/           the Python runtime (`orchestrator.runtime`)
+    resources/                          as built, the Python sources compiled beside them (__pycache__,
+                                        unchecked hashes), so that a worker starts without compiling
+
+It carries binaries for linux64 only (the only platform they are built and tested for). The archive is
+compressed at the highest level. Building one needs a C compiler and a Python with a shared libpython and
+its headers (`unavailable_reason`).
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import py_compile
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+from orchestrator import native_binary, runtime
+
+PLATFORM = "linux64"
+
+
+def unavailable_reason() -> str | None:
+    """What this machine lacks to build standalone FMUs (a C compiler, a shared libpython, the Python or FMI
+    headers), or None."""
+    return native_binary.unavailable_reason()
+
+
+def make_standalone(fmu: Path) -> None:
+    """Rewrite `fmu` (built by orchestrator.build, written whole or not at all) as a standalone FMU.
+
+    Raises native_binary.ShimUnavailable or runtime.RuntimeUnavailable when something it needs is missing,
+    RuntimeError when a compilation fails.
+    """
+    fmu = Path(fmu)
+    with tempfile.TemporaryDirectory(prefix="wingsim_standalone_") as tmp:
+        folder = Path(tmp) / "fmu"
+        _unpack(fmu, folder)
+        guid, identifier = native_binary._identity((folder / "modelDescription.xml").read_bytes())
+        binaries = folder / "binaries"
+        for platform in binaries.iterdir():
+            if platform.name != PLATFORM:
+                shutil.rmtree(platform)
+        linux = binaries / PLATFORM
+        inner = linux / native_binary.inner_name(identifier)
+        if not inner.exists():                       # built without the ordinary shim: pythonfmu's binary
+            os.replace(linux / f"{identifier}.so", inner)
+        runtime.write(runtime.collect(folder / "resources"), linux / "runtime")
+        native_binary.compile_shim(linux / f"{identifier}.so", guid, identifier, worker=True)
+        native_binary.compile_worker(linux / native_binary.worker_name(identifier),
+                                     Path(native_binary.shared_libpython()))
+        _compile_sources(folder / "resources")
+        partial = fmu.with_name(f".{fmu.name}.standalone")
+        try:
+            _pack(folder, partial)
+            os.replace(partial, fmu)
+        finally:
+            partial.unlink(missing_ok=True)
+
+
+def _unpack(fmu: Path, folder: Path) -> None:
+    """Extract `fmu` into `folder`, keeping the file modes the archive records."""
+    with zipfile.ZipFile(fmu) as archive:
+        for info in archive.infolist():
+            target = folder / info.filename
+            archive.extract(info, folder)
+            mode = info.external_attr >> 16
+            if mode and not info.is_dir():
+                target.chmod(mode & 0o777)
+
+
+def _compile_sources(resources: Path) -> None:
+    """Compile every Python file under `resources` into its __pycache__ (unchecked hash: unpacking gives the
+    sources new modification times, which a checked .pyc would take as changes)."""
+    for source in sorted(resources.rglob("*.py")):
+        py_compile.compile(str(source), cfile=importlib.util.cache_from_source(str(source)), doraise=True,
+                           invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
+
+
+def _pack(folder: Path, archive: Path) -> None:
+    """Zip `folder` into `archive`, deflated at level 9, executables marked so (0755)."""
+    with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as z:
+        for path in sorted(folder.rglob("*")):
+            if path.is_dir():
+                continue
+            info = zipfile.ZipInfo(path.relative_to(folder).as_posix(), date_time=(2020, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = (0o755 if os.access(path, os.X_OK) else 0o644) << 16
+            with open(path, "rb") as f:
+                z.writestr(info, f.read(), compresslevel=9)

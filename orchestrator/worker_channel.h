@@ -1,0 +1,274 @@
+/* The channel between a standalone FMU's binary in the host process (worker_client.c) and the unit's
+ * worker process (fmi_worker.c): one shared memory file, one request and one response at a time.
+ *
+ * The client writes a request (an operation code and its arguments, docs in the two .c files) into the
+ * data area, increments `request` and wakes the worker; the worker carries it out, writes the response
+ * over the same area, sets `response` to `request` and wakes the client. Both wait by spinning first:
+ * waking a process that sleeps on an idle CPU costs tens of microseconds in a virtual machine (the
+ * hypervisor must wake that CPU), several times the cost of a small step's exchange, so a waiting side
+ * spins (pause, then sched_yield, which gives the CPU to any other runnable process) for up to
+ * SPIN_YIELD_NS before it sleeps on a futex. A coupled run keeps both sides within that window.
+ *
+ * The data area grows when a message needs more (a serialized FMU state): the writer extends the file
+ * and its own mapping and records the new size in the header; the reader maps the file again when the
+ * recorded size exceeds its mapping. Values are written in the host's byte order; arrays of 8-byte
+ * values start at 8-byte offsets so that a pointer into the area can be handed to an FMI function.
+ */
+#ifndef WINGSIM_WORKER_CHANNEL_H
+#define WINGSIM_WORKER_CHANNEL_H
+
+/* the including file defines _GNU_SOURCE before its first system header (syscall, sched_yield) */
+#include <errno.h>
+#include <linux/futex.h>
+#include <sched.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/syscall.h>
+#include <time.h>
+#include <unistd.h>
+
+#define CHANNEL_MAGIC 0x57494e47u  /* "WING" */
+#define CHANNEL_VERSION 1u
+#define CHANNEL_DATA_OFFSET 256    /* after the header, on a cache line of its own */
+#define CHANNEL_INITIAL_SIZE (1u << 20)
+#define SPIN_PAUSE_NS 20000L       /* busy-wait with pause for 20 us, */
+#define SPIN_YIELD_NS 2000000L     /* then yield the CPU in a loop up to 2 ms, then sleep */
+#define SLEEP_CHECK_NS 20000000L   /* a sleeping client wakes every 20 ms to see whether the worker lives */
+
+/* Operations: one per FMI 2.0 co-simulation function the client forwards. */
+enum {
+    OP_INSTANTIATE = 1, OP_FREE_INSTANCE, OP_SETUP_EXPERIMENT, OP_ENTER_INITIALIZATION_MODE,
+    OP_EXIT_INITIALIZATION_MODE, OP_TERMINATE, OP_RESET, OP_GET_REAL, OP_GET_INTEGER, OP_GET_BOOLEAN,
+    OP_GET_STRING, OP_SET_REAL, OP_SET_INTEGER, OP_SET_BOOLEAN, OP_SET_STRING, OP_GET_FMU_STATE,
+    OP_SET_FMU_STATE, OP_FREE_FMU_STATE, OP_SERIALIZED_FMU_STATE_SIZE, OP_SERIALIZE_FMU_STATE,
+    OP_DESERIALIZE_FMU_STATE, OP_GET_DIRECTIONAL_DERIVATIVE, OP_SET_REAL_INPUT_DERIVATIVES,
+    OP_GET_REAL_OUTPUT_DERIVATIVES, OP_DO_STEP, OP_CANCEL_STEP, OP_GET_STATUS, OP_GET_REAL_STATUS,
+    OP_GET_INTEGER_STATUS, OP_GET_BOOLEAN_STATUS, OP_GET_STRING_STATUS, OP_COUNT
+};
+
+typedef struct {
+    uint32_t magic, version;
+    _Atomic uint64_t size;                 /* bytes of the file (header included) */
+    uint64_t length;                       /* bytes of the message in the data area */
+    char pad1[64 - 24];
+    _Atomic uint32_t request;              /* written by the client: the number of its latest request */
+    _Atomic uint32_t worker_sleeps;        /* the worker sleeps on `request` */
+    char pad2[64 - 8];
+    _Atomic uint32_t response;             /* written by the worker: the request it has answered */
+    _Atomic uint32_t client_sleeps;        /* the client sleeps on `response` */
+} ChannelHeader;
+
+_Static_assert(sizeof(ChannelHeader) <= CHANNEL_DATA_OFFSET, "the header overlaps the data");
+
+typedef struct {
+    int fd;                                /* the shared memory file */
+    size_t mapped;                         /* bytes of this side's mapping */
+    ChannelHeader *head;
+    unsigned char *data;                   /* head + CHANNEL_DATA_OFFSET */
+} Channel;
+
+static long channel_now_ns(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (long)t.tv_sec * 1000000000L + t.tv_nsec;
+}
+
+static int channel_map(Channel *ch, size_t size)
+{
+    void *p = mmap(NULL, size, PROT_READ | PROT_WRITE, MAP_SHARED, ch->fd, 0);
+    if (p == MAP_FAILED) return 0;
+    if (ch->head != NULL) munmap(ch->head, ch->mapped);
+    ch->head = (ChannelHeader *)p;
+    ch->data = (unsigned char *)p + CHANNEL_DATA_OFFSET;
+    ch->mapped = size;
+    return 1;
+}
+
+/* Map the file again if the other side has grown it. */
+static int channel_sync(Channel *ch)
+{
+    size_t size = (size_t)atomic_load(&ch->head->size);
+    return size <= ch->mapped || channel_map(ch, size);
+}
+
+/* Room for `bytes` bytes of data: grows the file (doubling) when needed. */
+static int channel_reserve(Channel *ch, size_t bytes)
+{
+    if (!channel_sync(ch)) return 0;
+    if (CHANNEL_DATA_OFFSET + bytes <= ch->mapped) return 1;
+    size_t size = ch->mapped;
+    while (CHANNEL_DATA_OFFSET + bytes > size) size *= 2;
+    if (ftruncate(ch->fd, (off_t)size) != 0 || !channel_map(ch, size)) return 0;
+    atomic_store(&ch->head->size, size);
+    return 1;
+}
+
+static void channel_pause(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
+#endif
+}
+
+/* Wait until `*word` is not `value`. `alive(arg)` (may be NULL) is asked about every millisecond and
+ * when a sleep times out; it returns 0 when the other side is gone, and so does channel_wait. */
+static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps,
+                        int (*alive)(void *), void *arg)
+{
+    long start = channel_now_ns(), checked = start;
+    for (unsigned k = 1;; ++k) {
+        if (atomic_load_explicit(word, memory_order_acquire) != value) return 1;
+        if (k % 64 != 0) {
+            channel_pause();
+            continue;
+        }
+        long now = channel_now_ns();
+        if (alive != NULL && now - checked > 1000000L) {
+            if (!alive(arg)) return 0;
+            checked = now;
+        }
+        if (now - start < SPIN_PAUSE_NS) continue;
+        if (now - start < SPIN_YIELD_NS) {
+            sched_yield();
+            continue;
+        }
+        break;
+    }
+    for (;;) {
+        atomic_store(sleeps, 1);
+        if (atomic_load(word) != value) break;
+        struct timespec timeout = {0, SLEEP_CHECK_NS};
+        syscall(SYS_futex, (uint32_t *)word, FUTEX_WAIT, value, alive != NULL ? &timeout : NULL, NULL, 0);
+        atomic_store(sleeps, 0);
+        if (atomic_load(word) != value) break;
+        if (alive != NULL && !alive(arg)) return 0;
+    }
+    atomic_store(sleeps, 0);
+    atomic_thread_fence(memory_order_acquire);
+    return 1;
+}
+
+/* Set `*word` to `value` and wake the other side if it sleeps on it. */
+static void channel_signal(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps)
+{
+    atomic_store(word, value);
+    if (atomic_load(sleeps)) syscall(SYS_futex, (uint32_t *)word, FUTEX_WAKE, 1, NULL, NULL, 0);
+}
+
+/* ---- messages: a writer appends to the data area, a reader takes from it in the same order ---- */
+
+typedef struct {
+    Channel *ch;
+    size_t pos;
+    int failed;                            /* out of memory: the message is incomplete */
+} Writer;
+
+typedef struct {
+    const unsigned char *data;
+    size_t pos, end;
+    int failed;                            /* the message ended early: it is not what was expected */
+} Reader;
+
+static void put(Writer *w, const void *p, size_t n)
+{
+    if (w->failed || !channel_reserve(w->ch, w->pos + n)) {
+        w->failed = 1;
+        return;
+    }
+    if (n > 0) memcpy(w->ch->data + w->pos, p, n);
+    w->pos += n;
+}
+
+static void put_u32(Writer *w, uint32_t v) { put(w, &v, sizeof v); }
+static void put_i32(Writer *w, int32_t v) { put(w, &v, sizeof v); }
+static void put_u64(Writer *w, uint64_t v) { put(w, &v, sizeof v); }
+static void put_f64(Writer *w, double v) { put(w, &v, sizeof v); }
+
+/* An array of `n` items of `size` bytes, starting at an 8-byte offset, after its count. */
+static void put_array(Writer *w, const void *p, uint32_t n, size_t size)
+{
+    static const unsigned char zeros[8] = {0};
+    put_u32(w, n);
+    put(w, zeros, (8 - w->pos % 8) % 8);
+    put(w, p, (size_t)n * size);
+}
+
+static void put_string(Writer *w, const char *s)
+{
+    uint32_t n = s != NULL ? (uint32_t)strlen(s) : 0;
+    put_u32(w, n);
+    put(w, s, n);
+}
+
+static const void *take(Reader *r, size_t n)
+{
+    if (r->failed || n > r->end - r->pos) {
+        r->failed = 1;
+        return NULL;
+    }
+    const void *p = r->data + r->pos;
+    r->pos += n;
+    return p;
+}
+
+static uint32_t take_u32(Reader *r)
+{
+    uint32_t v = 0;
+    const void *p = take(r, sizeof v);
+    if (p != NULL) memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static int32_t take_i32(Reader *r)
+{
+    int32_t v = 0;
+    const void *p = take(r, sizeof v);
+    if (p != NULL) memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static uint64_t take_u64(Reader *r)
+{
+    uint64_t v = 0;
+    const void *p = take(r, sizeof v);
+    if (p != NULL) memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static double take_f64(Reader *r)
+{
+    double v = 0.0;
+    const void *p = take(r, sizeof v);
+    if (p != NULL) memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* An array written by put_array: its items in place (8-byte aligned), its count in *n. */
+static const void *take_array(Reader *r, uint32_t *n, size_t size)
+{
+    *n = take_u32(r);
+    take(r, (8 - r->pos % 8) % 8);
+    if (r->failed || (size > 0 && *n > (r->end - r->pos) / size)) {
+        r->failed = 1;
+        *n = 0;
+        return NULL;
+    }
+    return take(r, (size_t)*n * size);
+}
+
+/* A string written by put_string, copied NUL-terminated into `out` (`size` bytes, truncated). */
+static void take_string(Reader *r, char *out, size_t size)
+{
+    uint32_t n = take_u32(r);
+    const char *p = take(r, n);
+    size_t k = p == NULL ? 0 : (n < size ? n : size - 1);
+    if (k > 0) memcpy(out, p, k);
+    if (size > 0) out[k] = '\0';
+}
+
+#endif
