@@ -37,6 +37,9 @@ other failure in the step is logged the same way and `do_step` returns False, wi
 """
 from __future__ import annotations
 
+# first: inside an FMU, one message names every package the Python it runs in lacks (fmu_common/dependencies.py)
+from fmu_common import dependencies  # noqa: F401
+
 import math
 
 import numpy as np

@@ -6,17 +6,22 @@ Each FMU holds its slave script at the top of `resources/` (pythonfmu imports it
 `aero_slave.py`, so that both FMUs run in one process), the Python packages it imports (`fmu_common/` and
 `structure_fmu/`; `fmu_common/` and `aero_fmu/` for the aero unit, never the structure solver; copied as
 their *.py files and C kernels, each *.c with its library beside it, compiled once per machine by
-fmu_common.c_library, so that an FMU never compiles when it starts), `scene.json`, and `build_info.json`
-(digests used by `fmus_up_to_date`).
+fmu_common.c_library, so that an FMU never compiles when it starts), `scene.json`, `build_info.json`
+(digests used by `fmus_up_to_date`) and `requirements.txt` (the third-party distributions the sources import,
+pinned to this environment's versions: `pythonfmu deploy` installs them, and the unit names every missing
+one at once, fmu_common/dependencies.py).
 FMUs are built with canGetAndSetFMUstate and canSerializeFMUstate, for rollback by implicit masters.
-The FMUs do not bundle Python, numpy or scipy: they run in the Python environment they were built in.
-Their Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without
-one and forwards every FMI call to pythonfmu's binary.
+An ordinary FMU does not bundle Python, numpy or scipy: it runs in the Python environment it was built in.
+Its Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without one
+and forwards every FMI call to pythonfmu's binary. With `standalone=True` the FMU carries its whole runtime
+and runs it in a worker process of its own (`orchestrator.standalone`): it needs no Python on the target.
+Either kind carries binaries for linux64 only.
 """
 from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.metadata
 import importlib.util
 import json
 import os
@@ -27,8 +32,9 @@ import zipfile
 from pathlib import Path
 
 from fmu_common import c_library
+from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.fmi_slave import SCENE_RESOURCE
-from orchestrator import native_binary
+from orchestrator import native_binary, standalone as standalone_fmu
 
 BUILD_INFO_RESOURCE = "build_info.json"
 
@@ -49,11 +55,15 @@ def units_needed(scene: dict) -> list[str]:
     return ["structure"] if model == "none" else ["structure", "aero"]
 
 
-def build_fmus(scene: dict, out_dir: Path) -> list[Path]:
-    """Build every FMU the scene needs into `out_dir`; returns their paths (structure first).
+def build_fmus(scene: dict, out_dir: Path, standalone: bool = False) -> list[Path]:
+    """Build every FMU the scene needs into `out_dir`; returns their paths (structure first). `standalone`:
+    FMUs that carry their runtime (module docstring).
 
-    Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails.
+    Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails or, before
+    anything is built, when standalone FMUs cannot be built here (`standalone_fmu.unavailable_reason`).
     """
+    if standalone and standalone_fmu.unavailable_reason() is not None:
+        raise BuildError(f"standalone FMUs cannot be built here: {standalone_fmu.unavailable_reason()}")
     kinds = units_needed(scene)
     for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
         for _, source in _sources(kind):
@@ -63,16 +73,17 @@ def build_fmus(scene: dict, out_dir: Path) -> list[Path]:
         _require(kind, scene)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    return [_build_unit(kind, scene, out_dir) for kind in kinds]
+    return [_build_unit(kind, scene, out_dir, standalone) for kind in kinds]
 
 
-def fmus_up_to_date(scene: dict, out_dir: Path) -> bool:
-    """True if every FMU the scene needs exists in `out_dir`, built from this scene and these sources."""
+def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False) -> bool:
+    """True if every FMU the scene needs exists in `out_dir`, of the kind asked for, built from this scene and
+    these sources."""
     for kind in units_needed(scene):
         fmu = Path(out_dir) / UNITS[kind][0]
         try:
             info = json.loads(read_resource(fmu, BUILD_INFO_RESOURCE))
-            if info != _build_info(kind, scene):
+            if info != _build_info(kind, scene, standalone):
                 return False
         except (OSError, KeyError, ValueError, zipfile.BadZipFile, BuildError):
             return False
@@ -132,14 +143,31 @@ def _sources(kind: str) -> list[tuple[str, Path]]:
     return files
 
 
+def requirements(kind: str) -> str:
+    """requirements.txt of a unit: the distributions of every third-party module its sources import, pinned to
+    the versions installed here (the FMU carries its own packages and pythonfmu in its resources)."""
+    from orchestrator.import_trace import imported_modules
+
+    own = {package for package in UNITS[kind][2]} | {"pythonfmu"}
+    distributions = importlib.metadata.packages_distributions()
+    lines = set()
+    for name in imported_modules(str(f) for _, f in _sources(kind) if f.suffix == ".py"):
+        top = name.split(".")[0]
+        if top in own or top in sys.stdlib_module_names:
+            continue
+        for dist in distributions.get(top, []):
+            lines.add(f"{dist}=={importlib.metadata.version(dist)}")
+    return "".join(f"{line}\n" for line in sorted(lines))
+
+
 def scene_digest(scene: dict) -> str:
     """SHA-256 (hex) of the resolved scene as canonical JSON: the `scene_sha256` its FMUs carry."""
     return hashlib.sha256(json.dumps(scene, sort_keys=True).encode()).hexdigest()
 
 
-def _build_info(kind: str, scene: dict) -> dict:
+def _build_info(kind: str, scene: dict, standalone: bool) -> dict:
     return {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": scene_digest(scene),
-            "native_binary_sha256": native_binary.source_digest()}
+            "native_binary_sha256": native_binary.source_digest(), "standalone": standalone}
 
 
 def source_digest(kind: str) -> str:
@@ -151,7 +179,7 @@ def source_digest(kind: str) -> str:
     return h.hexdigest()
 
 
-def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
+def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool) -> Path:
     fmu_name, module_name, packages = UNITS[kind]
     _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
@@ -165,8 +193,9 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
         stage = Path(tmp) / "stage"
         stage.mkdir()
         (stage / SCENE_RESOURCE).write_text(json.dumps(scene, indent=1), encoding="utf-8")
-        (stage / BUILD_INFO_RESOURCE).write_text(json.dumps(_build_info(kind, scene)), encoding="utf-8")
-        project_files = [stage / SCENE_RESOURCE, stage / BUILD_INFO_RESOURCE]
+        (stage / BUILD_INFO_RESOURCE).write_text(json.dumps(_build_info(kind, scene, standalone)), encoding="utf-8")
+        (stage / REQUIREMENTS).write_text(requirements(kind), encoding="utf-8")
+        project_files = [stage / SCENE_RESOURCE, stage / BUILD_INFO_RESOURCE, stage / REQUIREMENTS]
         for archive_name, f in _sources(kind)[1:]:
             target = stage / archive_name
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -178,7 +207,10 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
         try:
             FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
                                  canGetAndSetFMUstate=True, canSerializeFMUstate=True)
-            _native_binary(partial, dest)
+            if standalone:
+                standalone_fmu.make_standalone(partial)
+            else:
+                _native_binary(partial, dest)
         except SceneError:
             partial.unlink(missing_ok=True)
             raise
@@ -197,10 +229,12 @@ def _build_unit(kind: str, scene: dict, out_dir: Path) -> Path:
 
 
 def _native_binary(fmu: Path, dest: Path) -> None:
-    """Give `fmu` the shim as its Linux binary; without a C compiler it keeps pythonfmu's, and says so."""
+    """Give `fmu` the shim as its Linux binary; without a C compiler it keeps pythonfmu's, and says so. Either
+    way no other platform's binary stays."""
     try:
         native_binary.install_shim(fmu)
     except native_binary.ShimUnavailable as missing:
+        native_binary.keep_linux_only(fmu)
         print(f"warning: {dest}: {missing}. The FMU keeps pythonfmu's own binary: it runs only in Python "
               "hosts (wingsim run, fmpy, libcosimpy), not in C tools such as the FMI Compliance Checker, "
               "and a call the unit refuses returns fmi2OK with the reason logged at error status.",

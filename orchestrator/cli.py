@@ -1,12 +1,13 @@
 """The ``wingsim`` command line (docs/architecture.md); ``python -m orchestrator`` is the same.
 
-- ``wingsim build SCENE [--out DIR]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``).
-- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct]``: build if needed,
+- ``wingsim build SCENE [--out DIR] [--standalone]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``;
+  ``--standalone``: FMUs that carry their Python runtime, default ``fmus/<scene>-standalone/``).
+- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
   run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
-- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...]``: build the FMUs if needed (into the folder
+- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--standalone]``: build the FMUs if needed (into the folder
   ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU, ``DIR/wing.fmu``
-  (default ``export/<scene>/``).
+  (default ``export/<scene>/``, ``export/<scene>-standalone/`` with ``--standalone``).
 - ``wingsim sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--set KEY=VALUE ...] [--out DIR]
   [--backend direct|fmu] [--jobs N] [--scheduler ADDRESS] [--plots]``: every combination of the grid
   values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
@@ -14,7 +15,8 @@
 
 ``run`` and ``export`` build and open the FMUs in ``fmus/<scene>/`` when no ``--set`` is given (the folder
 ``build`` fills by default) and in ``fmus/<scene>-<first 12 hex digits of the resolved scene's SHA-256>/``
-with ``--set``, so that variants of one scene never overwrite each other's FMUs (``fmu_dir``).
+with ``--set``, so that variants of one scene never overwrite each other's FMUs (``fmu_dir``); standalone FMUs
+in the same folders with ``-standalone`` appended.
 
 ``--out`` is checked before anything runs (``results.check_out_dir``): a file, a path below a file or a
 folder that cannot be written is refused with exit 2.
@@ -47,6 +49,8 @@ EXPORT_ROOT = Path("export")
 DIGEST_CHARS = 12
 """Hex digits of the resolved scene's digest in the FMU folder of a ``--set`` variant."""
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STANDALONE_HELP = ("FMUs that carry their Python runtime and run it in a worker process of their own: they need "
+                   "no Python on the machine that runs them (docs/fmu.md)")
 
 
 def _debug() -> bool:
@@ -83,7 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
     build = commands.add_parser("build", help="build the FMUs a scene needs",
                                 description="Build the FMUs a scene needs.")
     build.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
-    build.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: fmus/<scene name>/)")
+    build.add_argument("--out", type=Path, metavar="DIR",
+                       help="output folder (default: fmus/<scene name>/, fmus/<scene name>-standalone/)")
+    build.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
     build.set_defaults(func=cmd_build)
 
     run = commands.add_parser("run", help="build if needed, run a scene, write results and plots",
@@ -95,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
     run.add_argument("--backend", choices=("fmu", "direct"), default="fmu",
                      help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
+    run.add_argument("--standalone", action="store_true", help=STANDALONE_HELP + " (with --backend fmu)")
     run.set_defaults(func=cmd_run)
 
     validate = commands.add_parser("validate", help="check built FMUs: model description and a short simulation",
@@ -112,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: export/<scene name>/)")
     export.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
+    export.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
     export.set_defaults(func=cmd_export)
 
     sweep = commands.add_parser("sweep", help="run every combination of --grid values, one row per run in sweep.csv",
@@ -162,25 +170,38 @@ def cmd_build(args: argparse.Namespace) -> int:
     from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene)
-    out = check_out_dir(args.out or FMU_ROOT / scene["name"])
-    for path in build_fmus(scene, out):
+    _require_standalone(args.standalone)
+    out = check_out_dir(args.out or fmu_dir(scene, False, args.standalone))
+    for path in build_fmus(scene, out, standalone=args.standalone):
         print(path)
     return 0
 
 
-def fmu_dir(scene: dict, overridden: bool) -> Path:
+def _require_standalone(standalone: bool) -> None:
+    """Refuse --standalone, before anything is written, where standalone FMUs cannot be built (exit 2)."""
+    if not standalone:
+        return
+    from orchestrator.standalone import unavailable_reason
+
+    if unavailable_reason() is not None:
+        raise SceneError("--standalone", True, f"standalone FMUs cannot be built here: {unavailable_reason()}")
+
+
+def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:
     """The folder `run` and `export` build a scene's FMUs into and run them from: ``fmus/<scene>/`` for the
     scene as its file writes it (where `build` puts them), ``fmus/<scene>-<digest>/`` for a ``--set``
     variant (``overridden``), keyed by the first DIGEST_CHARS hex digits of the resolved scene's SHA-256,
-    so that concurrent runs of different variants never rebuild each other's FMUs."""
-    if not overridden:
-        return FMU_ROOT / scene["name"]
-    from orchestrator.build import scene_digest
+    so that concurrent runs of different variants never rebuild each other's FMUs; ``-standalone``
+    appended for standalone FMUs."""
+    name = scene["name"]
+    if overridden:
+        from orchestrator.build import scene_digest
 
-    return FMU_ROOT / f"{scene['name']}-{scene_digest(scene)[:DIGEST_CHARS]}"
+        name += f"-{scene_digest(scene)[:DIGEST_CHARS]}"
+    return FMU_ROOT / (f"{name}-standalone" if standalone else name)
 
 
-def _build_if_needed(scene: dict, fmu_dir: Path):
+def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False):
     """None when the FMUs are ready, else a failed RunResult saying why the build failed.
 
     The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included)
@@ -191,10 +212,11 @@ def _build_if_needed(scene: dict, fmu_dir: Path):
 
     start = time.perf_counter()
     try:
-        if fmus_up_to_date(scene, fmu_dir):
+        if fmus_up_to_date(scene, fmu_dir, standalone):
             return None
-        print(f"building the FMUs of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
-        fmus = build_fmus(scene, fmu_dir)
+        kind = "standalone FMUs" if standalone else "FMUs"
+        print(f"building the {kind} of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
+        fmus = build_fmus(scene, fmu_dir, standalone=standalone)
     except SceneError:
         raise
     except Exception as err:
@@ -215,6 +237,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    if args.standalone and args.backend != "fmu":
+        raise SceneError("--standalone", True, "standalone FMUs run with --backend fmu only")
+    _require_standalone(args.standalone)
     out = check_out_dir(args.out or RESULTS_ROOT / scene["name"])
     start = time.perf_counter()
     try:   # from here on an interrupt still writes the results (run_scene handles its own)
@@ -223,8 +248,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         except WriteError as err:
             print(f"error: {err}; nothing was run", file=sys.stderr)
             return 1
-        folder = fmu_dir(scene, bool(args.overrides))
-        result = _build_if_needed(scene, folder) if args.backend == "fmu" else None
+        folder = fmu_dir(scene, bool(args.overrides), args.standalone)
+        result = _build_if_needed(scene, folder, args.standalone) if args.backend == "fmu" else None
         if result is None:
             progress = Progress(scene["time"]["stop"], label=scene["name"])
             result = run_scene(scene, backend=args.backend, fmu_dir=folder, progress=progress)
@@ -255,22 +280,27 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from orchestrator.container import CONTAINER_FILE, write_container
+    from orchestrator.container import CONTAINER_FILE, ContainerUnavailable, write_container
     from orchestrator.results import check_out_dir
     from orchestrator.scene import load_scene
     from orchestrator.ssp import write_ssp
     from orchestrator.system import coupled_system
 
     scene = load_scene(args.scene, args.overrides)
-    out = check_out_dir(args.out or EXPORT_ROOT / scene["name"])
-    folder = fmu_dir(scene, bool(args.overrides))
-    failed = _build_if_needed(scene, folder)
+    _require_standalone(args.standalone)
+    out = check_out_dir(args.out or EXPORT_ROOT / (scene["name"] + ("-standalone" if args.standalone else "")))
+    folder = fmu_dir(scene, bool(args.overrides), args.standalone)
+    failed = _build_if_needed(scene, folder, args.standalone)
     if failed is not None:
         print(f"error: {failed.message}", file=sys.stderr)
         return interrupt_exit_code() or 1
     system = coupled_system(scene, folder)
     print(write_ssp(system, out / f"{scene['name']}.ssp"))
-    print(write_container(system, out / CONTAINER_FILE))
+    try:
+        print(write_container(system, out / CONTAINER_FILE))
+    except ContainerUnavailable as missing:   # the package is written and usable; say why wing.fmu is not
+        print(f"error: {out / CONTAINER_FILE} not written: {missing}", file=sys.stderr)
+        return 1
     return 0
 
 

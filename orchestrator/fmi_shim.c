@@ -39,6 +39,7 @@
 #include <unistd.h>
 
 #include "fmi2_table.h"
+#include "fmi2_uri.h"
 
 #if !defined(SHIM_GUID) || !defined(SHIM_INNER)
 #error "SHIM_GUID and SHIM_INNER must be defined"
@@ -243,45 +244,120 @@ typedef void ConfigClearFn(PyConfig *);
 typedef int StatusExceptionFn(PyStatus);
 typedef PyThreadState *SaveThreadFn(void);
 
+#define NAME_TEXT(x) #x
+#define NUMBER_TEXT(x) NAME_TEXT(x)
+#define LIBPYTHON_NAME "libpython" NUMBER_TEXT(PY_MAJOR_VERSION) "." NUMBER_TEXT(PY_MINOR_VERSION) ".so.1.0"
+
+/* The Python this process starts (choose_python): the build environment's, or the one $WINGSIM_PYTHON names. */
+static char python[PATH_SIZE], libpython[PATH_SIZE];
+
+static int readable(const char *path) { return path[0] != '\0' && access(path, R_OK) == 0; }
+
+/* The shared libpython of the interpreter `python` (same minor version as the build's): under its
+ * installation's lib/, under the lib/ of the base installation a venv's pyvenv.cfg names, or in the
+ * system's library folders. */
+static int find_libpython(const char *python_path, char *out, size_t size)
+{
+    char real[PATH_SIZE], folder[PATH_SIZE], line[PATH_SIZE];
+    if (realpath(python_path, real) != NULL) {
+        char *slash = strrchr(real, '/');        /* .../prefix/bin/python -> .../prefix */
+        if (slash != NULL) *slash = '\0';
+        slash = strrchr(real, '/');
+        if (slash != NULL) *slash = '\0';
+        snprintf(out, size, "%s/lib/%s", real, LIBPYTHON_NAME);
+        if (readable(out)) return 1;
+    }
+    snprintf(folder, sizeof folder, "%s", python_path);   /* a venv: <venv>/bin/python, <venv>/pyvenv.cfg */
+    for (int up = 0; up < 2; ++up) {
+        char *slash = strrchr(folder, '/');
+        if (slash != NULL) *slash = '\0';
+    }
+    snprintf(line, sizeof line, "%s/pyvenv.cfg", folder);
+    FILE *cfg = fopen(line, "r");
+    while (cfg != NULL && fgets(line, sizeof line, cfg) != NULL) {
+        char home[PATH_SIZE];
+        if (sscanf(line, " home = %4095[^\n]", home) == 1) {
+            snprintf(out, size, "%s/../lib/%s", home, LIBPYTHON_NAME);
+            if (readable(out)) break;
+            out[0] = '\0';
+        }
+    }
+    if (cfg != NULL) fclose(cfg);
+    if (readable(out)) return 1;
+    static const char *system_folders[] = {"/usr/lib/x86_64-linux-gnu", "/usr/lib64", "/usr/lib", "/usr/local/lib"};
+    for (size_t i = 0; i < sizeof system_folders / sizeof *system_folders; ++i) {
+        snprintf(out, size, "%s/%s", system_folders[i], LIBPYTHON_NAME);
+        if (readable(out)) return 1;
+    }
+    return 0;
+}
+
+/* The build environment's Python, or $WINGSIM_PYTHON with $WINGSIM_LIBPYTHON (else its libpython found by
+ * find_libpython). 0 and load_error when it cannot be used. */
+static int choose_python(void)
+{
+    const char *chosen = getenv("WINGSIM_PYTHON");
+    if (chosen == NULL || chosen[0] == '\0') {
+        snprintf(python, sizeof python, "%s", SHIM_PYTHON);
+        snprintf(libpython, sizeof libpython, "%s", SHIM_LIBPYTHON);
+        if (access(libpython, R_OK) != 0 || access(python, X_OK) != 0) {
+            snprintf(load_error, sizeof load_error,
+                     "the Python environment this FMU was built in is missing: %s (its library %s): rebuild the "
+                     "FMU with wingsim build, set WINGSIM_PYTHON to the python of another environment with numpy "
+                     "and scipy (Python %d.%d), or build a standalone FMU (wingsim build --standalone)",
+                     access(python, X_OK) != 0 ? python : libpython, libpython, PY_MAJOR_VERSION, PY_MINOR_VERSION);
+            return 0;
+        }
+        return 1;
+    }
+    snprintf(python, sizeof python, "%s", chosen);
+    if (access(python, X_OK) != 0) {
+        snprintf(load_error, sizeof load_error, "WINGSIM_PYTHON=%s: not an executable file", python);
+        return 0;
+    }
+    const char *library = getenv("WINGSIM_LIBPYTHON");
+    if (library != NULL && library[0] != '\0') {
+        snprintf(libpython, sizeof libpython, "%s", library);
+        if (access(libpython, R_OK) == 0) return 1;
+        snprintf(load_error, sizeof load_error, "WINGSIM_LIBPYTHON=%s: no such file", libpython);
+        return 0;
+    }
+    if (find_libpython(python, libpython, sizeof libpython)) return 1;
+    snprintf(load_error, sizeof load_error,
+             "WINGSIM_PYTHON=%s: its shared library %s was not found (under its installation's lib/, the base "
+             "installation its pyvenv.cfg names, or the system's library folders); set WINGSIM_LIBPYTHON to it",
+             python, LIBPYTHON_NAME);
+    return 0;
+}
+
 static void *need(void *handle, const char *symbol)
 {
     void *f = dlsym(handle, symbol);
     if (f == NULL)
-        snprintf(load_error, sizeof load_error, "%s does not provide %s", SHIM_LIBPYTHON, symbol);
+        snprintf(load_error, sizeof load_error, "%s does not provide %s", libpython, symbol);
     return f;
 }
 
 static int failed_status(StatusExceptionFn *exception, PyStatus status, const char *step)
 {
     if (!exception(status)) return 0;
-    snprintf(load_error, sizeof load_error, "starting Python (%s, %s) failed in %s: %s", SHIM_LIBPYTHON,
-             SHIM_PYTHON, status.func != NULL ? status.func : step,
+    snprintf(load_error, sizeof load_error, "starting Python (%s, %s) failed in %s: %s", libpython,
+             python, status.func != NULL ? status.func : step,
              status.err_msg != NULL ? status.err_msg : "it asked to exit");
     return 1;
 }
 
-/* Start the build interpreter in this process unless one runs already. 0 and load_error on failure. */
+/* Start the build interpreter (or $WINGSIM_PYTHON's) in this process unless one runs already. 0 and
+ * load_error on failure. */
 static int start_python(void)
 {
     IsInitializedFn *running = (IsInitializedFn *)dlsym(RTLD_DEFAULT, "Py_IsInitialized");
     if (running != NULL && running()) return 1; /* a Python host (fmpy, libcosimpy): its interpreter */
-
-    if (access(SHIM_LIBPYTHON, R_OK) != 0) {
-        snprintf(load_error, sizeof load_error,
-                 "the Python library this FMU was built with is missing: %s (the FMU runs in the Python "
-                 "environment it was built in; rebuild it with wingsim build)", SHIM_LIBPYTHON);
-        return 0;
-    }
-    if (access(SHIM_PYTHON, X_OK) != 0) {
-        snprintf(load_error, sizeof load_error,
-                 "the Python environment this FMU was built in is missing: %s (rebuild the FMU with "
-                 "wingsim build)", SHIM_PYTHON);
-        return 0;
-    }
+    if (!choose_python()) return 0;
     /* RTLD_GLOBAL: pythonfmu's binary and Python's extension modules take the C API from it */
-    void *lib = dlopen(SHIM_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE);
+    void *lib = dlopen(libpython, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE);
     if (lib == NULL) {
-        snprintf(load_error, sizeof load_error, "cannot load %s: %s", SHIM_LIBPYTHON, dlerror());
+        snprintf(load_error, sizeof load_error, "cannot load %s: %s", libpython, dlerror());
         return 0;
     }
     IsInitializedFn *is_initialized = (IsInitializedFn *)need(lib, "Py_IsInitialized");
@@ -291,7 +367,7 @@ static int start_python(void)
         const char *other = dladdr((void *)running, &info) && info.dli_fname ? info.dli_fname : "?";
         snprintf(load_error, sizeof load_error,
                  "another Python runtime (%s) is loaded in this process, not initialised; this FMU "
-                 "needs %s", other, SHIM_LIBPYTHON);
+                 "needs %s", other, libpython);
         return 0;
     }
     if (is_initialized()) return 1;
@@ -327,7 +403,7 @@ static int start_python(void)
     config.use_environment = 0;          /* a host's PYTHONHOME/PYTHONPATH cannot redirect it */
     /* the build environment's python as program name: getpath finds its pyvenv.cfg, the base
      * installation's standard library and the environment's site-packages */
-    PyStatus status = set_string(&config, &config.program_name, SHIM_PYTHON);
+    PyStatus status = set_string(&config, &config.program_name, python);
     if (!exception(status)) status = initialize(&config);
     config_clear(&config);
     if (failed_status(exception, status, "Py_InitializeFromConfig")) return 0;
@@ -436,40 +512,9 @@ static int ensure_loaded(void)
 #define INNER_RELEASES_ON_FATAL 0
 #endif
 
-/* ------------------------------------------------------------------------------------------------ */
 /* The resource location: pythonfmu strips "file://" and decodes only "%20"; other spellings of a
- * file URI (file:/path, file://localhost/path, percent escapes) are turned into that form. */
-
-static int hex_value(char c)
-{
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-/* The absolute path of a file URI; 0 if it is not one. */
-static int uri_to_path(const char *uri, char *path, size_t size)
-{
-    const char *p;
-    if (strncmp(uri, "file://localhost/", 17) == 0) p = uri + 16;
-    else if (strncmp(uri, "file:///", 8) == 0) p = uri + 7;
-    else if (strncmp(uri, "file:/", 6) == 0 && uri[6] != '/') p = uri + 5;
-    else return 0;
-    size_t k = 0;
-    for (; *p != '\0'; ++p) {
-        char c = *p;
-        if (c == '%' && hex_value(p[1]) >= 0 && hex_value(p[2]) >= 0) {
-            c = (char)(hex_value(p[1]) * 16 + hex_value(p[2]));
-            p += 2;
-        }
-        if (c == '\0' || k + 1 >= size) return 0;
-        path[k++] = c;
-    }
-    while (k > 1 && path[k - 1] == '/') --k; /* pythonfmu appends "/slavemodule.txt" */
-    path[k] = '\0';
-    return 1;
-}
+ * file URI (file:/path, file://localhost/path, percent escapes) are turned into that form
+ * (fmi2_uri.h; pythonfmu appends "/slavemodule.txt", so no trailing '/'). */
 
 /* ------------------------------------------------------------------------------------------------ */
 /* FMI 2.0 functions */
@@ -500,7 +545,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     }
     char resources[PATH_SIZE];
-    if (fmuResourceLocation == NULL || !uri_to_path(fmuResourceLocation, resources, sizeof resources)) {
+    if (fmuResourceLocation == NULL || !file_uri_to_path(fmuResourceLocation, resources, sizeof resources)) {
         log_to(functions, name, fmi2Error,
                "fmi2Instantiate: the resource location %s is not a file URI of a local folder",
                fmuResourceLocation != NULL ? fmuResourceLocation : "(null)");

@@ -25,6 +25,10 @@
  * returned anything but fmi2OK: the client then asks again when the host reads). The worker exits after
  * answering OP_FREE_INSTANCE. If Python or pythonfmu's binary cannot be loaded, every request is
  * answered with fmi2Error and the reason logged.
+ *
+ * With WINGSIM_WORKER_TRACE=FILE in the host's environment, the worker appends one line per request to
+ * FILE: its pid, the operation's number (worker_channel.h) and when it began and ended serving it
+ * (CLOCK_MONOTONIC, ns; one clock for every process of the machine): a timeline of the units' calls.
  */
 #define _GNU_SOURCE
 #define PY_SSIZE_T_CLEAN
@@ -424,8 +428,18 @@ static void prefetch(Writer *w)
 /* Answer the request in the channel: 1, or 0 after OP_FREE_INSTANCE (the worker then exits); -1 when
  * the request cannot be read or answered (out of memory): the worker exits without an answer and the
  * client reports it ended. */
+static int trace_fd = -1;                   /* WINGSIM_WORKER_TRACE's file, or -1 */
+
+static void trace(uint32_t op, long began)
+{
+    char line[96];
+    int n = snprintf(line, sizeof line, "%d %u %ld %ld\n", (int)getpid(), op, began, channel_now_ns());
+    if (n > 0 && write(trace_fd, line, (size_t)n) < 0) trace_fd = -1;   /* one write: lines never mix */
+}
+
 static int handle(void)
 {
+    long began = channel_now_ns();
     if (!channel_sync(&channel)) return -1;
     size_t length = channel.head->length;
     if (length > request_cap) {
@@ -478,6 +492,7 @@ static int handle(void)
     if (w.failed) return -1;
     memcpy(channel.data, &(int32_t){(int32_t)status}, sizeof(int32_t));
     channel.head->length = w.pos;
+    if (trace_fd >= 0) trace(op, began);
     return op != OP_FREE_INSTANCE;
 }
 
@@ -497,6 +512,9 @@ int main(int argc, char **argv)
     if (fstat(CHANNEL_FD, &info) != 0 || !channel_map(&channel, (size_t)info.st_size)) return 4;
     if (channel.head->magic != CHANNEL_MAGIC || channel.head->version != CHANNEL_VERSION) return 5;
 
+    const char *trace_file = getenv("WINGSIM_WORKER_TRACE");
+    if (trace_file != NULL && trace_file[0] != '\0')
+        trace_fd = open(trace_file, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
     if (start_python(argv[0], argv[2])) load_pythonfmu(argv[1]);
     for (uint32_t answered = atomic_load(&channel.head->response);;) {
         channel_wait(&channel.head->request, answered, &channel.head->worker_sleeps, NULL, NULL);

@@ -47,22 +47,27 @@ def exercise(slave, steps: int, step: float) -> None:
     slave.terminate()
 
 
-def named_stdlib_modules(resources: str) -> set[str]:
-    """The standard library modules named in an import statement of the unit's own sources (not pythonfmu's)."""
+def imported_modules(sources) -> set[str]:
+    """Every module named in an import statement (anywhere: inside functions too) of the Python files `sources`."""
     names = set()
+    for source in sources:
+        with open(source, encoding="utf-8") as f:
+            tree = ast.parse(f.read())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names.add(node.module)
+    return names
+
+
+def unit_sources(resources: str) -> list[str]:
+    """The unit's own Python files in an FMU's resources folder (pythonfmu's excepted)."""
+    found = []
     for folder, subfolders, files in os.walk(resources):
         subfolders[:] = [d for d in subfolders if d not in ("pythonfmu", "__pycache__")]
-        for file in files:
-            if not file.endswith(".py"):
-                continue
-            with open(os.path.join(folder, file), encoding="utf-8") as f:
-                tree = ast.parse(f.read())
-            for node in ast.walk(tree):
-                if isinstance(node, ast.Import):
-                    names.update(alias.name for alias in node.names)
-                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                    names.add(node.module)
-    return {name for name in names if name.split(".")[0] in sys.stdlib_module_names}
+        found += [os.path.join(folder, f) for f in files if f.endswith(".py")]
+    return found
 
 
 def main(resources: str, steps: int) -> None:
@@ -74,8 +79,9 @@ def main(resources: str, steps: int) -> None:
     module = __import__(name)
     slave = slave_class(module)(instance_name="trace", resources=resources, visible=False)
     exercise(slave, steps, step)
-    for name in sorted(named_stdlib_modules(resources)):
-        __import__(name)
+    for name in sorted(imported_modules(unit_sources(resources))):
+        if name.split(".")[0] in sys.stdlib_module_names:
+            __import__(name)
     files = {k: getattr(m, "__file__", None) for k, m in list(sys.modules.items())}
     print(json.dumps({k: f for k, f in files.items() if isinstance(f, str)}))
 

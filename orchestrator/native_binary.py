@@ -98,7 +98,7 @@ def compile_shim(out: Path, guid: str, model_identifier: str, libpython: str | N
         includes += ["-I", str(_python_headers())]
     command = (compiler or c_compiler()) + ["-shared", "-fPIC", "-O2", "-pthread", "-Wall", *includes]
     command += [f"-D{name}={_c_string(value)}" for name, value in defines.items()]
-    _compile(command + ["-o", str(out), str(SHIM_SOURCE), "-ldl"])
+    run_compiler(command + ["-o", str(out), str(SHIM_SOURCE), "-ldl"])
 
 
 def compile_worker(out: Path, libpython: Path) -> None:
@@ -107,10 +107,11 @@ def compile_worker(out: Path, libpython: Path) -> None:
     command = c_compiler() + ["-O2", "-pthread", "-Wall", "-I", str(fmi_headers()), "-I", str(_python_headers()),
                               "-o", str(out), str(WORKER_SOURCE), str(libpython), "-ldl",
                               "-Wl,--disable-new-dtags,-rpath,$ORIGIN/runtime/lib"]
-    _compile(command)
+    run_compiler(command)
 
 
-def _compile(command: list[str]) -> None:
+def run_compiler(command: list[str]) -> None:
+    """Run a compiler command; RuntimeError with its messages when it fails."""
     proc = subprocess.run(command, capture_output=True, text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"compiling the FMU's native binary failed ({shlex.join(command)}):\n"
@@ -189,14 +190,14 @@ def _c_string(text: str) -> str:
 
 
 def _replace_binary(fmu: Path, model_identifier: str, shim: bytes, pythonfmu_binary: bytes) -> None:
-    """Rewrite `fmu` with `shim` as the Linux binary and pythonfmu's beside it."""
+    """Rewrite `fmu` with `shim` as the Linux binary and pythonfmu's beside it, and no other platform's."""
     binary = f"{PLATFORM_DIR}/{model_identifier}.so"
     kept = f"{PLATFORM_DIR}/{inner_name(model_identifier)}"
     rewritten = fmu.with_name(fmu.name + ".shim")
     try:
         with zipfile.ZipFile(fmu) as old, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
             for info in old.infolist():
-                if info.filename == kept:
+                if info.filename == kept or not _on_linux(info.filename):
                     continue
                 if info.filename == binary:
                     new.writestr(_executable_entry(binary, info.date_time), shim)
@@ -207,6 +208,30 @@ def _replace_binary(fmu: Path, model_identifier: str, shim: bytes, pythonfmu_bin
         rewritten.unlink(missing_ok=True)
         raise
     os.replace(rewritten, fmu)
+
+
+def keep_linux_only(fmu: Path) -> None:
+    """Rewrite `fmu` without the binaries of other platforms than linux64 (pythonfmu's builder adds its win64
+    binary, which nothing of ours is built or tested for)."""
+    with zipfile.ZipFile(fmu) as old:
+        if all(_on_linux(name) for name in old.namelist()):
+            return
+        rewritten = fmu.with_name(fmu.name + ".linux")
+        try:
+            with zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
+                for info in old.infolist():
+                    if _on_linux(info.filename):
+                        new.writestr(info, old.read(info))
+        except BaseException:
+            rewritten.unlink(missing_ok=True)
+            raise
+    os.replace(rewritten, fmu)
+
+
+def _on_linux(name: str) -> bool:
+    """False for an archive entry in another platform's binaries folder."""
+    parts = name.split("/")
+    return not (parts[0] == "binaries" and len(parts) > 2 and parts[1] != PLATFORM_DIR.split("/")[1])
 
 
 def _executable_entry(name: str, date_time: tuple) -> zipfile.ZipInfo:

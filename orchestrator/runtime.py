@@ -27,7 +27,6 @@ which glibc version its binaries need at least.
 from __future__ import annotations
 
 import json
-import os
 import py_compile
 import re
 import shutil

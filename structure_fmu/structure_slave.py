@@ -53,6 +53,8 @@ binary (no shim) get fmi2OK or fmi2Discard and must treat an error-status log me
 """
 from __future__ import annotations
 
+# first: inside an FMU, one message names every package the Python it runs in lacks (fmu_common/dependencies.py)
+from fmu_common import dependencies  # noqa: F401
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variability
 

@@ -52,6 +52,24 @@ def built_fmus(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def standalone_fmus(tmp_path_factory):
+    """standalone_fmus(scene, *overrides) -> the folder holding the standalone FMUs (`wingsim build --standalone`)
+    of scenes/<scene>.toml with the `--set` overrides, built once per pytest run as `built_fmus` does."""
+    from orchestrator.build import build_fmus
+    from orchestrator.scene import load_scene
+
+    folders: dict[tuple, Path] = {}
+
+    def built(scene: str, *overrides: str) -> Path:
+        if (scene, overrides) not in folders:
+            out = tmp_path_factory.mktemp(f"standalone_{scene}")
+            build_fmus(load_scene(SCENES / f"{scene}.toml", list(overrides)), out, standalone=True)
+            folders[scene, overrides] = out
+        return folders[scene, overrides]
+    return built
+
+
+@pytest.fixture(scope="session")
 def c_compiler() -> list[str]:
     """The C compiler `wingsim build` uses ($CC, else cc), as a command; the test is skipped without one."""
     from orchestrator import native_binary

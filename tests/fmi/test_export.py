@@ -4,14 +4,14 @@ other tools against wingsim's own master.
 The reference for the deployment time is ``run_scene`` with ``coupling.algorithm = "jacobi"``: every other host
 here exchanges like Jacobi (both units step from the outputs at t, then the outputs are copied), read from their
 code: libcosim's fixed-step algorithm (as tests/fmi/test_libcosim.py compares), fmpy's ``simulate_ssp`` (its loop
-steps every component, then applies the connections), and fmpy's container FMU (each internal step: every unit
-steps, then ``updateConnections``). libcosim and the container exchange the initial outputs once at
-initialization, as the master does; fmpy's ``simulate_ssp`` starts every connection at 0.0 instead, which the
-coupled system cannot take (the xfail below), so it runs the structure-only package. The same FMUs doing the
-same arithmetic then differ only in how each host forms the communication points: k h in the master, integer
-nanoseconds in libcosim, a running sum t += h in fmpy and in the container. Those differ by at most N machine
-epsilons of t (N = 300 steps: 300 x 2.2e-16 x 0.3 s = 2e-14 s), and the structure unit steps to the point it is
-given; TIME_TOL is 50 times that.
+steps every component, then applies the connections), and wing.fmu's binary (orchestrator/container.c: each
+internal step, every unit steps, then the connections are copied). libcosim and the container exchange the
+initial outputs once at initialization, as the master does; fmpy's ``simulate_ssp`` starts every connection at
+0.0 instead, which the coupled system cannot take (the xfail below), so it runs the structure-only package. The
+same FMUs doing the same arithmetic then differ only in how each host forms the communication points: k h in
+the master, integer nanoseconds in libcosim, a running sum t += h in fmpy and in the FMI Compliance Checker.
+Those differ by at most N machine epsilons of t (N = 500 steps at most here: 500 x 2.2e-16 x 0.3 s = 3e-14 s),
+and the structure unit steps to the point it is given; TIME_TOL is over 30 times that.
 """
 from __future__ import annotations
 
@@ -220,6 +220,19 @@ def test_fmpy_simulate_ssp_runs_the_coupled_package_to_the_jacobi_deployment_tim
 
 
 # ---- wing.fmu ---------------------------------------------------------------------------------------------
+STEP = 1e-3   # s, deploy_rigid's coupling.step: the container's internal step
+NO_CHECKER_BINARY = pytest.mark.skipif(
+    native_binary.unavailable_reason() is not None,
+    reason=f"the units keep pythonfmu's binary, which a host without Python cannot load: "
+           f"{native_binary.unavailable_reason()}")
+
+
+def unpacked(fmu: Path, folder: Path) -> Path:
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(folder)
+    return folder
+
+
 def test_the_container_exposes_the_units_outputs_and_parameters(coupled):
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
@@ -242,8 +255,33 @@ def test_the_container_exposes_the_units_outputs_and_parameters(coupled):
             f"{p['name']}_{c}" for p in scene["probes"] for c in "xyz"]:
         assert declared[name].causality == "output", name
     assert not any(coupling.match(name) for name in declared)   # the coupling stays inside
-    assert md.coSimulation.modelIdentifier == "container_fmu"
+    assert declared["time"].valueReference == 0 and declared["time"].causality == "independent"
     assert float(md.defaultExperiment.stopTime) == scene["time"]["stop"]
+    # any host step: no internal step the host must follow, and no state to save or restore
+    cs = md.coSimulation
+    assert cs.modelIdentifier == "wing"
+    assert cs.canHandleVariableCommunicationStepSize and cs.fixedInternalStepSize is None
+    assert not cs.canGetAndSetFMUstate and not cs.canSerializeFMUstate
+
+
+def test_the_container_holds_its_binary_and_the_unit_fmus_unpacked_whole(coupled):
+    with zipfile.ZipFile(coupled["container"]) as z:
+        entries = {info.filename: info for info in z.infolist()}
+        # its own binary, for linux64 only, executable
+        assert [name for name in entries if name.startswith("binaries/")] == ["binaries/linux64/wing.so"]
+        assert entries["binaries/linux64/wing.so"].external_attr >> 16 & 0o111
+        expected = {"modelDescription.xml", "binaries/linux64/wing.so", "resources/container.txt"}
+        for kind in ("structure", "aero"):
+            with zipfile.ZipFile(coupled["fmus"] / f"{kind}.fmu") as unit:
+                files = [info for info in unit.infolist() if not info.is_dir()]
+                for info in files:   # every file of the unit FMU, same bytes, same permissions
+                    inside = entries[f"resources/{kind}/{info.filename}"]
+                    assert z.read(inside) == unit.read(info), info.filename
+                    assert inside.external_attr == info.external_attr, info.filename
+                expected |= {f"resources/{kind}/{info.filename}" for info in files}
+                # the shim is executable in the unit FMU, so the permissions kept are not all alike
+                assert unit.getinfo(f"binaries/linux64/{kind}.so").external_attr >> 16 & 0o111
+        assert set(entries) == expected
 
 
 def test_fmpy_runs_the_container_to_the_jacobi_deployment_time(coupled, jacobi):
@@ -260,13 +298,260 @@ def test_fmpy_runs_the_container_to_the_jacobi_deployment_time(coupled, jacobi):
     assert np.all(vacuum["lift"] == 0.0) and np.any(result["lift"][:21] != 0.0)
 
 
+def internal_steps(t: float, big_h: float, h: float) -> list[tuple[float, float]]:
+    """The internal steps (t_k, h_k) of a host step from t over big_h as container.c's header says: steps of h from
+    t (t_k = t + k h), the last one ending at t + big_h, a remainder within 1e-9 h joining the last step."""
+    end, steps = t + big_h, []
+    for k in range(10**6):
+        tk = t + k * h
+        if end - tk <= h * (1 + 1e-9):
+            return steps + [(tk, end - tk)]
+        steps.append((tk, h))
+    raise AssertionError("unreachable")
+
+
+class JacobiReference:
+    """The two unit FMUs driven through fmpy as the container documents its coupling: the initial outputs
+    copied once after initialization, then per internal step both units step from the inputs they hold and
+    every connection is copied (all outputs read, then all inputs set)."""
+
+    def __init__(self, fmus: Path, folder: Path):
+        from fmpy import read_model_description
+        from fmpy.fmi2 import FMU2Slave
+
+        self.units, self.refs = {}, {}
+        for kind in ("structure", "aero"):
+            md = read_model_description(str(fmus / f"{kind}.fmu"))
+            slave = FMU2Slave(guid=md.guid, unzipDirectory=str(unpacked(fmus / f"{kind}.fmu", folder / kind)),
+                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName=kind)
+            slave.instantiate()
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            slave.exitInitializationMode()
+            self.units[kind] = slave
+            self.refs[kind] = {v.name: v.valueReference for v in md.modelVariables}
+        n = sum(1 for name in self.refs["structure"] if name.startswith("e["))
+        self.block = {b: [f"{b}[{k}]" for k in range(1, n + 1)] for b in ("e", "de", "Q")}
+        self.exchange()
+
+    def get(self, kind: str, names: list[str]) -> list[float]:
+        return self.units[kind].getReal([self.refs[kind][name] for name in names])
+
+    def exchange(self) -> None:
+        e, de, q = self.get("structure", self.block["e"]), self.get("structure", self.block["de"]), \
+            self.get("aero", self.block["Q"])
+        self.units["aero"].setReal([self.refs["aero"][name] for name in self.block["e"] + self.block["de"]], e + de)
+        self.units["structure"].setReal([self.refs["structure"][name] for name in self.block["Q"]], q)
+
+    def host_step(self, t: float, big_h: float) -> None:
+        for tk, hk in internal_steps(t, big_h, STEP):
+            for slave in self.units.values():
+                slave.doStep(tk, hk)
+            self.exchange()
+
+    def outputs(self, names: list[str]) -> list[float]:
+        """The named outputs, each read from the unit that declares it."""
+        return [self.get("structure" if name in self.refs["structure"] else "aero", [name])[0] for name in names]
+
+    def free(self) -> None:
+        for slave in self.units.values():
+            slave.terminate()
+            slave.freeInstance()
+
+
+def test_a_host_step_of_2_5_internal_steps_is_the_documented_sequence_of_internal_steps(coupled, tmp_path):
+    """Host steps H = 2.5 coupling.step: the container's outputs at every communication point equal, bit for
+    bit, the two unit FMUs driven through fmpy with internal steps h, h, h/2 per host step (JacobiReference)."""
+    from fmpy import read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    big_h, host_steps = 2.5 * STEP, 120   # to 0.3 s
+    assert [hk / STEP for _, hk in internal_steps(0.0, big_h, STEP)] == pytest.approx([1.0, 1.0, 0.5], rel=1e-12)
+    md = read_model_description(str(coupled["container"]))
+    names = [v.name for v in md.modelVariables if v.causality == "output"]
+    refs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    wing = FMU2Slave(guid=md.guid, unzipDirectory=str(unpacked(coupled["container"], tmp_path / "wing")),
+                     modelIdentifier="wing", instanceName="wing")
+    wing.instantiate()
+    wing.setupExperiment(startTime=0.0)
+    wing.enterInitializationMode()
+    wing.exitInitializationMode()
+    t, container = 0.0, [wing.getReal(refs)]
+    for _ in range(host_steps):
+        wing.doStep(t, big_h)
+        t += big_h
+        container.append(wing.getReal(refs))
+    assert wing.getReal([0]) == [t]   # `time`: the container's own
+    wing.terminate()
+    wing.freeInstance()
+
+    reference = JacobiReference(coupled["fmus"], tmp_path / "units")
+    t, expected = 0.0, [reference.outputs(names)]
+    for _ in range(host_steps):
+        reference.host_step(t, big_h)
+        t += big_h
+        expected.append(reference.outputs(names))
+    reference.free()
+    np.testing.assert_array_equal(np.array(container), np.array(expected))
+    latch = np.array(container)[:, names.index("latch_time_fold")]
+    assert 0.15 < latch[-1] < 0.25   # it deployed: the comparison covers the latch
+
+
+def test_a_communication_point_that_is_not_the_container_s_time_is_refused(coupled, tmp_path):
+    from fmpy import read_model_description
+    from fmpy.fmi1 import FMICallException, calloc, free
+    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+    log = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message:
+                                              log.append((status, message.decode())))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    md = read_model_description(str(coupled["container"]))
+    wing = FMU2Slave(guid=md.guid, unzipDirectory=str(unpacked(coupled["container"], tmp_path / "wing")),
+                     modelIdentifier="wing", instanceName="wing")
+    wing.instantiate(callbacks=callbacks)
+    wing.setupExperiment(startTime=0.0)
+    wing.enterInitializationMode()
+    wing.exitInitializationMode()
+    wing.doStep(0.0, 0.6 * STEP)
+    with pytest.raises(FMICallException) as refused:   # a gap of one step
+        wing.doStep(0.6 * STEP + STEP, STEP)
+    assert refused.value.status == 3
+    assert log[-1][0] == 3 and "is not the container's time" in log[-1][1]
+    wing.doStep(0.6 * STEP, STEP)   # from its time it steps on
+    assert wing.getReal([0]) == [0.6 * STEP + STEP]
+    wing.terminate()
+    wing.freeInstance()
+
+
+FAILING_HOST = r"""
+import ctypes, math, sys
+from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException, calloc, free
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                       fmi2CallbackLoggerTYPE)
+
+folder, case = sys.argv[1], sys.argv[2]
+def logger(env, name, status, category, message):
+    print(f"log {status} {message.decode()}", flush=True)
+callbacks = fmi2CallbackFunctions()
+callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+md = read_model_description(folder + "/modelDescription.xml")
+vr = {v.name: v.valueReference for v in md.modelVariables}
+wing = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier="wing", instanceName="wing")
+
+def call(name, *args):
+    try:
+        getattr(wing, name)(*args)
+        print(f"status {name} 0", flush=True)
+    except FMICallException as e:
+        print(f"status {name} {e.status}", flush=True)
+
+if case == "null":   # the binary called with no instance and with a pointer that is not one
+    lib = ctypes.CDLL(folder + "/binaries/linux64/wing.so")
+    foreign = ctypes.create_string_buffer(4096)
+    for label, component in (("NULL", None), ("foreign", ctypes.addressof(foreign))):
+        lib.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+        lib.fmi2GetReal.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p]
+        lib.fmi2Terminate.argtypes = lib.fmi2FreeInstance.argtypes = [ctypes.c_void_p]
+        value, ref = ctypes.c_double(), ctypes.c_uint(0)
+        print(f"status {label} fmi2DoStep {lib.fmi2DoStep(component, 0.0, 1e-3, 1)}")
+        print(f"status {label} fmi2GetReal {lib.fmi2GetReal(component, ctypes.byref(ref), 1, ctypes.byref(value))}")
+        print(f"status {label} fmi2Terminate {lib.fmi2Terminate(component)}")
+        lib.fmi2FreeInstance(component)
+else:
+    try:
+        wing.instantiate(callbacks=callbacks)
+        print("status instantiate 0", flush=True)
+    except Exception:
+        print("status instantiate NULL", flush=True)
+    if case != "guid":
+        wing.setupExperiment(startTime=0.0)
+        wing.setReal([vr["fold.torque"]], [float(sys.argv[3])])
+        wing.enterInitializationMode()
+        call("exitInitializationMode")
+        call("doStep", 0.0, 1e-3)
+        call("doStep", 0.0, 1e-3)
+        wing.freeInstance()
+print("the host lives on", flush=True)
+"""
+
+
+def failing_host(folder: Path, *args: str) -> tuple[dict[str, str], list[tuple[int, str]]]:
+    """FAILING_HOST on the unpacked container `folder` in a fresh Python; ({call: status}, [(status, message)])
+    after asserting that it ended normally."""
+    out = subprocess.run([sys.executable, "-c", FAILING_HOST, str(folder), *args], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert out.stdout.rstrip().endswith("the host lives on"), out.stdout + out.stderr
+    statuses = dict(line.split(" ", 1)[1].rsplit(" ", 1) for line in out.stdout.splitlines()
+                    if line.startswith("status "))
+    log = [(int(line.split(" ", 2)[1]), line.split(" ", 2)[2]) for line in out.stdout.splitlines()
+           if line.startswith("log ")]
+    return statuses, log
+
+
+def test_a_unit_that_refuses_its_guid_makes_instantiate_fail_and_the_host_lives(coupled, tmp_path):
+    folder = unpacked(coupled["container"], tmp_path / "wing")
+    configuration = folder / "resources" / "container.txt"
+    guid = re.search(r"^unit structure structure (\S+)$", configuration.read_text(), re.M).group(1)
+    configuration.write_text(configuration.read_text().replace(guid, "not-the-structure-s-guid"))
+    statuses, log = failing_host(folder, "guid")
+    assert statuses == {"instantiate": "NULL"}
+    # the unit's own refusal (orchestrator/fmi_shim.c names both GUIDs), prefixed with its name, then the container's
+    assert any(status == 3 and message.startswith("structure: ") and "not-the-structure-s-guid" in message
+               and guid in message for status, message in log), log
+    assert any(status == 3 and message.startswith("unit structure: fmi2Instantiate returned NULL")
+               for status, message in log), log
+
+
+def test_a_unit_that_refuses_a_parameter_makes_initialization_fail_and_the_host_lives(coupled, tmp_path):
+    statuses, log = failing_host(unpacked(coupled["container"], tmp_path / "wing"), "nan", "nan")
+    assert statuses["instantiate"] == "0"
+    assert statuses["exitInitializationMode"] == "3"
+    assert any(message.startswith("structure: ") and "fold.torque" in message for _, message in log), log
+    assert statuses["doStep"] == "3"   # the container does not step after a failed initialization
+
+
+def test_a_unit_that_diverges_makes_the_step_fail_and_the_host_lives(coupled, tmp_path):
+    """A fold torque of 1e6 N.m (0.043 in the scene) accelerates the wing beyond what the structure's explicit
+    integrator can follow in its step: the structure unit refuses the step as diverged, and the container says
+    so with fmi2Error; the next step is refused, naming the failure."""
+    statuses, log = failing_host(unpacked(coupled["container"], tmp_path / "wing"), "torque", "1e6")
+    assert statuses["exitInitializationMode"] == "0"
+    assert statuses["doStep"] == "3"
+    messages = [message for status, message in log if status == 3]
+    assert any(m.startswith("structure: ") and "diverged" in m for m in messages), log
+    assert any(m.startswith("unit structure: fmi2DoStep(t = 0 s, h = 0.001 s) returned fmi2Error") for m in messages)
+    assert "fmi2DoStep: refused: an earlier call failed (unit structure: fmi2DoStep" in messages[-1]
+
+
+def test_a_null_or_foreign_component_gives_fmi2error(coupled, tmp_path):
+    statuses, _ = failing_host(unpacked(coupled["container"], tmp_path / "wing"), "null")
+    assert statuses == {f"{label} {call}": "3" for label in ("NULL", "foreign")
+                        for call in ("fmi2DoStep", "fmi2GetReal", "fmi2Terminate")}
+
+
+def test_export_without_a_c_compiler_writes_the_package_and_refuses_wing_fmu(coupled, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(coupled["fmus"].parents[1])   # where export built the FMUs: nothing to rebuild
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    out = tmp_path / "export"
+    assert main(["export", str(SCENE), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"{out / 'wing.fmu'} not written" in err and "no C compiler" in err and "no-such-cc" in err
+    assert sorted(p.name for p in out.iterdir()) == ["deploy_rigid.ssp"]   # nothing partial
+
+
 def test_the_container_in_the_c_host_with_an_empty_environment(c_host, coupled, jacobi, tmp_path):
     """The C host of tests/fmi/c_host/ runs wing.fmu as its only unit with no environment but the variables
     that choose this process's numeric kernels (fmi_hosts.numeric_env); fmpy's FMU2Slave makes the same calls
     in this process: equal outputs, bit for bit."""
-    folder = tmp_path / "wing"
-    with zipfile.ZipFile(coupled["container"]) as z:
-        z.extractall(folder)
+    folder = unpacked(coupled["container"], tmp_path / "wing")
     unit = UnitSpec.read("wing", folder)
     unit.outputs = [(vr, name) for vr, name in unit.outputs
                     if name in ("latch_time_fold", "fold_angle_fold", "energy", "CL", "lift")]
@@ -277,10 +562,27 @@ def test_the_container_in_the_c_host_with_an_empty_environment(c_host, coupled, 
     assert c[-1, latch] == pytest.approx(jacobi, abs=TIME_TOL)
 
 
-@pytest.mark.skipif(native_binary.unavailable_reason() is not None,
-                    reason=f"the units keep pythonfmu's binary, which a host without Python cannot load: "
-                           f"{native_binary.unavailable_reason()}")
-def test_the_container_passes_the_compliance_checker_in_an_empty_environment(fmu_checker, coupled, tmp_path):
+@NO_CHECKER_BINARY
+def test_the_container_passes_the_compliance_checker_with_its_default_options(fmu_checker, coupled, tmp_path):
+    """No -h, no -s: the checker runs the DefaultExperiment to 0.3 s in 500 steps of 0.6 ms (its default of 500
+    output points), not a multiple of the internal step, and shortens its last step to land on the stop time,
+    as it does for an FMU that declares canHandleVariableCommunicationStepSize. The deployment time equals
+    wingsim's master with Jacobi coupling at that step (in-process slaves, no FMU)."""
+    out_csv = tmp_path / "out.csv"
+    assert_clean(subprocess.run([str(fmu_checker), "-l", "3", "-o", str(out_csv), str(coupled["container"])],
+                                env={}, capture_output=True, text=True, timeout=600))
+    rows = np.genfromtxt(out_csv, delimiter=",", names=True)
+    stop = load_scene(SCENE)["time"]["stop"]
+    assert (rows["time"][0], rows["time"][-1]) == (0.0, stop)
+    assert rows["fold_angle_fold"][0] == pytest.approx(170.0) and abs(rows["fold_angle_fold"][-1]) < 5.0
+    step = stop / 500
+    master = run_scene(load_scene(SCENE, ["coupling.algorithm=jacobi", f"coupling.step={step!r}"]), backend="direct")
+    assert master.status == "ok", master.message
+    assert rows["latch_time_fold"][-1] == pytest.approx(master.latch_times["fold"], abs=TIME_TOL)
+
+
+@NO_CHECKER_BINARY
+def test_the_container_in_the_checker_equals_fmpy_s_replay_bit_for_bit(fmu_checker, coupled, tmp_path):
     out_csv = tmp_path / "out.csv"
     assert_clean(check(fmu_checker, coupled["container"], out_csv, 1e-3, 0.02))
     # the same numbers through fmpy, for every output; not for the container's own `time` variable, a running
@@ -290,5 +592,3 @@ def test_the_container_passes_the_compliance_checker_in_an_empty_environment(fmu
     outputs_only = tmp_path / "outputs.csv"
     outputs_only.write_text('"checker_time"' + lines[0][len('"time"'):] + "\n" + lines[1])
     assert_replayed_by_fmpy(coupled["container"], outputs_only, rows=21)
-    rows = np.genfromtxt(out_csv, delimiter=",", names=True)
-    assert rows["fold_angle_fold"][0] == pytest.approx(170.0) and rows["fold_angle_fold"][-1] < 170.0

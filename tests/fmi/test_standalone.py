@@ -1,0 +1,173 @@
+"""Standalone FMUs (`wingsim build --standalone`, orchestrator/standalone.py): a unit that carries its Python
+runtime and runs it in a worker process of its own.
+
+What is checked, against behaviour or an independent number:
+- what the FMU holds: linux64 binaries only, and every library any of its binaries needs is in the FMU or is a
+  system C library (read from the binaries' dynamic sections, not from a list the build wrote);
+- the coupled deployment through the standalone FMUs equals, bit for bit, the same run through the ordinary FMUs
+  (the same code and arithmetic in another process);
+- the host is left as it was: its BLAS thread counts, signal masks and handlers (the ordinary FMU, which runs in
+  the host's interpreter, changes the BLAS threads: the check sees a change where there is one);
+- a worker that dies (killed, or crashing in a compiled kernel) gives the host fmi2Fatal with the reason logged,
+  and the host lives; no worker is left after fmi2FreeInstance, after the host exits, or after it is killed
+  with SIGKILL (the process table is read).
+The slow set adds a host whose Python has numpy 1.26 and no scipy, two builds from different sources in one
+process, and two instances stepping in parallel in libcosim; tests/fmi/test_no_python.py runs the FMUs on a
+system without Python.
+"""
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract
+
+from orchestrator import runtime
+from orchestrator.master import run_scene
+from orchestrator.scene import load_scene
+from repository import SCENES
+
+HOST = Path(__file__).resolve().parent / "fmpy_host.py"
+FATAL = 4
+
+
+@pytest.fixture(scope="module")
+def rigid(standalone_fmus):
+    return standalone_fmus("deploy_rigid")
+
+
+def host(folder, *actions, env=None, timeout=300):
+    """Run fmpy_host.py on the unpacked FMU `folder`; its JSON lines, one per action, in order."""
+    proc = subprocess.run([sys.executable, str(HOST), str(folder), *actions], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+    assert proc.returncode == 0, proc.stderr
+    return [json.loads(line) for line in proc.stdout.splitlines()]
+
+
+def workers_of(folder) -> list[int]:
+    """The processes running a program of the unpacked FMU `folder` (its workers), from the process table."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                program = (entry / "cmdline").read_bytes().split(b"\0")[0]
+            except OSError:
+                continue
+            if program.startswith(f"{folder}/".encode()):
+                found.append(int(entry.name))
+    return found
+
+
+def test_the_fmu_carries_linux64_binaries_and_every_library_they_need(rigid, tmp_path):
+    for name in ("structure", "aero"):
+        fmu = rigid / f"{name}.fmu"
+        with zipfile.ZipFile(fmu) as z:
+            platforms = {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/") and n.count("/") > 1}
+        assert platforms == {"linux64"}
+        folder = Path(extract(str(fmu), str(tmp_path / name)))
+        linux = folder / "binaries" / "linux64"
+        assert (linux / f"{name}_worker").is_file() and (linux / f"{name}_pythonfmu.so").is_file()
+        bundled = {p.name for p in folder.rglob("*") if p.is_file()}
+        for binary in (p for p in folder.rglob("*") if p.is_file() and runtime._is_elf(p)):
+            needed, _ = runtime._dynamic(binary)
+            outside = [lib for lib in needed if lib not in bundled and lib not in runtime.SYSTEM_LIBRARIES]
+            assert not outside, f"{binary.relative_to(folder)} needs {outside} from outside the FMU"
+        assert not any(p.name.endswith((".py", ".h", ".c")) for p in (linux / "runtime").rglob("*"))
+
+
+def test_the_coupled_deployment_equals_the_ordinary_fmus_bit_for_bit(rigid, built_fmus):
+    scene = load_scene(SCENES / "deploy_rigid.toml")
+    ordinary = run_scene(scene, backend="fmu", fmu_dir=built_fmus("deploy_rigid"))
+    standalone = run_scene(scene, backend="fmu", fmu_dir=rigid)
+    assert ordinary.status == standalone.status == "ok"
+    assert standalone.latch_times == ordinary.latch_times
+    assert ordinary.series.columns == standalone.series.columns
+    assert np.array_equal(ordinary.series.table(), standalone.series.table())
+
+
+def test_the_host_keeps_its_blas_threads_and_signals(rigid, built_fmus, tmp_path):
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OPENBLAS_", "OMP_", "MKL_"))}
+    before, instantiated, stepped, after = host(extract(str(rigid / "structure.fmu"), str(tmp_path / "s")), "host",
+                                                "instantiate", "step:5", "host", env=env)
+    assert instantiated["status"] == 0 and stepped["status"] == 0
+    assert after["blas"] == before["blas"] and after["masks"] == before["masks"]
+    assert after["handlers"] == before["handlers"]
+    # the ordinary FMU runs in the host's interpreter and limits its BLAS to one thread: a change the check sees
+    before, _, after = host(extract(str(built_fmus("deploy_rigid") / "structure.fmu"), str(tmp_path / "o")), "host",
+                            "instantiate", "host", env=env)
+    assert max(n for _, n in before["blas"]) > 1, "the host's BLAS must have several threads to begin with"
+    assert after["blas"] != before["blas"]
+
+
+@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGSEGV])
+def test_a_killed_worker_gives_fmi2Fatal_with_the_reason_and_the_host_lives(rigid, tmp_path, signum):
+    folder = extract(str(rigid / "structure.fmu"), str(tmp_path / "s"))
+    _, stepped, _, died, refused, _ = host(folder, "instantiate", "step:3", f"kill:{int(signum)}", "step:1", "step:1",
+                                           "free")
+    assert stepped["status"] == 0
+    assert died["status"] == refused["status"] == FATAL
+    assert any(f"killed by signal {int(signum)}" in text for _, _, text in died["log"]), died["log"]
+    assert not workers_of(folder)
+
+
+def test_a_kernel_that_crashes_kills_the_worker_not_the_host(rigid, tmp_path):
+    folder = Path(extract(str(rigid / "aero.fmu"), str(tmp_path / "a")))
+    library = next((folder / "resources" / "aero_fmu").glob("biot_savart-*.so"))
+    offset, size = _text_section(library)
+    data = bytearray(library.read_bytes())
+    data[offset:offset + size] = b"\x0f\x0b" * (size // 2) + b"\x0f" * (size % 2)    # ud2: an illegal instruction
+    library.write_bytes(bytes(data))
+    out = host(folder, "instantiate", "step:1", "free")
+    failed = [entry for entry in out if entry["status"] == FATAL]
+    assert failed, out
+    assert any("killed by signal 4" in text for _, _, text in failed[0]["log"]), failed[0]["log"]
+    assert not workers_of(folder)
+
+
+def test_no_worker_outlives_free_exit_or_a_killed_host(rigid, tmp_path):
+    for ending in ("free", "exit"):
+        folder = extract(str(rigid / "structure.fmu"), str(tmp_path / ending))
+        workers = host(folder, "instantiate", "workers", ending)[1]
+        assert len(workers["pids"]) == 1
+        assert _gone(folder), f"a worker is left after the host's {ending}"
+    folder = extract(str(rigid / "structure.fmu"), str(tmp_path / "killed"))
+    proc = subprocess.Popen([sys.executable, str(HOST), folder, "instantiate", "step:2", "wait"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        lines = [json.loads(proc.stdout.readline()) for _ in range(3)]
+        assert lines[-1]["action"] == "wait" and len(workers_of(folder)) == 1
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    assert _gone(folder), "a worker is left after its host was killed with SIGKILL"
+
+
+def _gone(folder, patience=30.0) -> bool:
+    """Whether the workers of `folder` are all gone, waiting up to `patience` s for the kernel to end them."""
+    deadline = time.monotonic() + patience
+    while workers_of(folder):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def _text_section(library: Path) -> tuple[int, int]:
+    """(file offset, size) of the .text section of an ELF64 file."""
+    data = library.read_bytes()
+    shoff, = struct.unpack_from("<Q", data, 0x28)
+    shentsize, shnum, shstrndx = struct.unpack_from("<HHH", data, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + k * shentsize) for k in range(shnum)]
+    names = sections[shstrndx][4]
+    for name, _, _, _, offset, size, *_ in sections:
+        if data[names + name:data.index(b"\0", names + name)] == b".text":
+            return offset, size
+    raise AssertionError(f"{library} has no .text section")
