@@ -10,12 +10,13 @@
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
                       unit maps panel points and forces to the exchanged coordinates (Eq. 12)
   vectors.py          3-vector kernels: cross product, rotation about an axis, perpendiculars
-  compiled.py         which kernels run (compiled or numpy) and the per-machine cache of the numba kernels
+  compiled.py         which kernels run (compiled or numpy) and the per-machine cache folder of the C kernels
   c_library.py        C kernels: compiled once per machine (or into an FMU by its build), loaded with ctypes
   fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave: layout, refusals, phases, states)
   fmi_state.py        a unit's state as bytes, read back by an unpickler that builds nothing but the state
   fmi_units.py        SI units of FMI variables (UnitReal) and the model description's UnitDefinitions
   threads.py          limit_blas_threads(), called where a process or a unit starts
+  dependencies.py     the third-party packages a unit needs, checked (inside an FMU) before it imports them
 
 Both FMUs embed this package beside their own (structure.fmu: structure_fmu; aero.fmu: aero_fmu), the
 same version, so that they run in one process.

@@ -1,5 +1,5 @@
 """C kernels: a C source file compiled into a shared library with the system C compiler, once per machine, and
-loaded with ctypes (no import cost: a process loads it in about a millisecond, where numba takes 0.4 s).
+loaded with ctypes (a process loads it in about a millisecond).
 
 `load(source)` returns the library of `source` (e.g. aero_fmu/biot_savart.c), loaded once per process. The
 library's file name carries a digest of the source, the compiler flags and the platform

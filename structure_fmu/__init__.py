@@ -7,7 +7,7 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
                      loads, and the map E = T q + P p(t) to reduced coordinates
   section.py         beam cross-section properties from a plate or explicit stiffnesses
   element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
-  element_kernels.py the elastic force and tangent compiled by numba (loaded by fmu_common.compiled)
+  element_kernels.c  the elastic force and tangent in C (compiled and loaded by fmu_common.c_library)
   iteration_lu.py    the LU of generalized-alpha's iteration matrix, banded where its sparsity allows
   model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4)
   slots.py           the exchanged coordinates as combinations of free and prescribed vectors; shared slots

@@ -24,12 +24,13 @@ Elastic energy (Otsuka et al. 2019, Eq. 7) and its definitions, written down her
   so the energy is integrated exactly by 5-point Gauss quadrature and its gradient is exact.
   Every measure vanishes for any rigid motion, so a rigid motion gives zero elastic force.
 """
+import ctypes
 import functools
 from pathlib import Path
 
 import numpy as np
 
-from fmu_common import compiled
+from fmu_common import c_library, compiled
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import cross
 
@@ -44,7 +45,9 @@ GAUSS_W = 0.5 * _GAUSS_W
 _PHI = np.stack([1 - GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI), GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI),
                  6 * GAUSS_XI * (1 - GAUSS_XI)])
 AXIAL_GRAM = (_PHI * GAUSS_W) @ _PHI.T
-KERNELS = Path(__file__).with_name("element_kernels.py")    # the compiled force and tangent (fmu_common.compiled)
+C_SOURCE = Path(__file__).with_name("element_kernels.c")    # the compiled force and tangent (fmu_common.c_library)
+_ARRAY = ctypes.c_void_p    # a C-contiguous float64 array, passed as its data address
+
 
 def _cached_per_lengths(build):
     """`build(length)` cached per array of element lengths (constant in a run): the bases below are built
@@ -194,14 +197,12 @@ def elastic_force(e, length, stiffness):
     """Generalized elastic force -dU/de per element, shape (n, 18) (Otsuka et al. 2019, Eq. 4).
 
     Exact gradient of `elastic_energy`; complex-safe, so that a complex step differentiates it exactly (the
-    tests' reference for `elastic_jacobian`). Real coordinates run the compiled kernel of element_kernels.py
-    (fmu_common.compiled; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy.
+    tests' reference for `elastic_jacobian`). Real coordinates run the C kernel of element_kernels.c
+    (fmu_common.c_library; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy.
     """
-    kernels = compiled.load(KERNELS) if np.isrealobj(e) else None
+    kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:
-        real = lambda a: np.ascontiguousarray(a, dtype=float)          # noqa: E731
-        return kernels.elastic_force(real(e), real(length), real(stiffness), real(_slot_basis(length)), GAUSS_W,
-                                     AXIAL_GRAM)
+        return _compiled(kernels.elastic_force, e, length, stiffness, (18,))
     m = _measures(e, length)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
     w = GAUSS_W[None, :] * np.asarray(length)[:, None]
@@ -263,15 +264,13 @@ def elastic_jacobian(e, length, stiffness):
     to the slots [d, x^A, y^A, x^B, y^B] by `_field_basis`; the axial quadratic form couples the stretches'
     gradients across points and nodes; torsion is two triple products of nodal vectors. r^A enters only as
     -d (a translation does not strain). Checked against complex-step and finite differences of
-    `elastic_force` (tests/units/test_element.py). Real coordinates run the compiled kernel of element_kernels.py
-    (fmu_common.compiled; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy; this numpy form is
+    `elastic_force` (tests/units/test_element.py). Real coordinates run the C kernel of element_kernels.c
+    (fmu_common.c_library; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy; this numpy form is
     the reference.
     """
-    kernels = compiled.load(KERNELS) if np.isrealobj(e) else None
+    kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:
-        real = lambda a: np.ascontiguousarray(a, dtype=float)          # noqa: E731
-        return kernels.elastic_jacobian(real(e), real(length), real(stiffness), real(_slot_basis(length)), GAUSS_W,
-                                        AXIAL_GRAM)
+        return _compiled(kernels.elastic_jacobian, e, length, stiffness, (18, 18))
     m = _measures(e, length)
     n, eye = e.shape[0], np.eye(3)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
@@ -319,3 +318,67 @@ def elastic_jacobian(e, length, stiffness):
             blocks[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += sign * block
     hessian += (ct * m["tau"])[:, None, None] * (blocks + np.swapaxes(blocks, 1, 2))
     return hessian[:, _NODE_COMPONENTS][:, :, _NODE_COMPONENTS] * (_NODE_SIGNS[:, None] * _NODE_SIGNS[None, :])
+
+
+def c_kernels():
+    """The C library of element_kernels.c (fmu_common.c_library), its functions typed; None when $WINGSIM_KERNELS
+    selects the numpy kernels."""
+    if compiled.selected() == "numpy":
+        return None
+    library = c_library.load(C_SOURCE)
+    if not hasattr(library, "typed"):
+        n = ctypes.c_long
+        for kernel in (library.elastic_force, library.elastic_jacobian):
+            kernel.argtypes = [n, n, _ARRAY, _ARRAY, _ARRAY]
+        library.typed = True
+    return library
+
+
+def _compiled(kernel, e, length, stiffness, shape):
+    """`kernel` of element_kernels.c (elastic_force or elastic_jacobian) on e (n, 18), length (n,) and stiffness
+    (n, 4): its result, (n, *shape)."""
+    e = np.ascontiguousarray(e, dtype=float)
+    if not e.flags.writeable:
+        e = e.copy()                                # `_address` reads writable arrays only
+    if e.shape != (len(length), 18):
+        raise ValueError(f"element kernels: e {e.shape} for {len(length)} element lengths; expected (n, 18)")
+    out = np.empty((len(e), *shape))
+    if len(e):
+        table, address = _table(length, stiffness)  # the table is held until the C call returns
+        _check(kernel(len(e), len(GAUSS_W), address, _address(e), _address(out)))
+    return out
+
+
+_TABLES: dict[tuple, tuple] = {}
+
+
+def _table(length, stiffness):
+    """The C kernels' table of the arguments that are constant in a run (element_kernels.c: AXIAL_GRAM,
+    GAUSS_W, length (n,) m, stiffness (n, 4), the slot basis, one after the other) and its address, cached per
+    lengths and stiffnesses (at most 64 kept)."""
+    length = np.ascontiguousarray(length, dtype=float)
+    stiffness = np.ascontiguousarray(stiffness, dtype=float)
+    key = (length.tobytes(), stiffness.tobytes())
+    found = _TABLES.get(key)
+    if found is None:
+        if length.ndim != 1 or stiffness.shape != (len(length), 4):
+            raise ValueError(f"element kernels: length {length.shape}, stiffness {stiffness.shape}; expected (n,), "
+                             "(n, 4)")
+        if len(_TABLES) > 64:
+            _TABLES.clear()
+        table = np.concatenate([AXIAL_GRAM.ravel(), GAUSS_W, length, stiffness.ravel(), _slot_basis(length).ravel()])
+        found = _TABLES[key] = (table, _address(table))
+    return found
+
+
+def _address(array):
+    """The address of the data of a writable, C-contiguous, non-empty array: array.ctypes.data at a fraction of its
+    cost (the kernels are called thousands of times per simulated second)."""
+    return ctypes.addressof(ctypes.c_char.from_buffer(array))
+
+
+def _check(status):
+    """ValueError for a C kernel's status -1 (more Gauss points than its scratch arrays hold)."""
+    if status != 0:
+        raise ValueError(f"the element C kernels cannot take {len(GAUSS_W)} Gauss points (element_kernels.c, "
+                         "MAX_GAUSS)")

@@ -233,27 +233,6 @@ def test_an_unknown_kernel_choice_is_refused_naming_the_variable(monkeypatch):
         compiled.selected()
 
 
-SMALL_RUN_PROBE = """
-import sys
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
-result = run_scene(load_scene(sys.argv[1], ["time.stop=0.02"]), backend="direct")
-print(result.status, "numba" in sys.modules)
-"""
-
-
-def test_the_rigid_deployment_runs_without_loading_numba():
-    """A rigid deployment needs no numba kernel (the structure's element kernels are for flexible bodies; the
-    aero unit's are C, loaded in a millisecond), so a run never imports numba, 0.4 s to load even from its cache,
-    longer than the run's stepping."""
-    from repository import SCENES
-
-    out = subprocess.run([sys.executable, "-c", SMALL_RUN_PROBE, str(SCENES / "deploy_rigid.toml")],
-                         env={**os.environ, "WINGSIM_KERNELS": "compiled"}, capture_output=True, text=True,
-                         check=True).stdout.split()
-    assert out == ["ok", "False"]
-
-
 def test_a_compilation_started_in_the_background_is_awaited_and_its_errors_reported_where_needed(tmp_path,
                                                                                                  monkeypatch):
     """`start_compiling` returns at once; `library_file` then waits for that compilation and gives the library in

@@ -178,8 +178,8 @@ def test_uniform_stretch_gives_axial_energy():
     assert U == pytest.approx(0.5 * 2e5 * strain**2 * l, rel=1e-6)
 
 
-def test_the_slot_basis_has_the_zero_pattern_the_compiled_kernels_skip():
-    """element_kernels.py loops over the slots [d, r_x^A, r_y^A, r_x^B, r_y^B] each field is made of: r' and r''
+def test_the_slot_basis_has_the_zero_pattern_the_c_kernels_skip():
+    """element_kernels.c loops over the slots [d, r_x^A, r_y^A, r_x^B, r_y^B] each field is made of: r' and r''
     from d, r_x^A, r_x^B (Hermite functions in x), r_y from r_y^A, r_y^B (linear in x), every other entry of
     element._slot_basis exactly zero, for any lengths; and each slot does enter its fields (r_y is the linear
     interpolation (1 - xi) r_y^A + xi r_y^B)."""
@@ -196,8 +196,8 @@ def test_the_slot_basis_has_the_zero_pattern_the_compiled_kernels_skip():
         np.stack([1.0 - element.GAUSS_XI, element.GAUSS_XI], axis=-1), (11, g, 2)), rtol=1e-15, atol=1e-15)
 
 
-def test_the_compiled_elastic_force_equals_the_numpy_reference(monkeypatch):
-    """element_kernels.py against element.elastic_force's numpy form on random elements (every term active:
+def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch):
+    """element_kernels.c against element.elastic_force's numpy form on random elements (every term active:
     stretch, both bendings, torsion): equal to 1e-12 of the largest component."""
     rng = np.random.default_rng(11)
     e = rng.standard_normal((7, 18))
@@ -210,8 +210,8 @@ def test_the_compiled_elastic_force_equals_the_numpy_reference(monkeypatch):
 
 
 @pytest.mark.parametrize("term", ["all", "axial", "flap", "chordwise", "torsion"])
-def test_the_compiled_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term):
-    """element_kernels.py's tangent against element.elastic_jacobian's numpy form on random stretched, bent and
+def test_the_c_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term):
+    """element_kernels.c's tangent against element.elastic_jacobian's numpy form on random stretched, bent and
     twisted elements of different lengths and stiffnesses: every term together, then each alone (so that a
     wrong block of a small term cannot hide under the axial one), equal to 1e-12 of the largest entry."""
     rng = np.random.default_rng(13)
@@ -226,3 +226,43 @@ def test_the_compiled_elastic_jacobian_equals_the_numpy_reference(monkeypatch, t
         tangents[kind] = element.elastic_jacobian(e, length, stiffness)
     assert np.abs(tangents["numpy"]).max() > 0
     assert np.abs(tangents["compiled"] - tangents["numpy"]).max() <= 1e-12 * np.abs(tangents["numpy"]).max()
+
+
+def test_the_c_kernels_take_any_real_arrays_and_follow_a_stiffness_changed_in_place(monkeypatch):
+    """The C kernels get their own contiguous copies: a read-only, Fortran-ordered e gives the numpy reference's
+    force and tangent; their constant arguments are cached by value, so a stiffness array changed in place between
+    two calls is seen by the second (equal to 1e-12 of the largest entry, as above)."""
+    rng = np.random.default_rng(19)
+    length = rng.uniform(0.05, 0.5, 5)
+    e = np.asfortranarray(np.stack([straight(x) for x in length]) + 0.1 * rng.standard_normal((5, 18)))
+    e.flags.writeable = False
+    stiffness = rng.uniform(0.5, 2.0, (5, 4)) * np.array([1e6, 2.0, 50.0, 3.0])
+    for scale in (1.0, 3.0):
+        stiffness *= scale                      # in place: the same array object in both calls
+        results = {}
+        for kind in ("numpy", "compiled"):
+            monkeypatch.setenv("WINGSIM_KERNELS", kind)
+            results[kind] = [f(e, length, stiffness) for f in (element.elastic_force, element.elastic_jacobian)]
+        for compiled, reference in zip(results["compiled"], results["numpy"]):
+            assert np.abs(compiled - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
+def test_the_c_kernels_refuse_arguments_they_cannot_read(monkeypatch):
+    """What C cannot check is refused before the call: e of another shape than (n, 18) for the n lengths, or a
+    stiffness that is not (n, 4); the kernels themselves return -1 for a Gauss point count beyond their scratch
+    arrays (MAX_GAUSS = 8), writing nothing."""
+    monkeypatch.setenv("WINGSIM_KERNELS", "compiled")
+    length, stiffness = np.full(3, 0.2), np.ones((3, 4))
+    e = np.stack([straight(0.2)] * 3)
+    with pytest.raises(ValueError, match=r"e \(3, 17\)"):
+        element.elastic_force(e[:, :17], length, stiffness)
+    with pytest.raises(ValueError, match=r"e \(2, 18\)"):
+        element.elastic_jacobian(e[:2], length, stiffness)
+    with pytest.raises(ValueError, match=r"stiffness \(3, 3\)"):
+        element.elastic_force(e, length, stiffness[:, :3])
+    kernels, out = element.c_kernels(), np.full((3, 18, 18), 7.0)
+    table, address = element._table(length, stiffness)
+    for g in (0, 9):                            # the table holds 5 points: the kernel must not read it at all
+        assert kernels.elastic_force(3, g, address, e.ctypes.data, out.ctypes.data) == -1
+        assert kernels.elastic_jacobian(3, g, address, e.ctypes.data, out.ctypes.data) == -1
+    assert np.all(out == 7.0)
