@@ -173,7 +173,12 @@ def cmd_build(args: argparse.Namespace) -> int:
     _require_standalone(args.standalone)
     out = check_out_dir(args.out or fmu_dir(scene, False, args.standalone))
     for path in build_fmus(scene, out, standalone=args.standalone):
-        print(path)
+        if args.standalone:
+            from orchestrator.standalone import describe
+
+            print(describe(path))
+        else:
+            print(path)
     return 0
 
 

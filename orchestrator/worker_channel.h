@@ -6,8 +6,9 @@
  * over the same area, sets `response` to `request` and wakes the client. Both wait by spinning first:
  * waking a process that sleeps on an idle CPU costs tens of microseconds in a virtual machine (the
  * hypervisor must wake that CPU), several times the cost of a small step's exchange, so a waiting side
- * spins (pause, then sched_yield, which gives the CPU to any other runnable process) for up to
- * SPIN_YIELD_NS before it sleeps on a futex. A coupled run keeps both sides within that window.
+ * that may run on several CPUs spins (pause, then sched_yield, which gives the CPU to any other runnable
+ * process) for up to SPIN_YIELD_NS before it sleeps on a futex; a coupled run keeps both sides within
+ * that window. Confined to one CPU, it sleeps at once: the other side cannot run while it spins.
  *
  * The data area grows when a message needs more (a serialized FMU state): the writer extends the file
  * and its own mapping and records the new size in the header; the reader maps the file again when the
@@ -115,13 +116,22 @@ static void channel_pause(void)
 #endif
 }
 
+/* Whether this thread may run on more than one CPU: spinning only helps when the other side runs on
+ * another CPU at the same time; on one CPU it only delays the other side. */
+static int channel_several_cpus(void)
+{
+    cpu_set_t cpus;
+    return sched_getaffinity(0, sizeof cpus, &cpus) != 0 || CPU_COUNT(&cpus) > 1;
+}
+
 /* Wait until `*word` is not `value`. `alive(arg)` (may be NULL) is asked about every millisecond and
  * when a sleep times out; it returns 0 when the other side is gone, and so does channel_wait. */
 static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps,
                         int (*alive)(void *), void *arg)
 {
+    if (atomic_load_explicit(word, memory_order_acquire) != value) return 1;
     long start = channel_now_ns(), checked = start;
-    for (unsigned k = 1;; ++k) {
+    for (unsigned k = 1, spin = channel_several_cpus(); spin; ++k) {
         if (atomic_load_explicit(word, memory_order_acquire) != value) return 1;
         if (k % 64 != 0) {
             channel_pause();

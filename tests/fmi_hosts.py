@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import os
 import re
+import shutil
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -60,6 +61,20 @@ class UnitSpec:
         return {v.name: v.valueReference for v in md.modelVariables}
 
 
+def coupled_units(unzipped) -> list[UnitSpec]:
+    """Structure then aero: the structure's Q[i] from the aero unit's Q[i], the aero unit's e[i], de[i] from
+    the structure's (all matched by name from the model descriptions)."""
+    structure, aero = UnitSpec.read("structure", unzipped["structure"]), UnitSpec.read("aero", unzipped["aero"])
+    for unit, source in ((structure, aero), (aero, structure)):
+        produced = {name: vr for vr, name in source.outputs}
+        md = read_model_description(str(unit.folder / "modelDescription.xml"))
+        unit.connected = [(v.valueReference, source.name, produced[v.name]) for v in md.modelVariables
+                          if v.causality == "input"]
+    n = sum(1 for _, name in structure.outputs if name.startswith("e["))
+    assert (len(structure.connected), len(aero.connected)) == (n, 2 * n)
+    return [structure, aero]
+
+
 def time_grid(steps: int, step: float, stop: float) -> list[float]:
     """Communication points k * step for k < steps, then stop (s)."""
     return [k * step for k in range(steps)] + [stop]
@@ -67,9 +82,10 @@ def time_grid(steps: int, step: float, stop: float) -> list[float]:
 
 # ---- the C host ---------------------------------------------------------------------------------------
 def run_c_host(host: Path, units: list[UnitSpec], steps: int, step: float, stop: float, mode: list[str],
-               folder: Path, env: dict[str, str] | None = None) -> dict[str, np.ndarray]:
+               folder: Path, env: dict[str, str] | None = None, root: Path | None = None) -> dict[str, np.ndarray]:
     """The C host on `units` in environment `env` (default: numeric_env()); {phase: rows (time, then every
-    unit's outputs in order)}."""
+    unit's outputs in order)}. With `root`, the host runs in the system whose root folder that is (chroot,
+    an empty environment): `host` and the units' folders are paths in it, `folder` is under `root`."""
     lines = [f"steps {steps}", f"step {step!r}", f"stop {stop!r}"]
     for unit in units:
         lines += [f"unit {unit.name}", f"location {unit.folder}", f"identifier {unit.identifier}",
@@ -79,8 +95,13 @@ def run_c_host(host: Path, units: list[UnitSpec], steps: int, step: float, stop:
         lines += [f"fixed {vr} {value!r}" for vr, value in unit.fixed]
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "input.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    out = subprocess.run([str(host), str(folder / "input.txt"), str(folder / "out.csv"), *mode], cwd=folder,
-                         env=numeric_env() if env is None else env, capture_output=True, text=True, timeout=300)
+    files = [folder / "input.txt", folder / "out.csv"]
+    command = [str(host), *(str(f) for f in files), *mode]
+    if root is not None:
+        command = [shutil.which("chroot") or "/usr/sbin/chroot", str(root), "/usr/bin/env", "-i", str(host),
+                   *("/" + str(f.relative_to(root)) for f in files), *mode]
+    out = subprocess.run(command, cwd=folder, env=numeric_env() if env is None else env, capture_output=True,
+                         text=True, timeout=900)
     assert out.returncode == 0, f"C host ({' '.join(mode)}) exited with {out.returncode}:\n{out.stderr[-4000:]}"
     with open(folder / "out.csv", newline="", encoding="utf-8") as f:
         reader = csv.reader(f)

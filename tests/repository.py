@@ -6,3 +6,5 @@ SCENES = ROOT / "scenes"
 # The FMI Compliance Checker (modelica-tools/FMUComplianceChecker, a static build), where the development
 # machines keep it beside the repository; the tests that need it are skipped where it is absent.
 FMU_CHECKER = ROOT.parent / "shared" / "tools" / "fmucheck" / "fmuCheck.linux64"
+# OpenModelica's OMSimulator (a C++ FMI/SSP host, built from source), kept beside the checker
+OMSIMULATOR = ROOT.parent / "shared" / "tools" / "omsimulator"

@@ -14,9 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import read_model_description
 
-from fmi_hosts import FmpyHost, UnitSpec, fmpy_run, numeric_env, run_c_host
+from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, numeric_env, run_c_host
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
 from repository import SCENES
@@ -51,20 +50,6 @@ def unzipped(fmus, tmp_path_factory) -> dict[str, Path]:
         with zipfile.ZipFile(fmu) as z:
             z.extractall(root / kind)
     return {kind: root / kind for kind in fmus}
-
-
-def coupled_units(unzipped) -> list[UnitSpec]:
-    """Structure then aero: the structure's Q[i] from the aero unit's Q[i], the aero unit's e[i], de[i] from
-    the structure's (all matched by name from the model descriptions)."""
-    structure, aero = UnitSpec.read("structure", unzipped["structure"]), UnitSpec.read("aero", unzipped["aero"])
-    for unit, source in ((structure, aero), (aero, structure)):
-        produced = {name: vr for vr, name in source.outputs}
-        md = read_model_description(str(unit.folder / "modelDescription.xml"))
-        unit.connected = [(v.valueReference, source.name, produced[v.name]) for v in md.modelVariables
-                          if v.causality == "input"]
-    n = sum(1 for _, name in structure.outputs if name.startswith("e["))
-    assert (len(structure.connected), len(aero.connected)) == (n, 2 * n)
-    return [structure, aero]
 
 
 def structure_alone(unzipped, q: dict[int, float]) -> list[UnitSpec]:
