@@ -18,7 +18,7 @@ import time
 import timeit
 
 import numpy as np
-from report import ROOT, limit_blas_threads
+from report import ROOT, process_setup
 
 from aero_fmu.solver import AeroSolver
 from fmu_common.scene_schema import AERO_MODELS
@@ -141,7 +141,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes, fewer steps")
     quick = parser.parse_args().quick
-    limit_blas_threads()
+    process_setup()
     bound_scaling([(2, 7), (4, 16)] if quick else [(2, 7), (4, 16), (8, 32), (8, 64)], 3 if quick else 5)
     wake_scaling([2.5, 5.0] if quick else [2.5, 5.0, 10.0, 20.0], 3 if quick else 5)
     deployment(0.02 if quick else 0.1)

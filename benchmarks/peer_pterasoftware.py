@@ -35,7 +35,7 @@ before the first timed run of a side in a process, `_warm_up` runs that side onc
 few steps with the same wake model, which compiles PteraSoftware's numba kernels (or loads them from
 numba's on-disk cache) and pays wingsim's first-call costs; the same would pay any JIT of wingsim's kernels.
 PteraSoftware's numba kernels run on at most 3/4 of numba's threads (one thread on a 2-core machine) and it
-limits BLAS to one thread at this panel count; run wingsim with one BLAS thread too (report.limit_blas_threads).
+limits BLAS to one thread at this panel count; run wingsim with one BLAS thread too (report.process_setup).
 
 Reference (`reference()`): the steady CL of the same wing from a converged vortex-lattice solution, wingsim's
 uvlm-flat (quasi-steady rings with flat trailing legs along the stream; steady from its first step) on

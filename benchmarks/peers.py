@@ -17,7 +17,7 @@ import importlib.util
 import statistics
 import sys
 
-from report import limit_blas_threads, table
+from report import process_setup, table
 
 LAST_STEPS = 50
 
@@ -67,7 +67,7 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="short variants of the cases (a smoke test)")
     parser.add_argument("--only", nargs="*", default=None, help="cases whose name contains one of these words")
     args = parser.parse_args(argv)
-    limit_blas_threads()
+    process_setup()
     rows, accuracy = [], []
     for module in peer_modules():
         for case in module.cases(quick=args.quick):

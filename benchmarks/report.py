@@ -11,6 +11,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fmu_common.threads import limit_blas_threads  # noqa: E402 - after the path: a checkout runs without install
+from orchestrator import allocator  # noqa: E402
+
+
+def process_setup() -> None:
+    """This process as wingsim's own runs set theirs up: one BLAS thread, the allocator thresholds
+    (orchestrator.allocator)."""
+    limit_blas_threads()
+    allocator.tune()
 
 STUDIES = ROOT / "docs" / "studies"              # the reports of full runs, their figures in img/
 QUICK = ROOT / "results" / "studies" / "quick"   # the reports of --quick runs
@@ -46,7 +54,7 @@ class Report:
         self.argv = sys.argv[1:] if argv is None else list(argv)
         self.out = QUICK if self.args.quick else self.full
         self.start = time.perf_counter()
-        limit_blas_threads()
+        process_setup()
         return self.args
 
     def run(self, tasks, work, **options):

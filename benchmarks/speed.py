@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from report import ROOT, limit_blas_threads, table
+from report import ROOT, process_setup, table
 
 from orchestrator.build import build_fmus
 from orchestrator.master import run_scene
@@ -226,7 +226,7 @@ def main(argv=None):
     parser.add_argument("--repeat", type=int, default=1, metavar="N",
                         help="timed runs of each scene, one after the other (default 1)")
     args = parser.parse_args(argv)
-    limit_blas_threads()                                # one BLAS thread, as in CI runs
+    process_setup()                                     # one BLAS thread, the allocator as wingsim runs it
     if args.repeat < 1:
         parser.error(f"--repeat must be at least 1, got {args.repeat}")
     rows, fmu_turns = [], {}

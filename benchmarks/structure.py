@@ -11,7 +11,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from report import ROOT, limit_blas_threads, table
+from report import ROOT, process_setup, table
 from speed import timed, warm_up
 
 from orchestrator.build import build_fmus
@@ -23,7 +23,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter simulated intervals")
     quick = parser.parse_args().quick
-    limit_blas_threads()
+    process_setup()
     limit = rk4_step_limit(frequency_range(load_scene(ROOT / "scenes" / "deploy_flexible.toml"))[1])
     cases = [("deploy_rigid", "", ["structure.integrator=rk4", "structure.step=1e-4"]),
              ("deploy_rigid", "", ["structure.integrator=generalized-alpha", "structure.step=1e-4"]),

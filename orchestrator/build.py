@@ -33,6 +33,7 @@ from pathlib import Path
 
 from fmu_common import c_library
 from fmu_common.dependencies import REQUIREMENTS
+from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from orchestrator import native_binary, standalone as standalone_fmu
 
@@ -73,7 +74,18 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False) -> list[Pat
         _require(kind, scene)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    return [_build_unit(kind, scene, out_dir, standalone) for kind in kinds]
+    built = [_build_unit(kind, scene, out_dir, standalone) for kind in kinds]
+    if standalone:
+        try:
+            standalone_fmu.make_standalone(built)
+        except Exception as exc:
+            for fmu in built:            # never leave an FMU whose build_info says standalone but is not
+                fmu.unlink(missing_ok=True)
+            if isinstance(exc, SceneError):
+                raise
+            raise BuildError(f"building the standalone FMUs of scene {scene.get('name', '?')!r} into {out_dir} "
+                             f"failed: {type(exc).__name__}: {exc}") from exc
+    return built
 
 
 def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False) -> bool:
@@ -184,8 +196,6 @@ def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool) -> Path
     _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
 
-    from fmu_common.errors import SceneError
-
     script = _slave_script(kind)
     dest = out_dir / fmu_name
     saved_path, saved_module = list(sys.path), sys.modules.get(script.stem)
@@ -207,10 +217,7 @@ def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool) -> Path
         try:
             FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
                                  canGetAndSetFMUstate=True, canSerializeFMUstate=True)
-            if standalone:
-                standalone_fmu.make_standalone(partial)
-            else:
-                _native_binary(partial, dest)
+            _native_binary(partial, dest)
         except SceneError:
             partial.unlink(missing_ok=True)
             raise

@@ -41,6 +41,7 @@ from typing import Sequence
 
 from fmu_common.errors import SceneError
 from fmu_common.threads import limit_blas_threads
+from orchestrator import allocator
 
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
@@ -344,6 +345,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         logging.basicConfig(level=logging.DEBUG)
     args = build_parser().parse_args(argv)
     limit_blas_threads()
+    allocator.tune()
     from orchestrator.results import WriteError
 
     _received.clear()

@@ -85,14 +85,16 @@ def install_shim(fmu: Path, libpython: str | None = None, python: str | None = N
 
 
 def compile_shim(out: Path, guid: str, model_identifier: str, libpython: str | None = None,
-                 python: str | None = None, worker: bool = False, compiler: list[str] | None = None) -> None:
+                 python: str | None = None, worker: tuple[str, str] | None = None,
+                 compiler: list[str] | None = None) -> None:
     """Compile `fmi_shim.c` into `out` for the FMU (`guid`, `model_identifier`): an ordinary FMU's binary
-    (this interpreter's `libpython` and `python` compiled in), or with `worker` a standalone FMU's, which
-    forwards to its worker process and needs nothing of Python. RuntimeError if the compiler fails."""
+    (this interpreter's `libpython` and `python` compiled in), or with `worker` = (runtime key, packages) a
+    standalone FMU's, which forwards to a worker process and needs nothing of Python (worker_client.c:
+    SHIM_WORKER_KEY, SHIM_PACKAGES). RuntimeError if the compiler fails."""
     defines = {"SHIM_GUID": guid, "SHIM_INNER": inner_name(model_identifier)}
     includes = ["-I", str(fmi_headers())]
     if worker:
-        defines["SHIM_WORKER"] = worker_name(model_identifier)
+        defines.update(SHIM_WORKER=worker_name(model_identifier), SHIM_WORKER_KEY=worker[0], SHIM_PACKAGES=worker[1])
     else:
         defines.update(SHIM_LIBPYTHON=libpython, SHIM_PYTHON=python)
         includes += ["-I", str(_python_headers())]

@@ -79,10 +79,14 @@ def version_folder() -> str:
     return f"python{sys.version_info.major}.{sys.version_info.minor}"
 
 
-def collect(resources: Path) -> Runtime:
-    """The runtime of the unit whose FMU resources (slave script, packages, scene) are in `resources`."""
+def collect(resources: list[Path]) -> Runtime:
+    """The runtime of the units whose FMU resources (slave script, packages, scene) are the folders
+    `resources`: what any of them needs (the units of a scene carry one runtime, so that they can share a
+    worker process)."""
     roots = _roots()
-    modules = _traced_modules(resources)
+    modules = {}
+    for folder in resources:
+        modules.update(_traced_modules(folder))
     libpython = Path(shared_libpython())
     files: dict[str, Path] = {f"lib/{libpython.name}": libpython}
     for name, source in modules.items():

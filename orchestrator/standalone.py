@@ -1,7 +1,7 @@
 """Standalone FMUs: units that carry their whole runtime and run it in a worker process of their own.
 
-`make_standalone(fmu)` rewrites an FMU built by `orchestrator.build` so that it needs no Python on the target
-machine and nothing from the host's:
+`make_standalone(fmus)` rewrites the FMUs of a scene built by `orchestrator.build` so that they need no Python on
+the target machine and nothing from the host's (one runtime for all, so that a host runs them in one worker):
 
     binaries/linux64/<id>.so            the shim compiled with `worker` (native_binary.compile_shim): in the
                                         host process, it starts the worker at fmi2Instantiate and forwards
@@ -21,6 +21,7 @@ one needs a C compiler and a Python with a shared libpython and its headers (`un
 """
 from __future__ import annotations
 
+import hashlib
 import importlib.metadata
 import importlib.util
 import json
@@ -44,38 +45,46 @@ def unavailable_reason() -> str | None:
     return native_binary.unavailable_reason()
 
 
-def make_standalone(fmu: Path) -> None:
-    """Rewrite `fmu` (built by orchestrator.build, written whole or not at all) as a standalone FMU.
+def make_standalone(fmus: list[Path]) -> None:
+    """Rewrite `fmus` (a scene's FMUs, built by orchestrator.build) as standalone FMUs with one runtime, each
+    written whole or not at all: units of the same runtime and code share a worker process in a host
+    (worker_channel.h).
 
     Raises native_binary.ShimUnavailable or runtime.RuntimeUnavailable when something it needs is missing,
     RuntimeError when a compilation fails.
     """
-    fmu = Path(fmu)
+    fmus = [Path(fmu) for fmu in fmus]
     with tempfile.TemporaryDirectory(prefix="wingsim_standalone_") as tmp:
-        folder = Path(tmp) / "fmu"
-        _unpack(fmu, folder)
-        guid, identifier = native_binary._identity((folder / "modelDescription.xml").read_bytes())
-        binaries = folder / "binaries"
-        for platform in binaries.iterdir():
-            if platform.name != PLATFORM:
-                shutil.rmtree(platform)
-        linux = binaries / PLATFORM
-        inner = linux / native_binary.inner_name(identifier)
-        if not inner.exists():                       # built without the ordinary shim: pythonfmu's binary
-            os.replace(linux / f"{identifier}.so", inner)
-        held = runtime.collect(folder / "resources")
-        runtime.write(held, linux / "runtime")
-        native_binary.compile_shim(linux / f"{identifier}.so", guid, identifier, worker=True)
-        native_binary.compile_worker(linux / native_binary.worker_name(identifier),
-                                     Path(native_binary.shared_libpython()))
-        _compile_sources(folder / "resources")
-        (folder / "resources" / DESCRIPTION).write_text(json.dumps(_description(held, linux), indent=1))
-        partial = fmu.with_name(f".{fmu.name}.standalone")
-        try:
-            _pack(folder, partial)
-            os.replace(partial, fmu)
-        finally:
-            partial.unlink(missing_ok=True)
+        folders = [Path(tmp) / f"{k}" for k in range(len(fmus))]
+        for fmu, folder in zip(fmus, folders):
+            _unpack(fmu, folder)
+        held = runtime.collect([folder / "resources" for folder in folders])
+        key = None
+        for folder in folders:
+            guid, identifier = native_binary._identity((folder / "modelDescription.xml").read_bytes())
+            binaries = folder / "binaries"
+            for platform in binaries.iterdir():
+                if platform.name != PLATFORM:
+                    shutil.rmtree(platform)
+            linux = binaries / PLATFORM
+            inner = linux / native_binary.inner_name(identifier)
+            if not inner.exists():                   # built without the ordinary shim: pythonfmu's binary
+                os.replace(linux / f"{identifier}.so", inner)
+            runtime.write(held, linux / "runtime")
+            _compile_sources(folder / "resources")
+            key = key or _runtime_key(linux / "runtime")
+            native_binary.compile_shim(linux / f"{identifier}.so", guid, identifier,
+                                       worker=(key, _packages(folder / "resources")))
+            native_binary.compile_worker(linux / native_binary.worker_name(identifier),
+                                         Path(native_binary.shared_libpython()))
+            (folder / "resources" / DESCRIPTION).write_text(json.dumps(_description(held, linux), indent=1))
+        for fmu, folder in zip(fmus, folders):
+            partial = fmu.with_name(f".{fmu.name}.standalone")
+            try:
+                _pack(folder, partial)
+                os.replace(partial, fmu)
+            finally:
+                partial.unlink(missing_ok=True)
 
 
 def describe(fmu: Path) -> str:
@@ -97,6 +106,33 @@ def _description(held: runtime.Runtime, linux: Path) -> dict:
                 packages[dist] = importlib.metadata.version(dist)
     return {"glibc": runtime.glibc_needed(linux), "python": ".".join(map(str, sys.version_info[:3])),
             "packages": dict(sorted(packages.items()))}
+
+
+def _runtime_key(folder: Path) -> str:
+    """16 hex digits naming the runtime in `folder` and the native binaries' sources: FMUs with the same key
+    can share a worker process (worker_channel.h)."""
+    h = hashlib.sha256(native_binary.source_digest().encode())
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        h.update(path.relative_to(folder).as_posix().encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+    return h.hexdigest()[:16]
+
+
+def _packages(resources: Path) -> str:
+    """"name=digest;..." of the Python code in `resources` (each package folder and module): a worker serves
+    FMUs whose code of a same name is the same (worker_channel.h)."""
+    entries = []
+    for item in sorted(resources.iterdir()):
+        if item.is_dir() and (item / "__init__.py").is_file():
+            files = sorted(p for p in item.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+        elif item.suffix == ".py":
+            files = [item]
+        else:
+            continue
+        h = hashlib.sha256()
+        for path in files:
+            h.update(path.relative_to(resources).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+        entries.append(f"{item.name.removesuffix('.py')}={h.hexdigest()[:16]}")
+    return ";".join(entries)
 
 
 def _unpack(fmu: Path, folder: Path) -> None:

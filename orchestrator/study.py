@@ -29,6 +29,9 @@ def _worker_start(initializer: Callable[[], None] | None) -> None:
     from fmu_common.threads import limit_blas_threads
 
     limit_blas_threads()                 # workers share the cores: one BLAS thread each
+    from orchestrator import allocator
+
+    allocator.tune()
     if initializer is not None:
         initializer()
 

@@ -48,6 +48,7 @@ from typing import Any, Iterable, Sequence, TextIO
 
 from fmu_common.errors import SceneError
 from fmu_common.threads import limit_blas_threads
+from orchestrator import allocator
 from orchestrator.overrides import INDEX_PATTERN
 
 DONE_STATUSES = ("ok", "diverged", "error")
@@ -146,6 +147,7 @@ def plan_sweep(scene_path: Path, grid_items: Sequence[str], sets: Sequence[str] 
 def run_one(scene: dict, backend: str, fmu_dir: str | None) -> Any:
     """Run one resolved scene; the worker-side task (returns the RunResult; never writes files)."""
     limit_blas_threads()   # one BLAS thread per worker
+    allocator.tune()
     from orchestrator.master import run_scene
 
     return run_scene(scene, backend=backend, fmu_dir=Path(fmu_dir) if fmu_dir else None, progress=None)

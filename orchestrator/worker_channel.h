@@ -1,10 +1,21 @@
-/* The channel between a standalone FMU's binary in the host process (worker_client.c) and the unit's
- * worker process (fmi_worker.c): one shared memory file, one request and one response at a time.
+/* The channels between a standalone FMU's binary in the host process (worker_client.c) and a worker
+ * process (fmi_worker.c), and how a client finds a worker.
  *
- * The client writes a request (an operation code and its arguments, docs in the two .c files) into the
- * data area, increments `request` and wakes the worker; the worker carries it out, writes the response
- * over the same area, sets `response` to `request` and wakes the client. Both wait by spinning first:
- * waking a process that sleeps on an idle CPU costs tens of microseconds in a virtual machine (the
+ * One worker serves the instances of the standalone FMUs of one host process that can share a Python
+ * interpreter (the same runtime, the same code of every Python package they both carry), at most one
+ * instance of each FMU: the structure and aero units of a scene run in one worker, as they would in one
+ * Python process, and two instances of one FMU in two workers, so that a host can step them in parallel.
+ * The first client starts the worker with a listening Unix socket in the abstract namespace, named by the
+ * host's pid, the runtime's key and a number (`worker_address`); every client, the first too, connects to
+ * it and joins (`JoinRequest`, its channel's file passed along), and the worker accepts or refuses
+ * (`JoinReply`, with its control page and output file when it accepts). The connection stays open: it
+ * hangs up when the worker ends, in whatever way, which is how a client sees it end.
+ *
+ * Per instance, a channel (`ChannelHeader` and its data area, a shared memory file): the client writes a
+ * request (an operation code and its arguments, docs in the two .c files) into the data area, increments
+ * `request` and rings the worker's doorbell (`WorkerControl`); the worker carries it out, writes the
+ * response over the same area, sets `response` to `request` and wakes the client. Both wait by spinning
+ * first: waking a process that sleeps on an idle CPU costs tens of microseconds in a virtual machine (the
  * hypervisor must wake that CPU), several times the cost of a small step's exchange, so a waiting side
  * that may run on several CPUs spins (pause, then sched_yield, which gives the CPU to any other runnable
  * process) for up to SPIN_YIELD_NS before it sleeps on a futex; a coupled run keeps both sides within
@@ -23,15 +34,19 @@
 #include <linux/futex.h>
 #include <sched.h>
 #include <stdatomic.h>
+#include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <sys/socket.h>
 #include <sys/syscall.h>
+#include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
 
 #define CHANNEL_MAGIC 0x57494e47u  /* "WING" */
-#define CHANNEL_VERSION 1u
+#define CHANNEL_VERSION 2u
 #define CHANNEL_DATA_OFFSET 256    /* after the header, on a cache line of its own */
 #define CHANNEL_INITIAL_SIZE (1u << 20)
 #define SPIN_PAUSE_NS 20000L       /* busy-wait with pause for 20 us, */
@@ -55,13 +70,94 @@ typedef struct {
     uint64_t length;                       /* bytes of the message in the data area */
     char pad1[64 - 24];
     _Atomic uint32_t request;              /* written by the client: the number of its latest request */
-    _Atomic uint32_t worker_sleeps;        /* the worker sleeps on `request` */
-    char pad2[64 - 8];
+    char pad2[64 - 4];
     _Atomic uint32_t response;             /* written by the worker: the request it has answered */
     _Atomic uint32_t client_sleeps;        /* the client sleeps on `response` */
 } ChannelHeader;
 
 _Static_assert(sizeof(ChannelHeader) <= CHANNEL_DATA_OFFSET, "the header overlaps the data");
+
+/* The worker's control page, shared with every client: one doorbell for all its channels. */
+typedef struct {
+    uint32_t magic, version;
+    _Atomic int32_t exit_status;           /* the worker's wait status, once a client has reaped it; else -1 */
+    char pad1[64 - 12];
+    _Atomic uint32_t doorbell;             /* incremented by a client after each request */
+    _Atomic uint32_t worker_sleeps;        /* the worker sleeps on `doorbell` */
+} WorkerControl;
+
+#define WORKER_CONTROL_SIZE 4096
+#define GUID_SIZE 128
+#define PACKAGES_SIZE 2048
+
+/* A client's request to be served (its channel's file passed with it, SCM_RIGHTS). `packages` names the
+ * Python code the FMU brings, "name=digest;..." (the slave script, the packages of its resources): a
+ * worker that has loaded a module of the same name from other code refuses, as it does a second instance
+ * of an FMU (`guid`) and any join once it has begun to end. */
+typedef struct {
+    uint32_t magic, version;
+    char guid[GUID_SIZE];
+    char packages[PACKAGES_SIZE];
+} JoinRequest;
+
+/* The worker's answer (with its control page and output file when it accepts, SCM_RIGHTS). */
+typedef struct {
+    int32_t accepted;
+    int32_t pid;
+    char reason[256];                      /* why it refused */
+} JoinReply;
+
+/* The abstract socket address of worker `number` of runtime `key` for host process `host`. */
+static socklen_t worker_address(struct sockaddr_un *address, long host, const char *key, int number)
+{
+    memset(address, 0, sizeof *address);
+    address->sun_family = AF_UNIX;
+    int n = snprintf(address->sun_path + 1, sizeof address->sun_path - 1, "wingsim/%ld/%s/%d", host, key, number);
+    return (socklen_t)(offsetof(struct sockaddr_un, sun_path) + 1 + (size_t)n);
+}
+
+/* Send `size` bytes and the descriptors `fds` (n_fds of them) on the socket; 0 on failure. */
+static int send_with_fds(int socket, const void *data, size_t size, const int *fds, int n_fds)
+{
+    char control[CMSG_SPACE(4 * sizeof(int))];
+    struct iovec part = {(void *)data, size};
+    struct msghdr message = {NULL, 0, &part, 1, n_fds > 0 ? control : NULL, n_fds > 0 ? CMSG_SPACE(n_fds * sizeof(int)) : 0, 0};
+    if (n_fds > 0) {
+        memset(control, 0, sizeof control);
+        struct cmsghdr *header = CMSG_FIRSTHDR(&message);
+        header->cmsg_level = SOL_SOCKET;
+        header->cmsg_type = SCM_RIGHTS;
+        header->cmsg_len = CMSG_LEN(n_fds * sizeof(int));
+        memcpy(CMSG_DATA(header), fds, n_fds * sizeof(int));
+    }
+    ssize_t sent;
+    while ((sent = sendmsg(socket, &message, MSG_NOSIGNAL)) < 0 && errno == EINTR) {
+    }
+    return sent == (ssize_t)size;
+}
+
+/* Receive exactly `size` bytes and up to `max_fds` descriptors (close-on-exec; *n_fds set); 0 on failure. */
+static int receive_with_fds(int socket, void *data, size_t size, int *fds, int max_fds, int *n_fds)
+{
+    char control[CMSG_SPACE(4 * sizeof(int))];
+    struct iovec part = {data, size};
+    struct msghdr message = {NULL, 0, &part, 1, control, sizeof control, 0};
+    ssize_t got;
+    *n_fds = 0;
+    while ((got = recvmsg(socket, &message, MSG_WAITALL | MSG_CMSG_CLOEXEC)) < 0 && errno == EINTR) {
+    }
+    for (struct cmsghdr *h = CMSG_FIRSTHDR(&message); h != NULL; h = CMSG_NXTHDR(&message, h)) {
+        if (h->cmsg_level != SOL_SOCKET || h->cmsg_type != SCM_RIGHTS) continue;
+        int count = (int)((h->cmsg_len - CMSG_LEN(0)) / sizeof(int));
+        for (int i = 0; i < count; ++i) {
+            int fd;
+            memcpy(&fd, CMSG_DATA(h) + i * sizeof(int), sizeof fd);
+            if (*n_fds < max_fds) fds[(*n_fds)++] = fd;
+            else close(fd);
+        }
+    }
+    return got == (ssize_t)size;
+}
 
 typedef struct {
     int fd;                                /* the shared memory file */

@@ -1,17 +1,21 @@
-/* The host side of a standalone FMU: every FMI call of an instance is carried out by the unit's own
- * worker process (fmi_worker.c), started by fmi2Instantiate, over the channel of worker_channel.h.
- * fmi_shim.c, compiled with SHIM_WORKER, forwards to the functions of `worker_table` as it forwards to
- * pythonfmu's binary in an ordinary FMU, with the same checks and status rule.
+/* The host side of a standalone FMU: every FMI call of an instance is carried out by a worker process
+ * (fmi_worker.c) over the channel of worker_channel.h. fmi_shim.c, compiled with SHIM_WORKER, forwards to
+ * the functions of `worker_table` as it forwards to pythonfmu's binary in an ordinary FMU, with the same
+ * checks and status rule.
  *
- * The worker is `<folder of this binary>/SHIM_WORKER`, started with posix_spawn (no fork of the host's
- * memory), an empty environment but for the host's WINGSIM_* variables, one BLAS thread and the
- * runtime's library folder (LD_LIBRARY_PATH), default signal dispositions, and a process group of its own. It ends
- *   - after fmi2FreeInstance (asked to; killed if it has not ended within WORKER_EXIT_WAIT_MS);
+ * fmi2Instantiate joins a worker of this host process that serves FMUs of the same runtime
+ * (SHIM_WORKER_KEY) and accepts this one (no instance of this FMU yet, the same code in every Python
+ * package they share: SHIM_PACKAGES), or starts one: `<folder of this binary>/SHIM_WORKER`, started with
+ * posix_spawn (no fork of the host's memory), an empty environment but for the host's WINGSIM_* variables,
+ * one BLAS thread and the runtime's library folder (LD_LIBRARY_PATH), default signal dispositions, and a
+ * process group of its own. A worker ends
+ *   - after the fmi2FreeInstance of its last instance (asked to; killed if it has not ended within
+ *     WORKER_EXIT_WAIT_MS), reaped by the client that freed it;
  *   - when the host process ends in any way, SIGKILL included: the host holds the only write end of its
  *     lifeline pipe, and the kernel closes it with the process (the worker then exits at once);
- * and the client sees it end, in any way, when the death pipe, whose write end only the worker holds,
- * hangs up. Then the call returns fmi2Fatal with the reason logged (exit status or signal, and the end of
- * the worker's output), and every later call of the instance is refused.
+ * and a client sees it end, in any way, when its connection hangs up. Then the call returns fmi2Fatal with
+ * the reason logged (exit status or signal, and the end of the worker's output), and every later call of
+ * the instance is refused.
  *
  * Exchanges are what cost in a coupled step, so Real values are cached: the host reads the same outputs
  * after every step, and the client asks the worker to send them with the answer of each call that
@@ -34,21 +38,22 @@
 #include "fmi2_table.h"
 #include "worker_channel.h"
 
-#if !defined(SHIM_WORKER) || !defined(SHIM_INNER)
-#error "SHIM_WORKER and SHIM_INNER must be defined"
+#if !defined(SHIM_WORKER) || !defined(SHIM_INNER) || !defined(SHIM_WORKER_KEY) || !defined(SHIM_PACKAGES)
+#error "SHIM_WORKER, SHIM_INNER, SHIM_WORKER_KEY and SHIM_PACKAGES must be defined"
 #endif
 
 #define MAX_CACHED_REFERENCE (1u << 20) /* Real value references above are never cached */
 #define WORKER_EXIT_WAIT_MS 5000
 #define OUTPUT_TAIL 1500                 /* bytes of the worker's output logged when it ends */
+#define MAX_WORKERS 64                   /* workers of one runtime a host process may have */
 
 extern char **environ;
 
 typedef struct {
-    Channel ch;
-    pid_t pid;
-    int lifeline;                        /* write end of the worker's lifeline */
-    int death;                           /* read end of the pipe whose write end the worker holds */
+    Channel ch;                          /* this instance's channel */
+    pid_t pid;                           /* the worker's */
+    int connection;                      /* to the worker: hangs up when it ends */
+    WorkerControl *control;              /* the worker's doorbell */
     int output;                          /* the worker's stdout and stderr */
     int gone;                            /* the worker has ended: every call is refused */
     const fmi2CallbackFunctions *callbacks;
@@ -87,31 +92,63 @@ static void tell(const Worker *w, fmi2Status status, const char *format, ...)
 
 /* ---- the worker's life ---------------------------------------------------------------------------- */
 
+/* The write ends of the lifelines of the workers this binary started, kept until those workers have
+ * ended: closing one would end a worker that still serves instances of other FMUs. */
+static pthread_mutex_t lifelines_lock = PTHREAD_MUTEX_INITIALIZER;
+static int lifelines[MAX_WORKERS];
+static int n_lifelines = 0;
+
+/* Close the lifelines whose worker has ended (its read end closed: the write end reports an error). */
+static void close_ended_lifelines(void)
+{
+    pthread_mutex_lock(&lifelines_lock);
+    for (int i = 0; i < n_lifelines;) {
+        struct pollfd p = {lifelines[i], 0, 0};
+        if (poll(&p, 1, 0) > 0 && (p.revents & (POLLERR | POLLHUP))) {
+            close(lifelines[i]);
+            lifelines[i] = lifelines[--n_lifelines];
+        } else {
+            ++i;
+        }
+    }
+    pthread_mutex_unlock(&lifelines_lock);
+}
+
 static int worker_alive(void *arg)
 {
     Worker *w = (Worker *)arg;
-    struct pollfd p = {w->death, POLLIN, 0};
+    struct pollfd p = {w->connection, POLLIN, 0};
     return poll(&p, 1, 0) == 0;
 }
 
-/* Wait up to `ms` for the worker to end, then reap it; returns its wait status, or -1 if another part
- * of the host reaped it (a SIGCHLD handler, SIGCHLD ignored). */
+/* Wait up to `ms` for the worker to end, then reap it (it is this process's child, whichever binary
+ * started it); its wait status, shared with the other clients through its control page, or -1 if
+ * another part of the host reaped it (a SIGCHLD handler, SIGCHLD ignored). */
 static int reap(Worker *w, int ms)
 {
-    struct pollfd p = {w->death, POLLIN, 0};
+    struct pollfd p = {w->connection, POLLIN, 0};
     while (poll(&p, 1, ms) < 0 && errno == EINTR) {
     }
     int status;
     pid_t done;
     while ((done = waitpid(w->pid, &status, WNOHANG)) < 0 && errno == EINTR) {
     }
-    if (done == 0) {                     /* still running after `ms`: it will not end by itself */
+    if (done == 0 && ms > 0 && !worker_alive(w)) {   /* hung up: ending, give it a moment */
+        struct timespec pause = {0, 20000000};
+        for (int k = 0; k < 50 && done == 0; ++k) {
+            nanosleep(&pause, NULL);
+            done = waitpid(w->pid, &status, WNOHANG);
+        }
+    }
+    if (done == 0 && ms > 0) {           /* still running after `ms`: it will not end by itself */
         kill(w->pid, SIGKILL);
         while ((done = waitpid(w->pid, &status, 0)) < 0 && errno == EINTR) {
         }
     }
-    w->pid = 0;
-    return done == (pid_t)-1 ? -1 : status;
+    if (done == w->pid) atomic_store(&w->control->exit_status, status);
+    close_ended_lifelines();
+    int shared = atomic_load(&w->control->exit_status);
+    return done == w->pid ? status : shared;
 }
 
 /* The worker ended during `function`: reap it and log why, with the end of its output. */
@@ -119,19 +156,18 @@ static fmi2Status ended(Worker *w, const char *function)
 {
     if (w->gone) return fmi2Fatal;
     w->gone = 1;
-    pid_t pid = w->pid;
     int status = reap(w, 1000);
     char why[256], tail[OUTPUT_TAIL + 1] = "";
     if (status == -1) snprintf(why, sizeof why, "ended (its exit status was collected by the host)");
     else if (WIFSIGNALED(status))
         snprintf(why, sizeof why, "was killed by signal %d (%s)", WTERMSIG(status), strsignal(WTERMSIG(status)));
     else snprintf(why, sizeof why, "exited with status %d", WEXITSTATUS(status));
-    off_t size = lseek(w->output, 0, SEEK_END);
+    off_t size = w->output >= 0 ? lseek(w->output, 0, SEEK_END) : 0;
     off_t from = size > OUTPUT_TAIL ? size - OUTPUT_TAIL : 0;
     ssize_t got = size > 0 ? pread(w->output, tail, (size_t)(size - from), from) : 0;
     tail[got > 0 ? got : 0] = '\0';
     tell(w, fmi2Fatal, "%s: the unit's worker process (pid %d) %s; the instance cannot be used any more%s%s",
-         function, (int)pid, why, tail[0] != '\0' ? ". Its last output: " : "", tail);
+         function, (int)w->pid, why, tail[0] != '\0' ? ". Its last output: " : "", tail);
     return fmi2Fatal;
 }
 
@@ -148,7 +184,7 @@ static int binary_folder(char *path, size_t size)
     return 1;
 }
 
-/* A descriptor of `fd` numbered 10 or above, close-on-exec: posix_spawn's dup2 to 3 and 4 then never
+/* A descriptor of `fd` numbered 10 or above, close-on-exec: posix_spawn's dup2 to 3..5 then never
  * overwrites a source it has still to copy. */
 static int high(int fd)
 {
@@ -157,7 +193,8 @@ static int high(int fd)
     return copy;
 }
 
-static int start_worker(Worker *w, const char *folder)
+/* Start a worker listening at `listening` (bound and listening); 0, the reason logged, on failure. */
+static int start_worker(Worker *w, const char *folder, int listening)
 {
     char worker[4096], inner[4096], runtime[4096];
     snprintf(worker, sizeof worker, "%s%s", folder, SHIM_WORKER);
@@ -175,43 +212,32 @@ static int start_worker(Worker *w, const char *folder)
              strerror(errno));
         return 0;
     }
-    int lifeline[2], death[2];
-    int channel = memfd_create("wingsim-channel", MFD_CLOEXEC);
-    w->output = memfd_create("wingsim-worker-output", MFD_CLOEXEC);
-    if (channel < 0 || w->output < 0 || ftruncate(channel, CHANNEL_INITIAL_SIZE) != 0
+    int lifeline[2];
+    int control = high(memfd_create("wingsim-worker-control", MFD_CLOEXEC));
+    int output = high(memfd_create("wingsim-worker-output", MFD_CLOEXEC));
+    if (control < 0 || output < 0 || ftruncate(control, WORKER_CONTROL_SIZE) != 0
         || pipe2(lifeline, O_CLOEXEC) != 0) {
-        tell(w, fmi2Error, "fmi2Instantiate: cannot create the worker's channel: %s", strerror(errno));
-        if (channel >= 0) close(channel);
+        tell(w, fmi2Error, "fmi2Instantiate: cannot create the worker's control page: %s", strerror(errno));
+        if (control >= 0) close(control);
+        if (output >= 0) close(output);
         return 0;
     }
-    if (pipe2(death, O_CLOEXEC) != 0) {
-        tell(w, fmi2Error, "fmi2Instantiate: cannot create the worker's channel: %s", strerror(errno));
-        close(channel);
-        close(lifeline[0]);
-        close(lifeline[1]);
-        return 0;
+    WorkerControl *page = mmap(NULL, WORKER_CONTROL_SIZE, PROT_READ | PROT_WRITE, MAP_SHARED, control, 0);
+    if (page != MAP_FAILED) {
+        page->magic = CHANNEL_MAGIC;
+        page->version = CHANNEL_VERSION;
+        atomic_store(&page->exit_status, -1);
+        munmap(page, WORKER_CONTROL_SIZE);
     }
-    w->ch.fd = high(channel);
-    w->lifeline = lifeline[1];
-    w->death = death[0];
-    int child_lifeline = high(lifeline[0]), child_death = high(death[1]), output = high(w->output);
-    w->output = output;
-    if (w->ch.fd < 0 || child_lifeline < 0 || child_death < 0 || w->output < 0
-        || !channel_map(&w->ch, CHANNEL_INITIAL_SIZE)) {
-        tell(w, fmi2Error, "fmi2Instantiate: cannot set up the worker's channel: %s", strerror(errno));
-        close(child_lifeline);
-        close(child_death);
-        return 0;
-    }
-    w->ch.head->magic = CHANNEL_MAGIC;
-    w->ch.head->version = CHANNEL_VERSION;
-    atomic_store(&w->ch.head->size, CHANNEL_INITIAL_SIZE);
+    int child_lifeline = high(lifeline[0]), own_lifeline = lifeline[1];
 
-    /* the environment: WINGSIM_* from the host, one BLAS thread, the runtime's libraries found first by
-     * every extension module (the worker's RPATH covers only its own needs); nothing else reaches the unit */
+    /* the environment: WINGSIM_* from the host, one BLAS thread, glibc's allocator thresholds of the
+     * processes wingsim owns (orchestrator/allocator.py: the solvers' temporaries stay in the heap), the
+     * runtime's libraries found first by every extension module (the worker's RPATH covers only its own
+     * needs); nothing else reaches the unit */
     size_t n_env = 0;
     for (char **e = environ; e != NULL && *e != NULL; ++e) n_env += strncmp(*e, "WINGSIM_", 8) == 0;
-    char **env = calloc(n_env + 4, sizeof *env);
+    char **env = calloc(n_env + 6, sizeof *env);
     char libraries[4200];
     snprintf(libraries, sizeof libraries, "LD_LIBRARY_PATH=%s/lib", runtime);
     size_t k = 0;
@@ -220,6 +246,8 @@ static int start_worker(Worker *w, const char *folder)
             if (strncmp(*e, "WINGSIM_", 8) == 0) env[k++] = *e;
         env[k++] = "OPENBLAS_NUM_THREADS=1";
         env[k++] = "OMP_NUM_THREADS=1";
+        env[k++] = "MALLOC_MMAP_THRESHOLD_=33554432";
+        env[k++] = "MALLOC_TRIM_THRESHOLD_=67108864";
         env[k++] = libraries;
     }
     posix_spawn_file_actions_t actions;
@@ -229,40 +257,119 @@ static int start_worker(Worker *w, const char *folder)
     sigfillset(&all);
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    posix_spawn_file_actions_adddup2(&actions, w->output, 1);
-    posix_spawn_file_actions_adddup2(&actions, w->output, 2);
+    posix_spawn_file_actions_adddup2(&actions, output, 1);
+    posix_spawn_file_actions_adddup2(&actions, output, 2);
     posix_spawn_file_actions_adddup2(&actions, child_lifeline, 3);
-    posix_spawn_file_actions_adddup2(&actions, w->ch.fd, 4);
-    posix_spawn_file_actions_adddup2(&actions, child_death, 5);
+    posix_spawn_file_actions_adddup2(&actions, control, 4);
+    posix_spawn_file_actions_adddup2(&actions, listening, 5);
     posix_spawnattr_init(&attributes);
     posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
     posix_spawnattr_setsigmask(&attributes, &none);
     posix_spawnattr_setsigdefault(&attributes, &all);
     posix_spawnattr_setpgroup(&attributes, 0);
     char *argv[] = {worker, inner, runtime, NULL};
-    int failed = env == NULL ? ENOMEM : posix_spawn(&w->pid, worker, &actions, &attributes, argv, env);
+    pid_t pid = 0;
+    int failed = env == NULL ? ENOMEM : posix_spawn(&pid, worker, &actions, &attributes, argv, env);
     posix_spawn_file_actions_destroy(&actions);
     posix_spawnattr_destroy(&attributes);
     free(env);
-    close(child_lifeline);               /* the worker's ends: only it holds them now */
-    close(child_death);
+    close(child_lifeline);               /* the worker's: only it holds them now */
+    close(control);
+    close(output);
     if (failed != 0) {
-        w->pid = 0;
+        close(own_lifeline);
         tell(w, fmi2Error, "fmi2Instantiate: cannot start the worker %s: %s", worker, strerror(failed));
         return 0;
     }
+    pthread_mutex_lock(&lifelines_lock);
+    if (n_lifelines < MAX_WORKERS) lifelines[n_lifelines++] = own_lifeline;
+    pthread_mutex_unlock(&lifelines_lock);
     return 1;
 }
 
-static void release(Worker *w)
+/* Join the worker listening at `address`: 1 if it accepts this instance (w->connection, control, output
+ * and pid set), 0 if it refuses or is not there. */
+static int join(Worker *w, const struct sockaddr_un *address, socklen_t length)
 {
-    if (w->pid > 0) {
-        close(w->lifeline);              /* the worker exits when it sees the lifeline close */
-        w->lifeline = -1;
-        reap(w, WORKER_EXIT_WAIT_MS);
+    int connection = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (connection < 0 || connect(connection, (const struct sockaddr *)address, length) != 0) {
+        if (connection >= 0) close(connection);
+        return 0;
     }
+    JoinRequest request = {CHANNEL_MAGIC, CHANNEL_VERSION, "", ""};
+    snprintf(request.guid, sizeof request.guid, "%s", SHIM_GUID);
+    snprintf(request.packages, sizeof request.packages, "%s", SHIM_PACKAGES);
+    JoinReply reply;
+    int fds[2], n_fds = 0;
+    if (!send_with_fds(connection, &request, sizeof request, &w->ch.fd, 1)
+        || !receive_with_fds(connection, &reply, sizeof reply, fds, 2, &n_fds) || !reply.accepted || n_fds != 2) {
+        for (int i = 0; i < n_fds; ++i) close(fds[i]);
+        close(connection);
+        return 0;
+    }
+    w->control = mmap(NULL, WORKER_CONTROL_SIZE, PROT_READ | PROT_WRITE, MAP_SHARED, fds[0], 0);
+    close(fds[0]);
+    if (w->control == MAP_FAILED) {
+        w->control = NULL;
+        close(fds[1]);
+        close(connection);
+        return 0;
+    }
+    w->connection = connection;
+    w->output = fds[1];
+    w->pid = reply.pid;
+    return 1;
+}
+
+/* Join a worker of this host process that accepts this instance, or start one and join it. */
+static int find_worker(Worker *w, const char *folder)
+{
+    close_ended_lifelines();
+    long host = (long)getpid();
+    for (int attempt = 0; attempt < 3; ++attempt) {
+        int free_number = -1;
+        for (int number = 0; number < MAX_WORKERS; ++number) {
+            struct sockaddr_un address;
+            socklen_t length = worker_address(&address, host, SHIM_WORKER_KEY, number);
+            int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+            int listening = probe >= 0 && bind(probe, (struct sockaddr *)&address, length) == 0;
+            if (listening) {                 /* nobody there: the first free number, keep looking */
+                close(probe);
+                if (free_number < 0) free_number = number;
+                continue;
+            }
+            if (probe >= 0) close(probe);
+            if (join(w, &address, length)) return 1;
+        }
+        if (free_number < 0) break;
+        struct sockaddr_un address;
+        socklen_t length = worker_address(&address, host, SHIM_WORKER_KEY, free_number);
+        int listening = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        if (listening < 0) break;
+        if (bind(listening, (struct sockaddr *)&address, length) != 0 || listen(listening, 16) != 0) {
+            close(listening);                /* another client took that number meanwhile: look again */
+            continue;
+        }
+        int listening_high = high(listening);
+        int started = start_worker(w, folder, listening_high);
+        int joined = started && join(w, &address, length);   /* queued until the worker accepts */
+        close(listening_high);
+        if (!started) return 0;
+        if (joined) return 1;
+        tell(w, fmi2Error, "fmi2Instantiate: the worker started for this instance did not accept it");
+        return 0;
+    }
+    tell(w, fmi2Error, "fmi2Instantiate: no worker could be found or started (%d per runtime and host at most)",
+         MAX_WORKERS);
+    return 0;
+}
+
+static void release(Worker *w, int reaping)
+{
+    if (reaping && w->pid > 0 && w->control != NULL) reap(w, WORKER_EXIT_WAIT_MS);
     if (w->ch.head != NULL) munmap(w->ch.head, w->ch.mapped);
-    int fds[] = {w->ch.fd, w->lifeline, w->death, w->output};
+    if (w->control != NULL) munmap(w->control, WORKER_CONTROL_SIZE);
+    int fds[] = {w->ch.fd, w->connection, w->output};
     for (size_t i = 0; i < sizeof fds / sizeof *fds; ++i)
         if (fds[i] >= 0) close(fds[i]);
     for (size_t i = 0; i < w->n_strings; ++i) free(w->strings[i]);
@@ -273,6 +380,7 @@ static void release(Worker *w)
     free(w->list);
     free(w->name);
     free(w);
+    close_ended_lifelines();
 }
 
 /* ---- one exchange --------------------------------------------------------------------------------- */
@@ -302,7 +410,8 @@ static fmi2Status exchange(Worker *w, Writer *out, Reader *in, const char *funct
     w->list_changed = 0;
     w->ch.head->length = out->pos;
     uint32_t asked = ++w->request;
-    channel_signal(&w->ch.head->request, asked, &w->ch.head->worker_sleeps);
+    atomic_store(&w->ch.head->request, asked);
+    channel_signal(&w->control->doorbell, atomic_load(&w->control->doorbell) + 1, &w->control->worker_sleeps);
     if (!channel_wait(&w->ch.head->response, asked - 1, &w->ch.head->client_sleeps, worker_alive, w)
         || !channel_sync(&w->ch) || atomic_load(&w->ch.head->response) != asked)
         return ended(w, function);
@@ -418,6 +527,16 @@ static void keep_strings(Worker *w, Reader *in, uint32_t n, fmi2String out[])
 
 /* ---- the FMI functions ---------------------------------------------------------------------------- */
 
+/* fmi2FreeInstance of the worker's instance; 1 if the worker ends with it (its last instance). */
+static int free_in_worker(Worker *w)
+{
+    Writer out = begin(w, OP_FREE_INSTANCE, 1, 0);
+    Reader in;
+    exchange(w, &out, &in, "fmi2FreeInstance");
+    if (w->gone || finish(w, &in) < 0) return 0;
+    return (int)take_u32(&in);
+}
+
 static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
                                         const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                                         fmi2Boolean logging_on)
@@ -426,20 +545,29 @@ static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2Stri
     Worker *w = calloc(1, sizeof *w);
     char folder[3800];                   /* room for the file names after it in start_worker */
     if (w == NULL) return NULL;
-    w->ch.fd = w->lifeline = w->death = w->output = -1;
+    w->ch.fd = w->connection = w->output = -1;
     w->callbacks = functions;
     w->name = strdup(name);
     if (w->name == NULL) {
-        release(w);
+        release(w, 0);
         return NULL;
     }
     if (!binary_folder(folder, sizeof folder)) {
         tell(w, fmi2Error, "fmi2Instantiate: the folder of the FMU's binary is unknown (dladdr failed)");
-        release(w);
+        release(w, 0);
         return NULL;
     }
-    if (!start_worker(w, folder)) {
-        release(w);
+    w->ch.fd = high(memfd_create("wingsim-channel", MFD_CLOEXEC));
+    if (w->ch.fd < 0 || ftruncate(w->ch.fd, CHANNEL_INITIAL_SIZE) != 0 || !channel_map(&w->ch, CHANNEL_INITIAL_SIZE)) {
+        tell(w, fmi2Error, "fmi2Instantiate: cannot create the channel to the worker: %s", strerror(errno));
+        release(w, 0);
+        return NULL;
+    }
+    w->ch.head->magic = CHANNEL_MAGIC;
+    w->ch.head->version = CHANNEL_VERSION;
+    atomic_store(&w->ch.head->size, CHANNEL_INITIAL_SIZE);
+    if (!find_worker(w, folder)) {
+        release(w, 0);
         return NULL;
     }
     Writer out = begin(w, OP_INSTANTIATE, 1, 0);
@@ -452,7 +580,7 @@ static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2Stri
     fmi2Status status = exchange(w, &out, &in, "fmi2Instantiate");
     if (!w->gone && finish(w, &in) < 0) status = incomplete(w, "fmi2Instantiate");
     if (status > fmi2Warning) {
-        release(w);
+        release(w, !w->gone && free_in_worker(w));
         return NULL;
     }
     return w;
@@ -461,8 +589,7 @@ static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2Stri
 static void worker_FreeInstance(fmi2Component c)
 {
     Worker *w = (Worker *)c;
-    if (!w->gone) simple(w, OP_FREE_INSTANCE, "fmi2FreeInstance", 1, 0);
-    release(w);
+    release(w, !w->gone && free_in_worker(w));
 }
 
 static fmi2Status worker_SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[])
