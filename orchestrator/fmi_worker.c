@@ -446,28 +446,36 @@ static void trace(uint32_t op, long began)
     if (n > 0 && write(trace_fd, line, (size_t)n) < 0) trace_fd = -1;   /* one write: lines never mix */
 }
 
-/* Free the slot's instance and the slot; 1 if it was the last, and the worker then ends (no more joins). */
-static int release_slot(Slot *slot)
+/* Free the slot's instance; 1 if it is the last the worker serves, and the worker then ends (no more
+ * joins). The slot itself is released by `release_slot`, once its answer is written. */
+static int free_instance(Slot *slot)
 {
     if (slot->component != NULL && !slot->released) fmi.FreeInstance(slot->component);
     slot->component = NULL;
+    pthread_mutex_lock(&slots_lock);
+    int last = 1;
+    for (int i = 0; i < MAX_SLOTS; ++i) last &= (&slots[i] == slot || !atomic_load(&slots[i].used));
+    if (last) ending = 1;
+    pthread_mutex_unlock(&slots_lock);
+    return last;
+}
+
+/* Release the slot (its instance freed): its channel unmapped, its connection closed by the door thread. */
+static void release_slot(Slot *slot)
+{
     free(slot->prefetch_list);
     slot->prefetch_list = NULL;
     slot->n_prefetch = 0;
     munmap(slot->channel.head, slot->channel.mapped);
     close(slot->channel.fd);
     pthread_mutex_lock(&slots_lock);
-    atomic_store(&slot->used, 0);           /* the door thread closes its connection */
-    int last = 1;
-    for (int i = 0; i < MAX_SLOTS; ++i) last &= !atomic_load(&slots[i].used);
-    if (last) ending = 1;
+    atomic_store(&slot->used, 0);
     pthread_mutex_unlock(&slots_lock);
-    return last;
 }
 
-/* Answer the request in the slot's channel: 1, or 0 after the last OP_FREE_INSTANCE (the worker then
- * exits); -1 when the request cannot be read or answered (out of memory): the worker exits without an
- * answer and every client reports it ended. */
+/* Answer the request in the slot's channel: 1; 2 after OP_FREE_INSTANCE (the slot is then released), 0
+ * after the last (the worker then exits); -1 when the request cannot be read or answered (out of memory):
+ * the worker exits without an answer and every client reports it ended. */
 static int handle(Slot *slot)
 {
     long began = channel_now_ns();
@@ -500,7 +508,7 @@ static int handle(Slot *slot)
     fmi2Status status = fmi2OK;
     int last = 0;
     if (op == OP_FREE_INSTANCE) {
-        last = release_slot(slot);
+        last = free_instance(slot);
     } else if (startup_error[0] != '\0') {
         log_error("%s", startup_error);
         status = fmi2Error;
@@ -525,7 +533,7 @@ static int handle(Slot *slot)
     memcpy(channel->data, &(int32_t){(int32_t)status}, sizeof(int32_t));
     channel->head->length = w.pos;
     if (trace_fd >= 0) trace(op, began);
-    return !last;
+    return op != OP_FREE_INSTANCE ? 1 : last ? 0 : 2;
 }
 
 /* ---- the door: joins, the lifeline, connections that hang up -------------------------------------- */
@@ -691,8 +699,11 @@ int main(int argc, char **argv)
                 slot->answered = request;
                 channel_signal(&slot->channel.head->response, request, &slot->channel.head->client_sleeps);
                 if (go_on == 0) _exit(0);  /* no exit handlers: pythonfmu's would run after its destructor */
+                if (go_on == 2) release_slot(slot);
             } else if (atomic_load(&slot->orphaned)) {
-                if (release_slot(slot)) _exit(0);
+                int last = free_instance(slot);
+                release_slot(slot);
+                if (last) _exit(0);
             }
         }
         channel_wait(&control->doorbell, seen, &control->worker_sleeps, NULL, NULL);

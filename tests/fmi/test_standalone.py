@@ -134,8 +134,10 @@ def test_a_kernel_that_crashes_kills_the_worker_not_the_host(rigid, tmp_path):
 def test_no_worker_outlives_free_exit_or_a_killed_host(rigid, tmp_path):
     for ending in ("free", "exit"):
         folder = extract(str(rigid / "structure.fmu"), str(tmp_path / ending))
-        workers = host(folder, "instantiate", "workers", ending)[1]
-        assert len(workers["pids"]) == 1
+        out = host(folder, "instantiate", "workers", ending)
+        assert len(out[1]["pids"]) == 1
+        if ending == "free":
+            assert out[2]["log"] == [], "fmi2FreeInstance must end the worker cleanly, without a message"
         assert _gone(folder), f"a worker is left after the host's {ending}"
     folder = extract(str(rigid / "structure.fmu"), str(tmp_path / "killed"))
     proc = subprocess.Popen([sys.executable, str(HOST), folder, "instantiate", "step:2", "wait"],
@@ -148,6 +150,41 @@ def test_no_worker_outlives_free_exit_or_a_killed_host(rigid, tmp_path):
     finally:
         proc.kill()
     assert _gone(folder), "a worker is left after its host was killed with SIGKILL"
+
+
+def test_a_scene_s_units_share_one_worker_and_two_instances_of_one_fmu_do_not(rigid, tmp_path):
+    """The structure and aero FMUs of one build run in one worker of this process (one interpreter, as they
+    would in one Python); a second instance of the structure FMU gets a worker of its own, so that a host can
+    step the two in parallel; every worker ends with the last instance it serves, reaped (no zombie)."""
+    folders = {name: extract(str(rigid / f"{name}.fmu"), str(tmp_path / name)) for name in ("structure", "aero")}
+    units = {name: _fmu2slave(folder, name) for name, folder in folders.items()}
+    second = _fmu2slave(folders["structure"], "second")
+    try:
+        for unit in units.values():
+            unit.instantiate()
+        assert len(_children()) == 1
+        second.instantiate()
+        assert len(_children()) == 2
+    finally:
+        for unit in (*units.values(), second):
+            unit.freeInstance()
+    assert _children() == []
+
+
+def _fmu2slave(folder, name):
+    from fmpy import read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    md = read_model_description(folder)
+    return FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                     instanceName=name)
+
+
+def _children() -> list[int]:
+    """This process's child processes, zombies included (state Z: ended and not reaped)."""
+    pids = []
+    for task in Path(f"/proc/{os.getpid()}/task").iterdir():
+        pids += [int(p) for p in (task / "children").read_text().split()]
+    return pids
 
 
 def _gone(folder, patience=30.0) -> bool:
