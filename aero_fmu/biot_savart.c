@@ -11,7 +11,8 @@
  * Arithmetic: IEEE double, each operation rounded on its own (built with -ffp-contract=off: no fused
  * multiply-add; no fast-math), so the results equal numpy's kernel to the last bits in practice. The inner loops
  * run over independent pairs reading contiguous arrays, so that the compiler vectorizes them; `target_clones`
- * builds them for AVX-512, AVX2 and plain x86-64, and the loader picks the widest the CPU has.
+ * builds them for AVX-512, AVX2 and plain x86-64, and the loader picks the widest the CPU has (an ELF loader's
+ * ifunc: a Windows DLL, built with mingw-w64 for a standalone FMU, has the plain x86-64 ones only).
  *
  * Arrays are C-contiguous doubles: points, normals (P, 3); starts, ends (S, 3); gamma (S,).
  */
@@ -19,7 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
 #define VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define VECTOR_CLONES

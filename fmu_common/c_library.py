@@ -3,7 +3,8 @@ loaded with ctypes (a process loads it in about a millisecond).
 
 `load(source)` returns the library of `source` (e.g. aero_fmu/biot_savart.c), loaded once per process. The
 library's file name carries a digest of the source, the compiler flags and the platform
-(`<stem>-<digest>.so`), and it is looked for, in this order:
+(`<stem>-<digest>.so`; `<stem>-<digest>.dll` on Windows, where a standalone FMU's worker runs them), and it is
+looked for, in this order:
 
 1. beside the source: an FMU's build puts its C kernels' libraries into the FMU (`library_file`), so an FMU
    never compiles at instantiation, whatever folder it unpacks into;
@@ -14,7 +15,8 @@ library's file name carries a digest of the source, the compiler flags and the p
 
 A changed source or other flags get a new file name. Compiling needs the system C compiler ($CC, else cc),
 which the FMU build needs anyway; without one, or when the compilation fails, `load` raises
-CLibraryUnavailable naming $WINGSIM_KERNELS=numpy, the numpy kernels that need no compiler.
+CLibraryUnavailable naming $WINGSIM_KERNELS=numpy, the numpy kernels that need no compiler. The Windows
+libraries of a standalone FMU's win64 binaries are compiled on Linux with a cross compiler (`cross_compiled`).
 """
 from __future__ import annotations
 
@@ -22,11 +24,10 @@ import atexit
 import ctypes
 import hashlib
 import os
-import platform
 import shlex
 import shutil
 import subprocess
-import sys
+import sysconfig
 import tempfile
 import warnings
 from pathlib import Path
@@ -36,7 +37,8 @@ from .compiled import CACHE_VARIABLE, KERNELS_VARIABLE, cache_folder
 FLAGS = ("-O3", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno", "-Wall")
 """IEEE arithmetic as numpy does it (-ffp-contract=off: no fused multiply-add; no fast-math); -fno-math-errno
 lets the square roots vectorize (they set no errno then, and their results are the same)."""
-SUFFIX = ".so"
+PLATFORM_FLAGS = {"win-amd64": ("-static-libgcc",)}
+"""Flags added for a platform: on Windows the library then imports Windows's own DLLs only (no libgcc DLL)."""
 
 _loaded: dict[str, ctypes.CDLL] = {}
 _compiling: dict[Path, "_Compilation"] = {}     # started by `start_compiling`, by resolved source path
@@ -55,11 +57,30 @@ def c_compiler() -> list[str]:
     return cc
 
 
-def library_name(source: Path) -> str:
-    """File name of the library of `source`: `<stem>-<digest of source, flags and platform>.so`."""
+def library_name(source: Path, platform: str | None = None) -> str:
+    """File name of the library of `source` for `platform` (sysconfig.get_platform()'s names: this interpreter's
+    by default, "win-amd64" for 64-bit Windows): `<stem>-<digest of source, flags and platform>.so`, `.dll` on
+    Windows."""
+    platform = platform or sysconfig.get_platform()
     h = hashlib.sha256(Path(source).read_bytes())
-    h.update(" ".join(FLAGS).encode() + sys.platform.encode() + platform.machine().encode())
-    return f"{Path(source).stem}-{h.hexdigest()[:16]}{SUFFIX}"
+    h.update(" ".join(_flags(platform)).encode() + platform.encode())
+    suffix = ".dll" if platform.startswith("win") else ".so"
+    return f"{Path(source).stem}-{h.hexdigest()[:16]}{suffix}"
+
+
+def _flags(platform: str) -> tuple[str, ...]:
+    return FLAGS + PLATFORM_FLAGS.get(platform, ())
+
+
+def cross_compiled(source: str | Path, compiler: list[str], platform: str) -> Path:
+    """The library of the C file `source` for `platform`, compiled with `compiler` (a cross compiler) into the
+    cache folder the first time; CLibraryUnavailable when the compilation fails, OSError if the cache folder
+    cannot be written."""
+    source = Path(source).resolve()
+    target = cache_folder() / library_name(source, platform)
+    if target.is_file():
+        return target
+    return _Compilation(source, cache_folder(), compiler, platform).wait()
 
 
 def load(source: str | Path) -> ctypes.CDLL:
@@ -128,25 +149,28 @@ def compile_into(source: str | Path, folder: str | Path) -> Path:
 def _found(source: Path) -> Path | None:
     """The library of `source` beside it or in the cache folder, if it is there."""
     name = library_name(source)
-    for folder in (source.parent, cache_folder()):
-        if (folder / name).is_file():
-            return folder / name
-    return None
+    if (source.parent / name).is_file():
+        return source.parent / name
+    # only then the cache folder: an FMU's worker on Windows has no home folder in its environment
+    cached = cache_folder() / name
+    return cached if cached.is_file() else None
 
 
 class _Compilation:
-    """The compiler running on `source`, writing `folder`/`library_name(source)` (renamed into place when done)."""
+    """The compiler running on `source`, writing `folder`/`library_name(source, platform)` (renamed into place when
+    done): this machine's compiler and platform unless `compiler` and `platform` are given."""
 
-    def __init__(self, source: Path, folder: Path):
-        self.source, self.target = source, folder / library_name(source)
+    def __init__(self, source: Path, folder: Path, compiler: list[str] | None = None, platform: str | None = None):
+        platform = platform or sysconfig.get_platform()
+        self.source, self.target = source, folder / library_name(source, platform)
         try:
-            compiler = c_compiler()
+            compiler = compiler or c_compiler()
         except CLibraryUnavailable as missing:
             raise CLibraryUnavailable(f"the C kernel {source.name} needs compiling: {missing}; install one, or set "
                                       f"{KERNELS_VARIABLE}=numpy for the numpy kernels") from None
         folder.mkdir(parents=True, exist_ok=True)
         self.partial = self.target.with_name(f".{self.target.name}.{os.getpid()}.tmp")
-        self.command = compiler + list(FLAGS) + ["-o", str(self.partial), str(source), "-lm"]
+        self.command = compiler + list(_flags(platform)) + ["-o", str(self.partial), str(source), "-lm"]
         try:
             self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         except OSError as err:

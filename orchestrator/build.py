@@ -15,7 +15,8 @@ An ordinary FMU does not bundle Python, numpy or scipy: it runs in the Python en
 Its Linux binary is a C shim (`native_binary`) that starts that environment's Python in a host without one
 and forwards every FMI call to pythonfmu's binary. With `standalone=True` the FMU carries its whole runtime
 and runs it in a worker process of its own (`orchestrator.standalone`): it needs no Python on the target.
-Either kind carries binaries for linux64 only.
+Either kind carries binaries for linux64 only, but standalone FMUs built with `win64=True`, which carry win64
+binaries and a Windows runtime too (`orchestrator.win64`).
 """
 from __future__ import annotations
 
@@ -35,7 +36,7 @@ from fmu_common import c_library
 from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
-from orchestrator import native_binary, standalone as standalone_fmu
+from orchestrator import native_binary, standalone as standalone_fmu, win64 as windows
 
 BUILD_INFO_RESOURCE = "build_info.json"
 
@@ -56,15 +57,20 @@ def units_needed(scene: dict) -> list[str]:
     return ["structure"] if model == "none" else ["structure", "aero"]
 
 
-def build_fmus(scene: dict, out_dir: Path, standalone: bool = False) -> list[Path]:
+def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> list[Path]:
     """Build every FMU the scene needs into `out_dir`; returns their paths (structure first). `standalone`:
-    FMUs that carry their runtime (module docstring).
+    FMUs that carry their runtime (module docstring); `win64` (with `standalone` only): with win64 binaries too.
 
     Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails or, before
-    anything is built, when standalone FMUs cannot be built here (`standalone_fmu.unavailable_reason`).
+    anything is built, when standalone FMUs (or their win64 binaries) cannot be built here
+    (`standalone_fmu.unavailable_reason`, `win64.unavailable_reason`).
     """
+    if win64 and not standalone:
+        raise BuildError("win64 binaries are built for standalone FMUs only")
     if standalone and standalone_fmu.unavailable_reason() is not None:
         raise BuildError(f"standalone FMUs cannot be built here: {standalone_fmu.unavailable_reason()}")
+    if win64 and windows.unavailable_reason() is not None:
+        raise BuildError(f"win64 binaries cannot be built here: {windows.unavailable_reason()}")
     kinds = units_needed(scene)
     for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
         for _, source in _sources(kind):
@@ -74,10 +80,10 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False) -> list[Pat
         _require(kind, scene)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    built = [_build_unit(kind, scene, out_dir, standalone) for kind in kinds]
+    built = [_build_unit(kind, scene, out_dir, standalone, win64) for kind in kinds]
     if standalone:
         try:
-            standalone_fmu.make_standalone(built)
+            standalone_fmu.make_standalone(built, win64)
         except Exception as exc:
             for fmu in built:            # never leave an FMU whose build_info says standalone but is not
                 fmu.unlink(missing_ok=True)
@@ -88,14 +94,14 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False) -> list[Pat
     return built
 
 
-def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False) -> bool:
+def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> bool:
     """True if every FMU the scene needs exists in `out_dir`, of the kind asked for, built from this scene and
-    these sources."""
+    these sources (an FMU with win64 binaries serves where none are asked for)."""
     for kind in units_needed(scene):
         fmu = Path(out_dir) / UNITS[kind][0]
         try:
             info = json.loads(read_resource(fmu, BUILD_INFO_RESOURCE))
-            if info != _build_info(kind, scene, standalone):
+            if info not in (_build_info(kind, scene, standalone, win64), _build_info(kind, scene, standalone, True)):
                 return False
         except (OSError, KeyError, ValueError, zipfile.BadZipFile, BuildError):
             return False
@@ -177,9 +183,12 @@ def scene_digest(scene: dict) -> str:
     return hashlib.sha256(json.dumps(scene, sort_keys=True).encode()).hexdigest()
 
 
-def _build_info(kind: str, scene: dict, standalone: bool) -> dict:
-    return {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": scene_digest(scene),
+def _build_info(kind: str, scene: dict, standalone: bool, win64: bool = False) -> dict:
+    info = {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": scene_digest(scene),
             "native_binary_sha256": native_binary.source_digest(), "standalone": standalone}
+    if win64:
+        info["win64"] = True
+    return info
 
 
 def source_digest(kind: str) -> str:
@@ -191,7 +200,7 @@ def source_digest(kind: str) -> str:
     return h.hexdigest()
 
 
-def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool) -> Path:
+def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool, win64: bool = False) -> Path:
     fmu_name, module_name, packages = UNITS[kind]
     _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
@@ -203,7 +212,8 @@ def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool) -> Path
         stage = Path(tmp) / "stage"
         stage.mkdir()
         (stage / SCENE_RESOURCE).write_text(json.dumps(scene, indent=1), encoding="utf-8")
-        (stage / BUILD_INFO_RESOURCE).write_text(json.dumps(_build_info(kind, scene, standalone)), encoding="utf-8")
+        (stage / BUILD_INFO_RESOURCE).write_text(json.dumps(_build_info(kind, scene, standalone, win64)),
+                                                 encoding="utf-8")
         (stage / REQUIREMENTS).write_text(requirements(kind), encoding="utf-8")
         project_files = [stage / SCENE_RESOURCE, stage / BUILD_INFO_RESOURCE, stage / REQUIREMENTS]
         for archive_name, f in _sources(kind)[1:]:

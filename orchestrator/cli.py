@@ -1,13 +1,14 @@
 """The ``wingsim`` command line (docs/architecture.md); ``python -m orchestrator`` is the same.
 
-- ``wingsim build SCENE [--out DIR] [--standalone]``: build the scene's FMUs into DIR (default ``fmus/<scene>/``;
-  ``--standalone``: FMUs that carry their Python runtime, default ``fmus/<scene>-standalone/``).
+- ``wingsim build SCENE [--out DIR] [--standalone [--win64]]``: build the scene's FMUs into DIR (default
+  ``fmus/<scene>/``; ``--standalone``: FMUs that carry their Python runtime, default ``fmus/<scene>-standalone/``;
+  ``--win64``: with binaries and a runtime for 64-bit Windows too).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
   run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
-- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--standalone]``: build the FMUs if needed (into the folder
-  ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU, ``DIR/wing.fmu``
-  (default ``export/<scene>/``, ``export/<scene>-standalone/`` with ``--standalone``).
+- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--standalone [--win64]]``: build the FMUs if needed
+  (into the folder ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU,
+  ``DIR/wing.fmu`` (default ``export/<scene>/``, ``export/<scene>-standalone/`` with ``--standalone``).
 - ``wingsim sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--set KEY=VALUE ...] [--out DIR]
   [--backend direct|fmu] [--jobs N] [--scheduler ADDRESS] [--plots]``: every combination of the grid
   values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
@@ -52,6 +53,8 @@ DIGEST_CHARS = 12
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 STANDALONE_HELP = ("FMUs that carry their Python runtime and run it in a worker process of their own: they need "
                    "no Python on the machine that runs them (docs/fmu.md)")
+WIN64_HELP = ("with --standalone: binaries and a Python runtime for 64-bit Windows too (cross-compiled with mingw-w64; "
+              "the first such build downloads the Windows packages; docs/fmu.md)")
 
 
 def _debug() -> bool:
@@ -91,6 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     build.add_argument("--out", type=Path, metavar="DIR",
                        help="output folder (default: fmus/<scene name>/, fmus/<scene name>-standalone/)")
     build.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
+    build.add_argument("--win64", action="store_true", help=WIN64_HELP)
     build.set_defaults(func=cmd_build)
 
     run = commands.add_parser("run", help="build if needed, run a scene, write results and plots",
@@ -121,6 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
     export.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
+    export.add_argument("--win64", action="store_true", help=WIN64_HELP)
     export.set_defaults(func=cmd_export)
 
     sweep = commands.add_parser("sweep", help="run every combination of --grid values, one row per run in sweep.csv",
@@ -171,9 +176,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     from orchestrator.scene import load_scene
 
     scene = load_scene(args.scene)
-    _require_standalone(args.standalone)
+    _require_standalone(args.standalone, args.win64)
     out = check_out_dir(args.out or fmu_dir(scene, False, args.standalone))
-    for path in build_fmus(scene, out, standalone=args.standalone):
+    for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64):
         if args.standalone:
             from orchestrator.standalone import describe
 
@@ -183,14 +188,23 @@ def cmd_build(args: argparse.Namespace) -> int:
     return 0
 
 
-def _require_standalone(standalone: bool) -> None:
-    """Refuse --standalone, before anything is written, where standalone FMUs cannot be built (exit 2)."""
+def _require_standalone(standalone: bool, win64: bool = False) -> None:
+    """Refuse --standalone, before anything is written, where standalone FMUs cannot be built, and --win64 without
+    --standalone or where its binaries cannot be built (the cross compiler missing, the downloads failing, which
+    are fetched here the first time): exit 2."""
+    if win64 and not standalone:
+        raise SceneError("--win64", True, "win64 binaries are added to standalone FMUs only: give --standalone too")
     if not standalone:
         return
     from orchestrator.standalone import unavailable_reason
 
     if unavailable_reason() is not None:
         raise SceneError("--standalone", True, f"standalone FMUs cannot be built here: {unavailable_reason()}")
+    if win64:
+        from orchestrator import win64 as windows
+
+        if windows.unavailable_reason() is not None:
+            raise SceneError("--win64", True, f"win64 binaries cannot be built here: {windows.unavailable_reason()}")
 
 
 def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:
@@ -207,7 +221,7 @@ def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:
     return FMU_ROOT / (f"{name}-standalone" if standalone else name)
 
 
-def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False):
+def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64: bool = False):
     """None when the FMUs are ready, else a failed RunResult saying why the build failed.
 
     The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included)
@@ -218,11 +232,11 @@ def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False):
 
     start = time.perf_counter()
     try:
-        if fmus_up_to_date(scene, fmu_dir, standalone):
+        if fmus_up_to_date(scene, fmu_dir, standalone, win64):
             return None
-        kind = "standalone FMUs" if standalone else "FMUs"
+        kind = "standalone FMUs" + (" with win64 binaries" if win64 else "") if standalone else "FMUs"
         print(f"building the {kind} of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
-        fmus = build_fmus(scene, fmu_dir, standalone=standalone)
+        fmus = build_fmus(scene, fmu_dir, standalone=standalone, win64=win64)
     except SceneError:
         raise
     except Exception as err:
@@ -293,10 +307,10 @@ def cmd_export(args: argparse.Namespace) -> int:
     from orchestrator.system import coupled_system
 
     scene = load_scene(args.scene, args.overrides)
-    _require_standalone(args.standalone)
+    _require_standalone(args.standalone, args.win64)
     out = check_out_dir(args.out or EXPORT_ROOT / (scene["name"] + ("-standalone" if args.standalone else "")))
     folder = fmu_dir(scene, bool(args.overrides), args.standalone)
-    failed = _build_if_needed(scene, folder, args.standalone)
+    failed = _build_if_needed(scene, folder, args.standalone, args.win64)
     if failed is not None:
         print(f"error: {failed.message}", file=sys.stderr)
         return interrupt_exit_code() or 1

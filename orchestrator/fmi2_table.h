@@ -4,10 +4,10 @@
 #ifndef WINGSIM_FMI2_TABLE_H
 #define WINGSIM_FMI2_TABLE_H
 
-#include <dlfcn.h>
 #include <stddef.h>
 
 #include "fmi2Functions.h"
+#include "native_platform.h"
 
 #define FMI2_CO_SIMULATION_FUNCTIONS(X)                                                            \
     X(SetDebugLogging) X(Instantiate) X(FreeInstance) X(SetupExperiment) X(EnterInitializationMode) \
@@ -24,11 +24,11 @@ typedef struct {
 #undef FMI2_TABLE_FIELD
 } Fmi2Table;
 
-/* Fill `table` from the binary `handle` (dlopen); NULL, or the name of the first function missing. */
+/* Fill `table` from the binary `handle` (library_open); NULL, or the name of the first function missing. */
 __attribute__((unused)) static const char *fmi2_table_resolve(void *handle, Fmi2Table *table)
 {
 #define FMI2_TABLE_RESOLVE(name)                                                                   \
-    if ((table->name = (fmi2##name##TYPE *)dlsym(handle, "fmi2" #name)) == NULL) return "fmi2" #name;
+    if ((table->name = (fmi2##name##TYPE *)library_symbol(handle, "fmi2" #name)) == NULL) return "fmi2" #name;
     FMI2_CO_SIMULATION_FUNCTIONS(FMI2_TABLE_RESOLVE)
 #undef FMI2_TABLE_RESOLVE
     return NULL;

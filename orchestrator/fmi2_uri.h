@@ -15,7 +15,8 @@ static int uri_hex_value(char c)
 }
 
 /* The absolute path of the file URI `uri` into `path` (`size` bytes), percent escapes decoded and
- * without a trailing '/'; 0 if `uri` is not a file URI of a local path (or "%00", or too long). */
+ * without a trailing '/'; 0 if `uri` is not a file URI of a local path (or "%00", or too long). On Windows
+ * the path of file:///C:/dir is C:/dir (forward slashes, which Windows accepts). */
 static int file_uri_to_path(const char *uri, char *path, size_t size)
 {
     const char *p;
@@ -35,6 +36,9 @@ static int file_uri_to_path(const char *uri, char *path, size_t size)
     }
     while (k > 1 && path[k - 1] == '/') --k;
     path[k] = '\0';
+#ifdef _WIN32
+    if (k >= 3 && path[0] == '/' && path[2] == ':') memmove(path, path + 1, k);   /* "/C:/dir" -> "C:/dir" */
+#endif
     return 1;
 }
 

@@ -10,6 +10,8 @@
  *   libpython: every Python function is looked up with dlsym.
  * - standalone FMU (SHIM_WORKER defined): to the unit's own worker process, which runs the Python
  *   runtime the FMU carries (worker_client.c, fmi_worker.c). Nothing of Python enters the host process.
+ *   This is the only kind compiled for Windows too (with mingw-w64: binaries/win64 of a standalone FMU);
+ *   native_platform.h holds what differs between the two systems here.
  *
  * Either way it checks the component and FMU state pointers, the GUID, the FMU type and the resource
  * location.
@@ -30,16 +32,14 @@
 #include <Python.h> /* the PyConfig layout of the build interpreter; no function of it is linked */
 #endif
 
-#include <dlfcn.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "fmi2_table.h"
 #include "fmi2_uri.h"
+#include "native_platform.h"
 
 #if !defined(SHIM_GUID) || !defined(SHIM_INNER)
 #error "SHIM_GUID and SHIM_INNER must be defined"
@@ -57,7 +57,7 @@
 /* The inner functions: pythonfmu's binary, loaded by the first fmi2Instantiate and unloaded with the
  * shim; or the worker client's. */
 
-static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static Lock load_lock = LOCK_INITIALIZER;
 static int loaded = 0;                   /* Python runs and the inner functions are resolved */
 static char load_error[MESSAGE_SIZE];    /* why loading failed; loading is not retried after that */
 static Fmi2Table inner;
@@ -81,20 +81,20 @@ typedef struct Instance {
     fmi2FMUstate *states;                /* states handed out and not yet freed */
 } Instance;
 
-static pthread_mutex_t instances_lock = PTHREAD_MUTEX_INITIALIZER;
+static Lock instances_lock = LOCK_INITIALIZER;
 static Instance *instances = NULL;
 
 static int is_live(const Instance *inst)
 {
     int found = 0;
-    pthread_mutex_lock(&instances_lock);
+    lock(&instances_lock);
     for (const Instance *i = instances; i != NULL; i = i->next) {
         if (i == inst) {
             found = 1;
             break;
         }
     }
-    pthread_mutex_unlock(&instances_lock);
+    unlock(&instances_lock);
     return found;
 }
 
@@ -486,10 +486,10 @@ static int load_inner(void)
  * that failed to start cannot be started again). */
 static int ensure_loaded(void)
 {
-    pthread_mutex_lock(&load_lock);
+    lock(&load_lock);
     if (!loaded && load_error[0] == '\0' && start_python() && load_inner()) loaded = 1;
     int ok = loaded;
-    pthread_mutex_unlock(&load_lock);
+    unlock(&load_lock);
     return ok;
 }
 
@@ -501,10 +501,10 @@ static int ensure_loaded(void)
 /* The worker client: each instance starts its own worker in fmi2Instantiate. */
 static int ensure_loaded(void)
 {
-    pthread_mutex_lock(&load_lock);
+    lock(&load_lock);
     inner = worker_table;
     loaded = 1;
-    pthread_mutex_unlock(&load_lock);
+    unlock(&load_lock);
     return 1;
 }
 
@@ -558,7 +558,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
     char slave_module[PATH_SIZE + 32];
     snprintf(slave_module, sizeof slave_module, "%s/slavemodule.txt", resources);
-    if (access(slave_module, R_OK) != 0) {
+    if (!file_readable(slave_module)) {
         log_to(functions, name, fmi2Error,
                "fmi2Instantiate: %s is missing: %s is not this FMU's unpacked resources folder",
                slave_module, fmuResourceLocation);
@@ -570,7 +570,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
 
     Instance *inst = calloc(1, sizeof *inst);
-    char *uri = malloc(strlen(resources) + 8);
+    char *uri = malloc(strlen(resources) + 9);
     if (inst == NULL || uri == NULL || (inst->name = strdup(name)) == NULL) {
         free(inst != NULL ? inst->name : NULL);
         free(inst);
@@ -578,7 +578,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         log_to(functions, name, fmi2Error, "fmi2Instantiate: out of memory");
         return NULL;
     }
-    strcpy(uri, "file://");
+    /* file:///path, and on Windows file:///C:/path: pythonfmu's win64 binary drops the first 8 characters */
+    strcpy(uri, resources[0] == '/' ? "file://" : "file:///");
     strcat(uri, resources);
     memcpy(&inst->host, functions, sizeof inst->host);
     fmi2CallbackFunctions wrapped = {shim_logger, functions->allocateMemory, functions->freeMemory,
@@ -594,10 +595,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         free(inst);
         return NULL;
     }
-    pthread_mutex_lock(&instances_lock);
+    lock(&instances_lock);
     inst->next = instances;
     instances = inst;
-    pthread_mutex_unlock(&instances_lock);
+    unlock(&instances_lock);
     return inst;
 }
 
@@ -605,12 +606,12 @@ void fmi2FreeInstance(fmi2Component c)
 {
     Instance *inst = (Instance *)c;
     if (inst == NULL) return;
-    pthread_mutex_lock(&instances_lock);
+    lock(&instances_lock);
     Instance **link = &instances;
     while (*link != NULL && *link != inst) link = &(*link)->next;
     int found = *link != NULL;
     if (found) *link = inst->next;
-    pthread_mutex_unlock(&instances_lock);
+    unlock(&instances_lock);
     if (!found) return;
     /* After returning fmi2Fatal (a Python exception) pythonfmu 0.7.0 has released its Python slave
      * already; freeing it again corrupts Python's reference counts, so that one is left as it is. A

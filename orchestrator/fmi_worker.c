@@ -34,32 +34,38 @@
  * With WINGSIM_WORKER_TRACE=FILE in the host's environment, the worker appends one line per request to
  * FILE: its pid, the operation's number (worker_channel.h) and when it began and ended serving it
  * (CLOCK_MONOTONIC, ns; one clock for every process of the machine): a timeline of the units' calls.
+ *
+ * On Windows (binaries/win64) a worker serves one instance, whose client started it (worker_client_win.c);
+ * fmi_worker_win.c, included in place of the Linux section at the end, starts it. Requests are read and
+ * answered by the same code. There is no trace there.
  */
 #define _GNU_SOURCE
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include <dlfcn.h>
-#include <fcntl.h>
-#include <limits.h>
-#include <poll.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifndef _WIN32
+#include <dirent.h>
+#include <fcntl.h>
+#include <poll.h>
 #include <sys/stat.h>
+#endif
 
 #include "fmi2_table.h"
+#include "native_platform.h"
 #include "worker_channel.h"
 
-#define TEXT(x) #x
-#define NUMBER_TEXT(x) TEXT(x)
+#define AS_TEXT(x) #x
+#define NUMBER_TEXT(x) AS_TEXT(x)
 #define STDLIB "lib/python" NUMBER_TEXT(PY_MAJOR_VERSION) "." NUMBER_TEXT(PY_MINOR_VERSION)
 #define LIFELINE_FD 3
 #define CONTROL_FD 4
 #define LISTEN_FD 5
 #define MESSAGE_SIZE 8192
+#define PATH_SIZE 4096
 #define MAX_SLOTS 32
 
 /* ---- messages logged during the current call ---------------------------------------------------- */
@@ -133,9 +139,23 @@ static void log_error(const char *format, ...)
 
 /* ---- Python and pythonfmu's binary ---------------------------------------------------------------- */
 
+#ifdef _WIN32
+/* python311.dll, python311.zip (the standard library), its extension modules, site-packages */
+#define PATH_SEPARATOR "\\"
+static const char *const SEARCH_PATH[] = {"python" NUMBER_TEXT(PY_MAJOR_VERSION) NUMBER_TEXT(PY_MINOR_VERSION) ".zip",
+                                          "", "site-packages"};
+#else
+#define PATH_SEPARATOR "/"
+static const char *const SEARCH_PATH[] = {STDLIB, STDLIB "/lib-dynload", "site-packages"};
+#endif
+
 static Fmi2Table fmi;
 
 static char startup_error[MESSAGE_SIZE];
+
+#ifdef _WIN32
+#include "python_win.h"   /* the Python functions below, looked up in the runtime's python3X.dll */
+#endif
 
 static int config_failed(PyStatus status, const char *step)
 {
@@ -147,8 +167,8 @@ static int config_failed(PyStatus status, const char *step)
 
 static PyStatus append_path(PyConfig *config, const char *runtime, const char *sub)
 {
-    char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/%s", runtime, sub);
+    char path[PATH_SIZE];
+    snprintf(path, sizeof path, "%s%s%s", runtime, sub[0] != '\0' ? PATH_SEPARATOR : "", sub);
     wchar_t *wide = Py_DecodeLocale(path, NULL);
     if (wide == NULL) return PyStatus_NoMemory();
     PyStatus status = PyWideStringList_Append(&config->module_search_paths, wide);
@@ -159,6 +179,9 @@ static PyStatus append_path(PyConfig *config, const char *runtime, const char *s
 /* Start the runtime's Python, isolated from everything outside `runtime`. */
 static int start_python(const char *program, const char *runtime)
 {
+#ifdef _WIN32
+    if (!load_python(runtime)) return 0;
+#endif
     PyPreConfig preconfig;
     PyPreConfig_InitIsolatedConfig(&preconfig);
     preconfig.utf8_mode = 1;
@@ -172,10 +195,8 @@ static int start_python(const char *program, const char *runtime)
     config.module_search_paths_set = 1;
     PyStatus status = PyConfig_SetBytesString(&config, &config.program_name, program);
     if (!PyStatus_Exception(status)) status = PyConfig_SetBytesString(&config, &config.home, runtime);
-    if (!PyStatus_Exception(status)) status = append_path(&config, runtime, STDLIB);
-    if (!PyStatus_Exception(status))
-        status = append_path(&config, runtime, STDLIB "/lib-dynload");
-    if (!PyStatus_Exception(status)) status = append_path(&config, runtime, "site-packages");
+    for (size_t i = 0; i < sizeof SEARCH_PATH / sizeof *SEARCH_PATH && !PyStatus_Exception(status); ++i)
+        status = append_path(&config, runtime, SEARCH_PATH[i]);
     if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(&config);
     PyConfig_Clear(&config);
     if (config_failed(status, "Py_InitializeFromConfig")) return 0;
@@ -185,9 +206,10 @@ static int start_python(const char *program, const char *runtime)
 
 static int load_pythonfmu(const char *path)
 {
-    void *handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    char error[MESSAGE_SIZE - 64];
+    void *handle = library_open(path, error, sizeof error);
     if (handle == NULL) {
-        snprintf(startup_error, sizeof startup_error, "cannot load pythonfmu's binary: %s", dlerror());
+        snprintf(startup_error, sizeof startup_error, "pythonfmu's binary: %s", error);
         return 0;
     }
     const char *missing = fmi2_table_resolve(handle, &fmi);
@@ -206,6 +228,7 @@ typedef struct {
     _Atomic int orphaned;                /* its connection hung up: the main thread frees it */
     int socket;
     Channel channel;
+    ChannelEvent wake_client;            /* Windows: the event its client sleeps on */
     uint32_t answered;                   /* the last request answered */
     char guid[GUID_SIZE];
     fmi2Component component;             /* pythonfmu's instance */
@@ -215,11 +238,13 @@ typedef struct {
 } Slot;
 
 static Slot slots[MAX_SLOTS];
-static pthread_mutex_t slots_lock = PTHREAD_MUTEX_INITIALIZER;
+static Lock slots_lock = LOCK_INITIALIZER;
 static int ending = 0;                   /* the last instance was freed: no more joins (under slots_lock) */
-static char packages[64 * PACKAGES_SIZE];   /* "name=digest;..." of the code loaded (under slots_lock) */
 static WorkerControl *control;
+#ifndef _WIN32
+static char packages[64 * PACKAGES_SIZE];   /* "name=digest;..." of the code loaded (under slots_lock) */
 static int output_fd = 1;
+#endif
 
 static fmi2CallbackFunctions callbacks = {worker_logger, calloc, free, NULL, NULL};
 
@@ -250,7 +275,7 @@ static fmi2Status serve(Slot *slot, uint32_t op, Reader *r, Writer *w)
 {
     uint32_t n, m, k;
     const fmi2ValueReference *vr;
-    char name[1024], guid[256], location[PATH_MAX + 16];
+    char name[1024], guid[256], location[PATH_SIZE + 16];
 
     if (op == OP_INSTANTIATE) {
         take_string(r, name, sizeof name);
@@ -439,12 +464,16 @@ static void prefetch(Slot *slot, Writer *w)
 
 static int trace_fd = -1;                   /* WINGSIM_WORKER_TRACE's file, or -1 */
 
-static void trace(uint32_t op, long began)
+#ifdef _WIN32
+static void trace(uint32_t op, long long began) { (void)op, (void)began; }   /* Linux only */
+#else
+static void trace(uint32_t op, long long began)
 {
     char line[96];
-    int n = snprintf(line, sizeof line, "%d %u %ld %ld\n", (int)getpid(), op, began, channel_now_ns());
+    int n = snprintf(line, sizeof line, "%d %u %lld %lld\n", (int)getpid(), op, began, (long long)channel_now_ns());
     if (n > 0 && write(trace_fd, line, (size_t)n) < 0) trace_fd = -1;   /* one write: lines never mix */
 }
+#endif
 
 /* Free the slot's instance; 1 if it is the last the worker serves, and the worker then ends (no more
  * joins). The slot itself is released by `release_slot`, once its answer is written. */
@@ -452,11 +481,11 @@ static int free_instance(Slot *slot)
 {
     if (slot->component != NULL && !slot->released) fmi.FreeInstance(slot->component);
     slot->component = NULL;
-    pthread_mutex_lock(&slots_lock);
+    lock(&slots_lock);
     int last = 1;
     for (int i = 0; i < MAX_SLOTS; ++i) last &= (&slots[i] == slot || !atomic_load(&slots[i].used));
     if (last) ending = 1;
-    pthread_mutex_unlock(&slots_lock);
+    unlock(&slots_lock);
     return last;
 }
 
@@ -466,11 +495,10 @@ static void release_slot(Slot *slot)
     free(slot->prefetch_list);
     slot->prefetch_list = NULL;
     slot->n_prefetch = 0;
-    munmap(slot->channel.head, slot->channel.mapped);
-    close(slot->channel.fd);
-    pthread_mutex_lock(&slots_lock);
+    channel_close(&slot->channel);
+    lock(&slots_lock);
     atomic_store(&slot->used, 0);
-    pthread_mutex_unlock(&slots_lock);
+    unlock(&slots_lock);
 }
 
 /* Answer the request in the slot's channel: 1; 2 after OP_FREE_INSTANCE (the slot is then released), 0
@@ -478,7 +506,7 @@ static void release_slot(Slot *slot)
  * the worker exits without an answer and every client reports it ended. */
 static int handle(Slot *slot)
 {
-    long began = channel_now_ns();
+    long long began = channel_now_ns();
     Channel *channel = &slot->channel;
     if (!channel_sync(channel)) return -1;
     size_t length = channel->head->length;
@@ -536,6 +564,46 @@ static int handle(Slot *slot)
     return op != OP_FREE_INSTANCE ? 1 : last ? 0 : 2;
 }
 
+/* ---- the main loop: serve every slot's requests, sleep on the doorbell between them ---------------- */
+
+#ifdef _WIN32
+/* the Windows form of _exit: no DLL detach (pythonfmu's would finalize Python), no exit handlers */
+#define end_worker(code) TerminateProcess(GetCurrentProcess(), (code))
+#else
+#define end_worker(code) _exit(code)
+#endif
+
+static ChannelEvent doorbell_event = NO_EVENT;   /* Windows: the event the worker sleeps on */
+
+static void serve_forever(void)
+{
+    for (;;) {
+        uint32_t seen = atomic_load(&control->doorbell);
+        for (int i = 0; i < MAX_SLOTS; ++i) {
+            Slot *slot = &slots[i];
+            if (!atomic_load_explicit(&slot->used, memory_order_acquire)) continue;
+            uint32_t request = atomic_load_explicit(&slot->channel.head->request, memory_order_acquire);
+            if (request != slot->answered) {
+                int go_on = handle(slot);
+                if (go_on < 0) end_worker(1);
+                slot->answered = request;
+                channel_signal(&slot->channel.head->response, request, &slot->channel.head->client_sleeps,
+                               slot->wake_client);
+                if (go_on == 0) end_worker(0);  /* no exit handlers: pythonfmu's would run after its destructor */
+                if (go_on == 2) release_slot(slot);
+            } else if (atomic_load(&slot->orphaned)) {
+                int last = free_instance(slot);
+                release_slot(slot);
+                if (last) end_worker(0);
+            }
+        }
+        channel_wait(&control->doorbell, seen, &control->worker_sleeps, doorbell_event, SPIN_YIELD_NS, NULL, NULL);
+    }
+}
+
+#ifdef _WIN32
+#include "fmi_worker_win.c"
+#else
 /* ---- the door: joins, the lifeline, connections that hang up -------------------------------------- */
 
 /* Whether the code a client brings ("name=digest;...") agrees with what the worker has loaded, and if so
@@ -575,7 +643,7 @@ static void join(int connection)
     int ok = receive_with_fds(connection, &request, sizeof request, fds, 4, &n_fds);
     request.guid[GUID_SIZE - 1] = request.packages[PACKAGES_SIZE - 1] = '\0';
     Slot *slot = NULL;
-    pthread_mutex_lock(&slots_lock);
+    lock(&slots_lock);
     if (!ok || n_fds != 1 || request.magic != CHANNEL_MAGIC || request.version != CHANNEL_VERSION) {
         snprintf(reply.reason, sizeof reply.reason, "the request is not one of this version's");
     } else if (ending) {
@@ -621,9 +689,8 @@ static void join(int connection)
         }
         close(connection);
     }
-    pthread_mutex_unlock(&slots_lock);
-    atomic_fetch_add(&control->doorbell, 1);
-    syscall(SYS_futex, (uint32_t *)&control->doorbell, FUTEX_WAKE, 1, NULL, NULL, 0);
+    unlock(&slots_lock);
+    channel_ring(&control->doorbell, &control->worker_sleeps, NO_EVENT);
 }
 
 /* The door thread: waits on the lifeline (the host gone: exit at once), the listening socket (a join)
@@ -634,14 +701,14 @@ static void *door(void *unused)
     for (;;) {
         struct pollfd fds[2 + MAX_SLOTS];
         int index[2 + MAX_SLOTS], n = 0;
-        pthread_mutex_lock(&slots_lock);
+        lock(&slots_lock);
         for (int i = 0; i < MAX_SLOTS; ++i) {
             if (!atomic_load(&slots[i].used) && slots[i].socket >= 0) {
                 close(slots[i].socket);        /* a slot the main thread released */
                 slots[i].socket = -1;
             }
         }
-        pthread_mutex_unlock(&slots_lock);
+        unlock(&slots_lock);
         fds[n++] = (struct pollfd){LIFELINE_FD, POLLIN, 0};
         fds[n++] = (struct pollfd){LISTEN_FD, POLLIN, 0};
         for (int i = 0; i < MAX_SLOTS; ++i) {
@@ -660,12 +727,26 @@ static void *door(void *unused)
         for (int k = 2; k < n; ++k) {
             if (fds[k].revents) {
                 atomic_store(&slots[index[k]].orphaned, 1);
-                atomic_fetch_add(&control->doorbell, 1);
-                syscall(SYS_futex, (uint32_t *)&control->doorbell, FUTEX_WAKE, 1, NULL, NULL, 0);
+                channel_ring(&control->doorbell, &control->worker_sleeps, NO_EVENT);
             }
         }
     }
     return NULL;
+}
+
+/* Close every descriptor from `first` on: those the host had open without close-on-exec (a pipe, a
+ * socket, a file) would otherwise stay open as long as the worker lives, hiding their end from whoever
+ * waits for it. */
+static void close_inherited(int first)
+{
+    if (syscall(SYS_close_range, (unsigned)first, ~0U, 0) == 0) return;
+    DIR *fds = opendir("/proc/self/fd");          /* kernels before 5.9 */
+    if (fds == NULL) return;
+    for (struct dirent *entry; (entry = readdir(fds)) != NULL;) {
+        int fd = atoi(entry->d_name);
+        if (fd >= first && fd != dirfd(fds)) close(fd);
+    }
+    closedir(fds);
 }
 
 int main(int argc, char **argv)
@@ -674,6 +755,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: %s PYTHONFMU_BINARY RUNTIME_FOLDER (started by a wingsim FMU)\n", argv[0]);
         return 2;
     }
+    close_inherited(LISTEN_FD + 1);
     for (int fd = LIFELINE_FD; fd <= LISTEN_FD; ++fd)
         fcntl(fd, F_SETFD, FD_CLOEXEC);          /* a process Python starts must not hold them */
     output_fd = fcntl(1, F_DUPFD_CLOEXEC, 10);
@@ -686,26 +768,6 @@ int main(int argc, char **argv)
     pthread_t door_thread;
     if (pthread_create(&door_thread, NULL, door, NULL) != 0) return 3;
     if (start_python(argv[0], argv[2])) load_pythonfmu(argv[1]);
-
-    for (;;) {
-        uint32_t seen = atomic_load(&control->doorbell);
-        for (int i = 0; i < MAX_SLOTS; ++i) {
-            Slot *slot = &slots[i];
-            if (!atomic_load_explicit(&slot->used, memory_order_acquire)) continue;
-            uint32_t request = atomic_load_explicit(&slot->channel.head->request, memory_order_acquire);
-            if (request != slot->answered) {
-                int go_on = handle(slot);
-                if (go_on < 0) _exit(1);
-                slot->answered = request;
-                channel_signal(&slot->channel.head->response, request, &slot->channel.head->client_sleeps);
-                if (go_on == 0) _exit(0);  /* no exit handlers: pythonfmu's would run after its destructor */
-                if (go_on == 2) release_slot(slot);
-            } else if (atomic_load(&slot->orphaned)) {
-                int last = free_instance(slot);
-                release_slot(slot);
-                if (last) _exit(0);
-            }
-        }
-        channel_wait(&control->doorbell, seen, &control->worker_sleeps, NULL, NULL);
-    }
+    serve_forever();
 }
+#endif

@@ -30,8 +30,9 @@ from fmu_common import c_library
 SHIM_SOURCE = Path(__file__).with_name("fmi_shim.c")
 WORKER_SOURCE = Path(__file__).with_name("fmi_worker.c")
 NATIVE_SOURCES = (SHIM_SOURCE, WORKER_SOURCE, *(Path(__file__).with_name(name) for name in (
-    "fmi2_table.h", "worker_channel.h", "worker_client.c")))
-"""The C sources of the native binaries: the shim, the worker, and what they include."""
+    "fmi2_table.h", "fmi2_uri.h", "native_platform.h", "worker_channel.h", "worker_client.c", "worker_client_win.c",
+    "fmi_worker_win.c", "python_win.h")))
+"""The C sources of the native binaries: the shim, the worker, and what they include (on Linux and Windows)."""
 PLATFORM_DIR = "binaries/linux64"
 INNER_SUFFIX = "_pythonfmu"
 WORKER_SUFFIX = "_worker"

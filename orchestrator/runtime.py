@@ -66,9 +66,11 @@ class RuntimeUnavailable(RuntimeError):
 @dataclass(frozen=True)
 class Runtime:
     """The files of a runtime: destination (relative to the runtime folder, POSIX) -> source file. A
-    destination ending in .pyc has a .py source to compile."""
+    destination ending in .pyc has a .py source to compile. `traced`: the destinations of the modules the units
+    loaded (the rest came with them: their folders' other modules, libraries)."""
 
     files: dict[str, Path]
+    traced: frozenset[str] = frozenset()
 
     def size(self) -> int:
         return sum(f.stat().st_size for f in self.files.values())
@@ -89,6 +91,7 @@ def collect(resources: list[Path]) -> Runtime:
         modules.update(_traced_modules(folder))
     libpython = Path(shared_libpython())
     files: dict[str, Path] = {f"lib/{libpython.name}": libpython}
+    traced = set()
     for name, source in modules.items():
         if _SKIPPED.match(name) or name.split(".")[0] in _OWN_PACKAGES:
             continue
@@ -96,14 +99,16 @@ def collect(resources: list[Path]) -> Runtime:
         if placed is None:
             continue
         dest, root, kind = placed
-        if kind == "site-packages":
+        if kind == "site-packages" and "/" in dest.removeprefix("site-packages/"):   # in a package's folder
             for sibling in _package_folder(Path(source)):
                 sib = _place(sibling, roots)
                 if sib is not None:
                     files.setdefault(_compiled_name(sib[0]), sibling)
         files.setdefault(_compiled_name(dest), Path(source))
+        traced.add(_compiled_name(dest))
     _add_libraries(files)
-    return Runtime(files)
+    _add_licenses(files, roots)
+    return Runtime(files, frozenset(traced))
 
 
 def write(runtime: Runtime, folder: Path, strip: bool = True) -> None:
@@ -165,6 +170,51 @@ def _place(source: Path, roots) -> tuple[str, Path, str] | None:
 
 def _compiled_name(dest: str) -> str:
     return dest[:-3] + ".pyc" if dest.endswith(".py") else dest
+
+
+def _add_licenses(files: dict[str, Path], roots) -> None:
+    """Add under licenses/ the license of everything the runtime redistributes: Python's, each distribution's
+    of site-packages (their files in the .dist-info folder: numpy's and scipy's also cover the libraries their
+    wheels bundle) and, for a library taken from the system, its Debian copyright file where there is one."""
+    stdlib = Path(sysconfig.get_paths()["stdlib"])
+    if (stdlib / "LICENSE.txt").is_file():
+        files["licenses/python/LICENSE.txt"] = stdlib / "LICENSE.txt"
+    for root, kind in roots:
+        if kind == "site-packages":
+            files.update(distribution_licenses(root, files))
+    for dest, source in list(files.items()):
+        if dest.startswith("lib/") and "/" not in dest[4:] and source != Path(shared_libpython()):
+            copyright_file = _debian_copyright(source)
+            if copyright_file is not None:
+                files[f"licenses/{Path(dest).name}/copyright"] = copyright_file
+
+
+def distribution_licenses(site_packages: Path, files: dict[str, Path]) -> dict[str, Path]:
+    """{licenses/<distribution>/...: file} of every distribution in `site_packages` whose modules `files` (a
+    runtime's, destinations under site-packages/) carries: the license files of its .dist-info folder."""
+    carried = {dest.split("/")[1].split(".")[0].lower() for dest in files if dest.startswith("site-packages/")}
+    out = {}
+    for info in sorted(site_packages.glob("*.dist-info")):
+        name = info.name.split("-")[0].lower()
+        if name.replace("-", "_") not in carried:
+            continue
+        for license_file in sorted(p for p in info.rglob("*") if p.is_file()
+                                   and re.match(r"(LICEN[CS]E|COPYING|NOTICE|AUTHORS)", p.name, re.I)):
+            out[f"licenses/{name}/{license_file.relative_to(info).as_posix()}"] = license_file
+    return out
+
+
+def _debian_copyright(library: Path) -> Path | None:
+    """/usr/share/doc/<package>/copyright of the Debian package that installed `library`, if dpkg knows it."""
+    if shutil.which("dpkg-query") is None:
+        return None
+    for candidate in {str(library), str(library).replace("/usr/lib/", "/lib/")}:
+        found = subprocess.run(["dpkg-query", "-S", candidate], capture_output=True, text=True)
+        if found.returncode == 0:
+            package = found.stdout.split(":")[0].strip()
+            copyright_file = Path("/usr/share/doc") / package / "copyright"
+            return copyright_file if copyright_file.is_file() else None
+    return None
 
 
 def _package_folder(source: Path) -> list[Path]:

@@ -15,9 +15,11 @@ the target machine and nothing from the host's (one runtime for all, so that a h
     resources/standalone.json           what the target needs and what the runtime holds: the oldest glibc
                                         its binaries run on, the Python and package versions (`describe`)
 
-It carries binaries for linux64 only (the only platform they are built and tested for). The archive is
+With `win64`, the FMUs also carry binaries/win64/ (`orchestrator.win64`: the same design for 64-bit Windows,
+compiled here with mingw-w64, with a Windows runtime of the same packages); else linux64 only. The archive is
 deflated at zlib's default level (the highest saves under 1% of the size and takes twice as long). Building
-one needs a C compiler and a Python with a shared libpython and its headers (`unavailable_reason`).
+one needs a C compiler and a Python with a shared libpython and its headers (`unavailable_reason`), and for
+win64 what `win64.unavailable_reason` names.
 """
 from __future__ import annotations
 
@@ -33,7 +35,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from orchestrator import native_binary, runtime
+from orchestrator import native_binary, runtime, win64 as windows
 
 PLATFORM = "linux64"
 DESCRIPTION = "standalone.json"
@@ -45,13 +47,13 @@ def unavailable_reason() -> str | None:
     return native_binary.unavailable_reason()
 
 
-def make_standalone(fmus: list[Path]) -> None:
+def make_standalone(fmus: list[Path], win64: bool = False) -> None:
     """Rewrite `fmus` (a scene's FMUs, built by orchestrator.build) as standalone FMUs with one runtime, each
     written whole or not at all: units of the same runtime and code share a worker process in a host
-    (worker_channel.h).
+    (worker_channel.h). `win64`: with the win64 binaries and runtime too (module docstring).
 
-    Raises native_binary.ShimUnavailable or runtime.RuntimeUnavailable when something it needs is missing,
-    RuntimeError when a compilation fails.
+    Raises native_binary.ShimUnavailable, runtime.RuntimeUnavailable or win64.Win64Unavailable when something it
+    needs is missing, RuntimeError when a compilation fails.
     """
     fmus = [Path(fmu) for fmu in fmus]
     with tempfile.TemporaryDirectory(prefix="wingsim_standalone_") as tmp:
@@ -59,6 +61,11 @@ def make_standalone(fmus: list[Path]) -> None:
         for fmu, folder in zip(fmus, folders):
             _unpack(fmu, folder)
         held = runtime.collect([folder / "resources" for folder in folders])
+        if win64:
+            kit = windows.kit()
+            windows_files = windows.runtime_files(held, kit)
+            windows_worker = Path(tmp) / "worker.exe"
+            windows.compile_worker(windows_worker, kit)
         key = None
         for folder in folders:
             guid, identifier = native_binary._identity((folder / "modelDescription.xml").read_bytes())
@@ -77,7 +84,12 @@ def make_standalone(fmus: list[Path]) -> None:
                                        worker=(key, _packages(folder / "resources")))
             native_binary.compile_worker(linux / native_binary.worker_name(identifier),
                                          Path(native_binary.shared_libpython()))
-            (folder / "resources" / DESCRIPTION).write_text(json.dumps(_description(held, linux), indent=1))
+            description = _description(held, linux)
+            if win64:
+                windows.add_binaries(folder, guid, identifier, key, _packages(folder / "resources"), windows_worker,
+                                     windows_files)
+                description["win64"] = {"windows": "10 or later, x64", "python": kit.python_version()}
+            (folder / "resources" / DESCRIPTION).write_text(json.dumps(description, indent=1))
         for fmu, folder in zip(fmus, folders):
             partial = fmu.with_name(f".{fmu.name}.standalone")
             try:
@@ -92,17 +104,19 @@ def describe(fmu: Path) -> str:
     with zipfile.ZipFile(fmu) as z:
         unpacked = sum(info.file_size for info in z.infolist())
         held = json.loads(z.read(f"resources/{DESCRIPTION}"))
+    windows = (f" and on 64-bit Windows {held['win64']['windows'].split(',')[0]} (Python {held['win64']['python']})"
+               if "win64" in held else "")
     return (f"{fmu}: standalone, {Path(fmu).stat().st_size / 1e6:.1f} MB ({unpacked / 1e6:.0f} MB unpacked), "
-            f"Python {held['python']}; runs on x86-64 Linux with glibc >= {held['glibc']}")
+            f"Python {held['python']}; runs on x86-64 Linux with glibc >= {held['glibc']}{windows}")
 
 
 def _description(held: runtime.Runtime, linux: Path) -> dict:
     """resources/standalone.json: the oldest glibc the binaries run on, the interpreter and the packages."""
-    packages = {}
+    packages, distributions = {}, importlib.metadata.packages_distributions()
     for dest in held.files:
         parts = dest.split("/")
-        if parts[0] == "site-packages" and len(parts) > 2:
-            for dist in importlib.metadata.packages_distributions().get(parts[1], []):
+        if parts[0] == "site-packages":
+            for dist in distributions.get(parts[1].split(".")[0], []):
                 packages[dist] = importlib.metadata.version(dist)
     return {"glibc": runtime.glibc_needed(linux), "python": ".".join(map(str, sys.version_info[:3])),
             "packages": dict(sorted(packages.items()))}

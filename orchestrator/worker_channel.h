@@ -18,40 +18,58 @@
  * first: waking a process that sleeps on an idle CPU costs tens of microseconds in a virtual machine (the
  * hypervisor must wake that CPU), several times the cost of a small step's exchange, so a waiting side
  * that may run on several CPUs spins (pause, then sched_yield, which gives the CPU to any other runnable
- * process) for up to SPIN_YIELD_NS before it sleeps on a futex; a coupled run keeps both sides within
- * that window. Confined to one CPU, it sleeps at once: the other side cannot run while it spins.
+ * process) before it sleeps on a futex: a worker waiting for the next request up to SPIN_YIELD_NS, a client
+ * waiting for an answer (it has nothing else to do) up to SPIN_CALL_NS; a coupled run keeps both sides
+ * within those windows. Confined to one CPU, it sleeps at once: the other side cannot run while it spins.
  *
  * The data area grows when a message needs more (a serialized FMU state): the writer extends the file
  * and its own mapping and records the new size in the header; the reader maps the file again when the
  * recorded size exceeds its mapping. Values are written in the host's byte order; arrays of 8-byte
  * values start at 8-byte offsets so that a pointer into the area can be handed to an FMI function.
+ *
+ * On Windows (binaries/win64, compiled with mingw-w64) every instance has a worker of its own, started by
+ * its client with the handles on its command line (worker_client_win.c, fmi_worker_win.c): no joining, so
+ * nothing below about sockets applies. The channel and the control page are pagefile-backed sections; the
+ * channel's section reserves CHANNEL_MAX_SIZE and its pages are committed as it grows (the size protocol is
+ * the same). A sleeping side waits on an auto-reset event (`ChannelEvent`) instead of a futex, with the same
+ * "sleeps" flags: the other side sets the event only when the flag says it sleeps.
  */
 #ifndef WINGSIM_WORKER_CHANNEL_H
 #define WINGSIM_WORKER_CHANNEL_H
 
-/* the including file defines _GNU_SOURCE before its first system header (syscall, sched_yield) */
 #include <errno.h>
-#include <linux/futex.h>
-#include <sched.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
+#ifdef _WIN32
+#include <windows.h>
+typedef HANDLE ChannelEvent;               /* the auto-reset event a sleeping side waits on */
+#define NO_EVENT NULL
+#else
+/* the including file defines _GNU_SOURCE before its first system header (syscall, sched_yield) */
+#include <linux/futex.h>
+#include <sched.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
 #include <sys/syscall.h>
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
+typedef int ChannelEvent;                  /* unused: a sleeping side waits on a futex, the word itself */
+#define NO_EVENT 0
+#endif
 
 #define CHANNEL_MAGIC 0x57494e47u  /* "WING" */
 #define CHANNEL_VERSION 2u
 #define CHANNEL_DATA_OFFSET 256    /* after the header, on a cache line of its own */
 #define CHANNEL_INITIAL_SIZE (1u << 20)
 #define SPIN_PAUSE_NS 20000L       /* busy-wait with pause for 20 us, */
-#define SPIN_YIELD_NS 2000000L     /* then yield the CPU in a loop up to 2 ms, then sleep */
+#define SPIN_YIELD_NS 2000000L     /* then yield the CPU in a loop up to 2 ms (a worker), */
+#define SPIN_CALL_NS 20000000L     /* or 20 ms (a client, whose call cannot return sooner), then sleep */
 #define SLEEP_CHECK_NS 20000000L   /* a sleeping client wakes every 20 ms to see whether the worker lives */
+#define CHANNEL_MAX_SIZE ((size_t)1 << 30)   /* Windows: the address space a channel reserves */
 
 /* Operations: one per FMI 2.0 co-simulation function the client forwards. */
 enum {
@@ -89,6 +107,8 @@ typedef struct {
 #define WORKER_CONTROL_SIZE 4096
 #define GUID_SIZE 128
 #define PACKAGES_SIZE 2048
+
+#ifndef _WIN32
 
 /* A client's request to be served (its channel's file passed with it, SCM_RIGHTS). `packages` names the
  * Python code the FMU brings, "name=digest;..." (the slave script, the packages of its resources): a
@@ -158,14 +178,80 @@ static int receive_with_fds(int socket, void *data, size_t size, int *fds, int m
     }
     return got == (ssize_t)size;
 }
+#endif
 
 typedef struct {
+#ifdef _WIN32
+    HANDLE section;                        /* the pagefile-backed section */
+#else
     int fd;                                /* the shared memory file */
-    size_t mapped;                         /* bytes of this side's mapping */
+#endif
+    size_t mapped;                         /* bytes of this side's mapping (Windows: committed in its view) */
     ChannelHeader *head;
     unsigned char *data;                   /* head + CHANNEL_DATA_OFFSET */
 } Channel;
 
+#ifdef _WIN32
+static long long channel_now_ns(void)
+{
+    static LARGE_INTEGER frequency;
+    LARGE_INTEGER t;
+    if (frequency.QuadPart == 0) QueryPerformanceFrequency(&frequency);
+    QueryPerformanceCounter(&t);
+    return (long long)((double)t.QuadPart * 1e9 / (double)frequency.QuadPart);
+}
+
+/* Map the whole section once (address space only), then commit its first `size` bytes in this view: the
+ * other side's commits are its own, each view commits what it touches. */
+static int channel_map(Channel *ch, size_t size)
+{
+    if (ch->head == NULL) {
+        void *p = MapViewOfFile(ch->section, FILE_MAP_READ | FILE_MAP_WRITE, 0, 0, CHANNEL_MAX_SIZE);
+        if (p == NULL) return 0;
+        ch->head = (ChannelHeader *)p;
+        ch->data = (unsigned char *)p + CHANNEL_DATA_OFFSET;
+    }
+    if (size > CHANNEL_MAX_SIZE || VirtualAlloc(ch->head, size, MEM_COMMIT, PAGE_READWRITE) == NULL) return 0;
+    ch->mapped = size;
+    return 1;
+}
+
+static int channel_grow(Channel *ch, size_t size) { return channel_map(ch, size); }
+
+static void channel_close(Channel *ch)
+{
+    if (ch->head != NULL) UnmapViewOfFile(ch->head);
+    if (ch->section != NULL) CloseHandle(ch->section);
+    ch->head = NULL;
+    ch->section = NULL;
+}
+
+static void channel_yield(void) { SwitchToThread(); }
+
+/* Asked once: under Wine every GetProcessAffinityMask is a round trip to its server (tens of
+ * microseconds), which asked before every wait would cost more than the exchange it decides about. */
+static int channel_several_cpus(void)
+{
+    static int known = -1;
+    if (known < 0) {
+        DWORD_PTR process, system;
+        known = !GetProcessAffinityMask(GetCurrentProcess(), &process, &system) || (process & (process - 1)) != 0;
+    }
+    return known;
+}
+
+static void channel_sleep(_Atomic uint32_t *word, uint32_t value, ChannelEvent event, int bounded)
+{
+    (void)word, (void)value;           /* a wake-up that came before the wait left the event set */
+    WaitForSingleObject(event, bounded ? (DWORD)(SLEEP_CHECK_NS / 1000000) : INFINITE);
+}
+
+static void channel_wake(_Atomic uint32_t *word, ChannelEvent event)
+{
+    (void)word;
+    SetEvent(event);
+}
+#else
 static long channel_now_ns(void)
 {
     struct timespec t;
@@ -184,6 +270,44 @@ static int channel_map(Channel *ch, size_t size)
     return 1;
 }
 
+static int channel_grow(Channel *ch, size_t size)
+{
+    return ftruncate(ch->fd, (off_t)size) == 0 && channel_map(ch, size);
+}
+
+static void channel_close(Channel *ch)
+{
+    if (ch->head != NULL) munmap(ch->head, ch->mapped);
+    if (ch->fd >= 0) close(ch->fd);
+    ch->head = NULL;
+    ch->fd = -1;
+}
+
+static void channel_yield(void) { sched_yield(); }
+
+/* Whether this thread may run on more than one CPU: spinning only helps when the other side runs on
+ * another CPU at the same time; on one CPU it only delays the other side. */
+static int channel_several_cpus(void)
+{
+    cpu_set_t cpus;
+    return sched_getaffinity(0, sizeof cpus, &cpus) != 0 || CPU_COUNT(&cpus) > 1;
+}
+
+/* Sleep while `*word` is `value`: up to SLEEP_CHECK_NS when `bounded`. */
+static void channel_sleep(_Atomic uint32_t *word, uint32_t value, ChannelEvent event, int bounded)
+{
+    (void)event;
+    struct timespec timeout = {0, SLEEP_CHECK_NS};
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAIT, value, bounded ? &timeout : NULL, NULL, 0);
+}
+
+static void channel_wake(_Atomic uint32_t *word, ChannelEvent event)
+{
+    (void)event;
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAKE, 1, NULL, NULL, 0);
+}
+#endif
+
 /* Map the file again if the other side has grown it. */
 static int channel_sync(Channel *ch)
 {
@@ -198,7 +322,7 @@ static int channel_reserve(Channel *ch, size_t bytes)
     if (CHANNEL_DATA_OFFSET + bytes <= ch->mapped) return 1;
     size_t size = ch->mapped;
     while (CHANNEL_DATA_OFFSET + bytes > size) size *= 2;
-    if (ftruncate(ch->fd, (off_t)size) != 0 || !channel_map(ch, size)) return 0;
+    if (!channel_grow(ch, size)) return 0;
     atomic_store(&ch->head->size, size);
     return 1;
 }
@@ -212,35 +336,28 @@ static void channel_pause(void)
 #endif
 }
 
-/* Whether this thread may run on more than one CPU: spinning only helps when the other side runs on
- * another CPU at the same time; on one CPU it only delays the other side. */
-static int channel_several_cpus(void)
-{
-    cpu_set_t cpus;
-    return sched_getaffinity(0, sizeof cpus, &cpus) != 0 || CPU_COUNT(&cpus) > 1;
-}
-
-/* Wait until `*word` is not `value`. `alive(arg)` (may be NULL) is asked about every millisecond and
- * when a sleep times out; it returns 0 when the other side is gone, and so does channel_wait. */
-static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps,
-                        int (*alive)(void *), void *arg)
+/* Wait until `*word` is not `value`, spinning up to `spin_ns`, then sleeping (on `event` on Windows).
+ * `alive(arg)` (may be NULL) is asked about every millisecond and when a sleep times out; it returns 0 when the other side is
+ * gone, and so does channel_wait. */
+static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps, ChannelEvent event,
+                        long long spin_ns, int (*alive)(void *), void *arg)
 {
     if (atomic_load_explicit(word, memory_order_acquire) != value) return 1;
-    long start = channel_now_ns(), checked = start;
+    long long start = channel_now_ns(), checked = start;
     for (unsigned k = 1, spin = channel_several_cpus(); spin; ++k) {
         if (atomic_load_explicit(word, memory_order_acquire) != value) return 1;
         if (k % 64 != 0) {
             channel_pause();
             continue;
         }
-        long now = channel_now_ns();
+        long long now = channel_now_ns();
         if (alive != NULL && now - checked > 1000000L) {
             if (!alive(arg)) return 0;
             checked = now;
         }
         if (now - start < SPIN_PAUSE_NS) continue;
-        if (now - start < SPIN_YIELD_NS) {
-            sched_yield();
+        if (now - start < spin_ns) {
+            channel_yield();
             continue;
         }
         break;
@@ -248,8 +365,7 @@ static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t
     for (;;) {
         atomic_store(sleeps, 1);
         if (atomic_load(word) != value) break;
-        struct timespec timeout = {0, SLEEP_CHECK_NS};
-        syscall(SYS_futex, (uint32_t *)word, FUTEX_WAIT, value, alive != NULL ? &timeout : NULL, NULL, 0);
+        channel_sleep(word, value, event, alive != NULL);
         atomic_store(sleeps, 0);
         if (atomic_load(word) != value) break;
         if (alive != NULL && !alive(arg)) return 0;
@@ -259,11 +375,19 @@ static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t
     return 1;
 }
 
-/* Set `*word` to `value` and wake the other side if it sleeps on it. */
-static void channel_signal(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps)
+/* Set `*word` to `value` and wake the other side if it sleeps on it (on `event`, Windows). */
+static void channel_signal(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps, ChannelEvent event)
 {
     atomic_store(word, value);
-    if (atomic_load(sleeps)) syscall(SYS_futex, (uint32_t *)word, FUTEX_WAKE, 1, NULL, NULL, 0);
+    if (atomic_load(sleeps)) channel_wake(word, event);
+}
+
+/* Ring a doorbell that several clients share: an increment, never lost to another client's (a plain store
+ * of the value read plus one could be, and the worker would sleep through a request). */
+static void channel_ring(_Atomic uint32_t *doorbell, _Atomic uint32_t *sleeps, ChannelEvent event)
+{
+    atomic_fetch_add(doorbell, 1);
+    if (atomic_load(sleeps)) channel_wake(doorbell, event);
 }
 
 /* ---- messages: a writer appends to the data area, a reader takes from it in the same order ---- */

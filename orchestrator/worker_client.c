@@ -23,19 +23,25 @@
  * where they read without a message). fmi2GetReal of cached values then answers without an exchange, with
  * the values the worker would give: nothing changes them between the call that sent them and the next
  * call that may change the unit, which invalidates the cache (`epoch`).
+ *
+ * That much is the same on Windows, where only the worker's life differs (worker_client_win.c, included
+ * in place of the Linux section below): every instance starts a worker of its own.
  */
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <spawn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifndef _WIN32
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#endif
 
 #include "fmi2_table.h"
+#include "native_platform.h"
 #include "worker_channel.h"
 
 #if !defined(SHIM_WORKER) || !defined(SHIM_INNER) || !defined(SHIM_WORKER_KEY) || !defined(SHIM_PACKAGES)
@@ -47,14 +53,21 @@
 #define OUTPUT_TAIL 1500                 /* bytes of the worker's output logged when it ends */
 #define MAX_WORKERS 64                   /* workers of one runtime a host process may have */
 
-extern char **environ;
-
 typedef struct {
     Channel ch;                          /* this instance's channel */
+#ifdef _WIN32
+    HANDLE process;                      /* the worker's */
+    DWORD pid;
+    HANDLE job;                          /* kills the worker when the host process ends, however */
+    HANDLE control_section;
+    HANDLE output;                       /* the worker's stdout and stderr: a temporary file */
+#else
     pid_t pid;                           /* the worker's */
     int connection;                      /* to the worker: hangs up when it ends */
-    WorkerControl *control;              /* the worker's doorbell */
     int output;                          /* the worker's stdout and stderr */
+#endif
+    WorkerControl *control;              /* the worker's doorbell */
+    ChannelEvent wake_worker, wake_client;   /* Windows: the events each side sleeps on */
     int gone;                            /* the worker has ended: every call is refused */
     const fmi2CallbackFunctions *callbacks;
     char *name;
@@ -91,6 +104,11 @@ static void tell(const Worker *w, fmi2Status status, const char *format, ...)
 }
 
 /* ---- the worker's life ---------------------------------------------------------------------------- */
+
+#ifdef _WIN32
+#include "worker_client_win.c"
+#else
+extern char **environ;
 
 /* The write ends of the lifelines of the workers this binary started, kept until those workers have
  * ended: closing one would end a worker that still serves instances of other FMUs. */
@@ -321,6 +339,17 @@ static int join(Worker *w, const struct sockaddr_un *address, socklen_t length)
     return 1;
 }
 
+/* This instance's channel: a shared memory file, mapped. */
+static int open_channel(Worker *w)
+{
+    w->ch.fd = high(memfd_create("wingsim-channel", MFD_CLOEXEC));
+    if (w->ch.fd < 0 || ftruncate(w->ch.fd, CHANNEL_INITIAL_SIZE) != 0 || !channel_map(&w->ch, CHANNEL_INITIAL_SIZE)) {
+        tell(w, fmi2Error, "fmi2Instantiate: cannot create the channel to the worker: %s", strerror(errno));
+        return 0;
+    }
+    return 1;
+}
+
 /* Join a worker of this host process that accepts this instance, or start one and join it. */
 static int find_worker(Worker *w, const char *folder)
 {
@@ -367,9 +396,9 @@ static int find_worker(Worker *w, const char *folder)
 static void release(Worker *w, int reaping)
 {
     if (reaping && w->pid > 0 && w->control != NULL) reap(w, WORKER_EXIT_WAIT_MS);
-    if (w->ch.head != NULL) munmap(w->ch.head, w->ch.mapped);
+    channel_close(&w->ch);
     if (w->control != NULL) munmap(w->control, WORKER_CONTROL_SIZE);
-    int fds[] = {w->ch.fd, w->connection, w->output};
+    int fds[] = {w->connection, w->output};
     for (size_t i = 0; i < sizeof fds / sizeof *fds; ++i)
         if (fds[i] >= 0) close(fds[i]);
     for (size_t i = 0; i < w->n_strings; ++i) free(w->strings[i]);
@@ -382,6 +411,7 @@ static void release(Worker *w, int reaping)
     free(w);
     close_ended_lifelines();
 }
+#endif
 
 /* ---- one exchange --------------------------------------------------------------------------------- */
 
@@ -411,8 +441,9 @@ static fmi2Status exchange(Worker *w, Writer *out, Reader *in, const char *funct
     w->ch.head->length = out->pos;
     uint32_t asked = ++w->request;
     atomic_store(&w->ch.head->request, asked);
-    channel_signal(&w->control->doorbell, atomic_load(&w->control->doorbell) + 1, &w->control->worker_sleeps);
-    if (!channel_wait(&w->ch.head->response, asked - 1, &w->ch.head->client_sleeps, worker_alive, w)
+    channel_ring(&w->control->doorbell, &w->control->worker_sleeps, w->wake_worker);
+    if (!channel_wait(&w->ch.head->response, asked - 1, &w->ch.head->client_sleeps, w->wake_client, SPIN_CALL_NS,
+                      worker_alive, w)
         || !channel_sync(&w->ch) || atomic_load(&w->ch.head->response) != asked)
         return ended(w, function);
     *in = (Reader){w->ch.data, 0, w->ch.head->length, 0};
@@ -545,7 +576,9 @@ static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2Stri
     Worker *w = calloc(1, sizeof *w);
     char folder[3800];                   /* room for the file names after it in start_worker */
     if (w == NULL) return NULL;
+#ifndef _WIN32
     w->ch.fd = w->connection = w->output = -1;
+#endif
     w->callbacks = functions;
     w->name = strdup(name);
     if (w->name == NULL) {
@@ -553,13 +586,11 @@ static fmi2Component worker_Instantiate(fmi2String name, fmi2Type type, fmi2Stri
         return NULL;
     }
     if (!binary_folder(folder, sizeof folder)) {
-        tell(w, fmi2Error, "fmi2Instantiate: the folder of the FMU's binary is unknown (dladdr failed)");
+        tell(w, fmi2Error, "fmi2Instantiate: the folder of the FMU's binary is unknown");
         release(w, 0);
         return NULL;
     }
-    w->ch.fd = high(memfd_create("wingsim-channel", MFD_CLOEXEC));
-    if (w->ch.fd < 0 || ftruncate(w->ch.fd, CHANNEL_INITIAL_SIZE) != 0 || !channel_map(&w->ch, CHANNEL_INITIAL_SIZE)) {
-        tell(w, fmi2Error, "fmi2Instantiate: cannot create the channel to the worker: %s", strerror(errno));
+    if (!open_channel(w)) {
         release(w, 0);
         return NULL;
     }

@@ -159,16 +159,20 @@ def test_a_scene_s_units_share_one_worker_and_two_instances_of_one_fmu_do_not(ri
     folders = {name: extract(str(rigid / f"{name}.fmu"), str(tmp_path / name)) for name in ("structure", "aero")}
     units = {name: _fmu2slave(folder, name) for name, folder in folders.items()}
     second = _fmu2slave(folders["structure"], "second")
+
+    def workers() -> set[int]:
+        return {pid for folder in folders.values() for pid in workers_of(folder)} & set(_children())
     try:
         for unit in units.values():
             unit.instantiate()
-        assert len(_children()) == 1
+        assert len(workers()) == 1
         second.instantiate()
-        assert len(_children()) == 2
+        seen = workers()
+        assert len(seen) == 2
     finally:
         for unit in (*units.values(), second):
             unit.freeInstance()
-    assert _children() == []
+    assert not any(Path(f"/proc/{pid}").exists() for pid in seen), "a worker is left, or not reaped (a zombie)"
 
 
 def _fmu2slave(folder, name):

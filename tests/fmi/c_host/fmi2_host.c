@@ -1,5 +1,7 @@
 /* A minimal FMI 2.0 co-simulation host in C, for the tests: it drives unzipped FMUs as a non-Python
- * FMI tool does (dlopen, every status checked, no Python in the process unless an FMU brings it).
+ * FMI tool does (dlopen, every status checked, no Python in the process unless an FMU brings it). It compiles
+ * for Windows too (x86_64-w64-mingw32-gcc; LoadLibrary and GetProcAddress, the FMUs' binaries/win64): the
+ * tests run it under Wine on the win64 binaries of standalone FMUs.
  *
  * Usage: fmi2_host INPUT OUTPUT.csv MODE
  *   MODE  run                  initialize the units, step them from the first to the last communication point
@@ -8,13 +10,16 @@
  *                              steps again, then restore from the bytes (fmi2DeSerializeFMUstate) and run them
  *                              a third time
  *         reinstantiate R      R rounds of "run" in one process, each from fmi2Instantiate to fmi2FreeInstance
+ *         pause K              "run", but after K steps it prints "paused" on stdout and waits for a line on
+ *                              stdin before the rest (a test meanwhile kills a process)
  *
  * INPUT is a text file, one item a line ('#' starts a comment line):
  *   steps N            number of communication steps
  *   step H             communication step (s): the points are t_k = k H for k < N, and t_N = stop
  *   stop T             last communication point (s)
  *   unit NAME          starts a unit; the lines below it, up to the next "unit", describe it:
- *   location DIR       the unzipped FMU (DIR/binaries/linux64/<identifier>.so is loaded)
+ *   location DIR       the unzipped FMU (DIR/binaries/linux64/<identifier>.so is loaded; on Windows
+ *                      DIR/binaries/win64/<identifier>.dll)
  *   identifier ID      CoSimulation modelIdentifier
  *   guid GUID
  *   resources URI      fmuResourceLocation ("file:///.../resources")
@@ -37,12 +42,20 @@
  */
 #define _POSIX_C_SOURCE 200809L
 
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _WIN32
+#include <windows.h>
+#define BINARY_FOLDER "win64"
+#define BINARY_SUFFIX ".dll"
+#else
+#include <dlfcn.h>
 #include <unistd.h>
+#define BINARY_FOLDER "linux64"
+#define BINARY_SUFFIX ".so"
+#endif
 
 #include "fmi2Functions.h"
 
@@ -170,11 +183,38 @@ static void check(Unit *u, fmi2Status status, const char *call, double t)
 }
 
 /* ---- loading ------------------------------------------------------------------------------------------ */
+#ifdef _WIN32
+/* The binary at the UTF-8 `path`, its own imports looked for in its folder first; NULL on failure. */
+static void *open_binary(const char *path)
+{
+    wchar_t wide[4096];
+    if (!MultiByteToWideChar(CP_UTF8, 0, path, -1, wide, 4096))
+        return NULL;
+    return (void *)LoadLibraryExW(wide, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+}
+
+static const char *binary_error(void)
+{
+    static char text[64];
+    snprintf(text, sizeof text, "Windows error %lu", GetLastError());
+    return text;
+}
+
+static void *binary_symbol(void *lib, const char *name)
+{
+    return (void *)GetProcAddress((HMODULE)lib, name);
+}
+#else
+static void *open_binary(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static const char *binary_error(void) { return dlerror(); }
+static void *binary_symbol(void *lib, const char *name) { return dlsym(lib, name); }
+#endif
+
 static void *symbol(Unit *u, const char *name)
 {
-    void *p = dlsym(u->lib, name);
+    void *p = binary_symbol(u->lib, name);
     if (!p)
-        die(1, "unit %s: %s not found in its binary: %s", u->name, name, dlerror());
+        die(1, "unit %s: %s not found in its binary: %s", u->name, name, binary_error());
     return p;
 }
 
@@ -185,10 +225,10 @@ static void load(Unit *u)
     size_t len = strlen(u->location) + strlen(u->identifier) + 32;
     char *path = xcalloc(len, 1);
     const char *version;
-    snprintf(path, len, "%s/binaries/linux64/%s.so", u->location, u->identifier);
-    u->lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, len, "%s/binaries/" BINARY_FOLDER "/%s" BINARY_SUFFIX, u->location, u->identifier);
+    u->lib = open_binary(path);
     if (!u->lib)
-        die(1, "unit %s: cannot load %s: %s", u->name, path, dlerror());
+        die(1, "unit %s: cannot load %s: %s", u->name, path, binary_error());
     free(path);
     LOAD(u, GetVersion);
     LOAD(u, Instantiate);
@@ -361,6 +401,31 @@ static void scenario_state(long k, long m)
 }
 
 /* ---- the input file ----------------------------------------------------------------------------------- */
+/* One line of `f` into *line (grown as needed, without its end); -1 at the end of the file. (getline is POSIX,
+ * and Windows's C library has none.) */
+static long read_line(char **line, size_t *cap, FILE *f)
+{
+    size_t n = 0;
+    int c;
+    while ((c = fgetc(f)) != EOF && c != '\n') {
+        if (n + 2 > *cap) {
+            *cap = *cap ? 2 * *cap : 256;
+            *line = realloc(*line, *cap);
+            if (!*line)
+                die(1, "out of memory");
+        }
+        (*line)[n++] = (char)c;
+    }
+    if (c == EOF && n == 0)
+        return -1;
+    if (!*line) {
+        *cap = 1;
+        *line = xcalloc(1, 1);
+    }
+    (*line)[n] = '\0';
+    return (long)n;
+}
+
 static fmi2ValueReference parse_vr(const char *s, long line)
 {
     char *end;
@@ -388,7 +453,7 @@ static void read_input(const char *path)
     Unit *u = NULL;
     if (!f)
         die(2, "cannot open %s", path);
-    while (getline(&line, &cap, f) >= 0) {
+    while (read_line(&line, &cap, f) >= 0) {
         number++;
         line[strcspn(line, "\r\n")] = '\0';
         key = line + strspn(line, " \t");
@@ -481,7 +546,7 @@ int main(int argc, char **argv)
 {
     size_t i;
     if (argc < 4)
-        die(2, "usage: fmi2_host INPUT OUTPUT.csv run | state K M | reinstantiate R");
+        die(2, "usage: fmi2_host INPUT OUTPUT.csv run | state K M | reinstantiate R | pause K");
     read_input(argv[1]);
     csv = fopen(argv[2], "w");
     if (!csv)
@@ -492,6 +557,21 @@ int main(int argc, char **argv)
     if (!strcmp(argv[3], "run") && argc == 4) {
         start("run");
         run_steps(0, n_steps, "run");
+        finish_all(comm_point(n_steps));
+    } else if (!strcmp(argv[3], "pause") && argc == 5) {
+        long k = atol(argv[4]);
+        char *answer = NULL;
+        size_t cap = 0;
+        if (k < 0 || k > n_steps)
+            die(2, "pause K needs 0 <= K <= steps (%ld)", n_steps);
+        start("run");
+        run_steps(0, k, "run");
+        fflush(csv);
+        printf("paused\n");
+        fflush(stdout);
+        read_line(&answer, &cap, stdin);
+        free(answer);
+        run_steps(k, n_steps, "run");
         finish_all(comm_point(n_steps));
     } else if (!strcmp(argv[3], "state") && argc == 6) {
         scenario_state(atol(argv[4]), atol(argv[5]));
@@ -507,7 +587,7 @@ int main(int argc, char **argv)
             finish_all(comm_point(n_steps));
         }
     } else {
-        die(2, "unknown mode; usage: fmi2_host INPUT OUTPUT.csv run | state K M | reinstantiate R");
+        die(2, "unknown mode; usage: fmi2_host INPUT OUTPUT.csv run | state K M | reinstantiate R | pause K");
     }
     if (fclose(csv) != 0)
         die(1, "writing %s failed", argv[2]);
