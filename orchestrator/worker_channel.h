@@ -128,7 +128,7 @@ typedef struct {
 } JoinReply;
 
 /* The abstract socket address of worker `number` of runtime `key` for host process `host`. */
-static socklen_t worker_address(struct sockaddr_un *address, long host, const char *key, int number)
+__attribute__((unused)) static socklen_t worker_address(struct sockaddr_un *address, long host, const char *key, int number)
 {
     memset(address, 0, sizeof *address);
     address->sun_family = AF_UNIX;
@@ -376,7 +376,7 @@ static int channel_wait(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t
 }
 
 /* Set `*word` to `value` and wake the other side if it sleeps on it (on `event`, Windows). */
-static void channel_signal(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps, ChannelEvent event)
+__attribute__((unused)) static void channel_signal(_Atomic uint32_t *word, uint32_t value, _Atomic uint32_t *sleeps, ChannelEvent event)
 {
     atomic_store(word, value);
     if (atomic_load(sleeps)) channel_wake(word, event);

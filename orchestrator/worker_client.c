@@ -103,6 +103,19 @@ static void tell(const Worker *w, fmi2Status status, const char *format, ...)
                              status >= fmi2Fatal ? "logStatusFatal" : "logStatusError", escaped);
 }
 
+/* The instance's own memory: what both platforms' `release` free last. */
+static void free_worker(Worker *w)
+{
+    for (size_t i = 0; i < w->n_strings; ++i) free(w->strings[i]);
+    free(w->strings);
+    free(w->value);
+    free(w->cached);
+    free(w->listed);
+    free(w->list);
+    free(w->name);
+    free(w);
+}
+
 /* ---- the worker's life ---------------------------------------------------------------------------- */
 
 #ifdef _WIN32
@@ -401,14 +414,7 @@ static void release(Worker *w, int reaping)
     int fds[] = {w->connection, w->output};
     for (size_t i = 0; i < sizeof fds / sizeof *fds; ++i)
         if (fds[i] >= 0) close(fds[i]);
-    for (size_t i = 0; i < w->n_strings; ++i) free(w->strings[i]);
-    free(w->strings);
-    free(w->value);
-    free(w->cached);
-    free(w->listed);
-    free(w->list);
-    free(w->name);
-    free(w);
+    free_worker(w);
     close_ended_lifelines();
 }
 #endif

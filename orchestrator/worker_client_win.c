@@ -246,12 +246,5 @@ static void release(Worker *w, int reaping)
     for (size_t i = 0; i < sizeof handles / sizeof *handles; ++i)
         if (handles[i] != NULL) CloseHandle(handles[i]);
     if (w->output != NULL && w->output != INVALID_HANDLE_VALUE) CloseHandle(w->output);
-    for (size_t i = 0; i < w->n_strings; ++i) free(w->strings[i]);
-    free(w->strings);
-    free(w->value);
-    free(w->cached);
-    free(w->listed);
-    free(w->list);
-    free(w->name);
-    free(w);
+    free_worker(w);
 }
