@@ -11,9 +11,9 @@ What is checked, against behaviour or an independent number:
 - a worker that dies (killed, or crashing in a compiled kernel) gives the host fmi2Fatal with the reason logged,
   and the host lives; no worker is left after fmi2FreeInstance, after the host exits, or after it is killed
   with SIGKILL (the process table is read).
-The slow set adds a host whose Python has numpy 1.26 and no scipy, two builds from different sources in one
-process, and two instances stepping in parallel in libcosim; tests/fmi/test_no_python.py runs the FMUs on a
-system without Python.
+The slow set adds every shipped scene built standalone (its first steps equal the ordinary FMUs'), a host
+whose Python has numpy 1.26 and no scipy, two builds from different sources in one process, and two instances
+stepping in parallel in libcosim; tests/fmi/test_no_python.py runs the FMUs on a system without Python.
 """
 import json
 import os
@@ -90,6 +90,25 @@ def test_the_coupled_deployment_equals_the_ordinary_fmus_bit_for_bit(rigid, buil
     assert standalone.latch_times == ordinary.latch_times
     assert ordinary.series.columns == standalone.series.columns
     assert np.array_equal(ordinary.series.table(), standalone.series.table())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(p.stem for p in SCENES.glob("*.toml")))
+def test_every_shipped_scene_builds_standalone_and_runs_as_the_ordinary_fmus(name, tmp_path):
+    """Each shipped scene, cut to its first ten communication steps, through its standalone FMUs and through its
+    ordinary ones: the same code in another process, so the same numbers bit for bit."""
+    from orchestrator.build import build_fmus
+    step = load_scene(SCENES / f"{name}.toml")["coupling"]["step"]
+    scene = load_scene(SCENES / f"{name}.toml", [f"time.stop={10 * step!r}"])
+    ordinary, standalone = tmp_path / "ordinary", tmp_path / "standalone"
+    build_fmus(scene, ordinary)
+    build_fmus(scene, standalone, standalone=True)
+    first = run_scene(scene, backend="fmu", fmu_dir=ordinary)
+    second = run_scene(scene, backend="fmu", fmu_dir=standalone)
+    assert first.status == second.status == "ok", (first.status, second.status)
+    assert len(first.series.table()) >= 10
+    assert first.series.columns == second.series.columns
+    assert np.array_equal(first.series.table(), second.series.table())
 
 
 def test_the_host_keeps_its_blas_threads_and_signals(rigid, built_fmus, tmp_path):
