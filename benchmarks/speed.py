@@ -7,10 +7,10 @@ each kind of run, then:
 - the run through the ordinary FMUs (`backend="fmu"`, what `wingsim run SCENE` runs) and in-process
   (`backend="direct"`), one BLAS thread, taking turns one communication step each on one CPU (`Lockstep`), so
   that a slow phase of a shared machine falls on both alike;
-- the run through the standalone FMUs (`wingsim run SCENE --standalone`: each unit in a worker process of its
-  own) and in-process, one whole run after the other, on every CPU the process may use, as a user runs them:
-  a worker that waits for its host spins on a CPU of its own for a while (orchestrator/worker_channel.h),
-  which per-step turns would hand to the other run.
+- the run through the standalone FMUs (`wingsim run SCENE --standalone`: the units in a worker process beside
+  the host) and in-process, taking turns of ten steps on every CPU the process may use, as a user runs them:
+  the worker and its host each need a CPU, and a worker that waits for its host spins on its own for a while
+  (orchestrator/worker_channel.h), which a single CPU would take from the other run.
 Stepping: the communication steps after the first (whose turn also loads the units). Real-time factor:
 stepping wall time through the ordinary FMUs / simulated time (TARGET); overhead, for each kind of FMU: wall
 time / its in-process run's - 1, of the stepping (FMU_OVERHEAD_TARGET, STANDALONE_OVERHEAD_TARGET) and of the
@@ -36,28 +36,33 @@ from orchestrator.scene import load_scene
 TARGET = {"deploy_rigid": 0.5, "deploy_flexible": 5.0}   # real-time factor through the FMUs
 FMU_OVERHEAD_TARGET = 0.10
 STANDALONE_OVERHEAD_TARGET = {"deploy_rigid": 0.10, "deploy_flexible": 0.03}
-BACKENDS = ("fmu", "direct")                 # the Lockstep's runs
+# A standalone run's turn: ten steps, so that the worker's wake-up after the other run's turn (a worker sleeps
+# after 2 ms without a call) falls on one step in ten, as a longer pause of the host would in a user's run.
+STANDALONE_STEPS_PER_TURN = 10
 
 
 class Lockstep:
-    """Runs of one scene, one per backend, each in its own thread, taking turns one communication step at a
-    time (`run_scene`'s progress hook hands the turn over after every step); only the thread holding the turn
-    works, the others wait on a condition. Per backend: `turns`, the wall time (s) of each turn (the first
-    from the run's start, loading the units included, then one communication step each); `tail`, from the
-    last turn to the end of `run_scene` (terminating the units); `result`, the RunResult."""
+    """Runs of one scene, one per backend ("fmu" and "standalone" through the FMUs in `fmu_dirs[backend]`,
+    "direct" in-process), each in its own thread, taking turns (`run_scene`'s progress hook hands the turn over):
+    the first step, which loads the units, then `steps_per_turn` communication steps at a time; only the thread
+    holding the turn works, the others wait on a condition. With `one_cpu` every thread runs on one CPU (where
+    the platform lets a process choose: Linux). Per backend: `turns`, the wall time (s) of each step (the first
+    from the run's start, loading the units included); `tail`, from the last step to the end of `run_scene`
+    (terminating the units); `result`, the RunResult."""
 
-    def __init__(self, scene, fmu_dirs):
-        self.scene, self.fmu_dirs = scene, fmu_dirs
-        self.turn, self.done, self.condition = BACKENDS[0], set(), threading.Condition()
-        self.turns, self.tail, self.result = {b: [] for b in BACKENDS}, {}, {}
+    def __init__(self, scene, fmu_dirs, backends, one_cpu, steps_per_turn=1):
+        self.scene, self.fmu_dirs, self.backends, self.one_cpu = scene, fmu_dirs, backends, one_cpu
+        self.steps_per_turn = steps_per_turn
+        self.turn, self.done, self.condition = backends[0], set(), threading.Condition()
+        self.turns, self.tail, self.result = {b: [] for b in backends}, {}, {}
 
     def run(self):
-        """Both runs to their end, on one CPU where the platform lets a process choose (Linux)."""
-        allowed = os.sched_getaffinity(0) if hasattr(os, "sched_setaffinity") else None
+        """Every run to its end."""
+        allowed = os.sched_getaffinity(0) if self.one_cpu and hasattr(os, "sched_setaffinity") else None
         if allowed:
             os.sched_setaffinity(0, {max(allowed)})     # the threads started below inherit the mask
         try:
-            threads = [threading.Thread(target=self._run, args=(b,), daemon=True) for b in BACKENDS]
+            threads = [threading.Thread(target=self._run, args=(b,), daemon=True) for b in self.backends]
             for thread in threads:
                 thread.start()
             for thread in threads:
@@ -78,13 +83,13 @@ class Lockstep:
         finally:                                # also if the run raised: the other run must not wait for it
             with self.condition:
                 self.done.add(backend)
-                self.turn = next((b for b in BACKENDS if b not in self.done), None)
+                self.turn = next((b for b in self.backends if b not in self.done), None)
                 self.condition.notify_all()
 
     def hand_over(self, backend):
         """After a step of `backend`: give the turn to the next unfinished run and wait for it to come back."""
         with self.condition:
-            others = [b for b in BACKENDS if b != backend and b not in self.done]
+            others = [b for b in self.backends if b != backend and b not in self.done]
             if others:
                 self.turn = others[0]
                 self.condition.notify_all()
@@ -98,8 +103,10 @@ class Turns:
         self.lockstep, self.backend, self.resumed = lockstep, backend, time.perf_counter()
 
     def update(self, t):
-        self.lockstep.turns[self.backend].append(time.perf_counter() - self.resumed)
-        self.lockstep.hand_over(self.backend)
+        turns = self.lockstep.turns[self.backend]
+        turns.append(time.perf_counter() - self.resumed)
+        if (len(turns) - 1) % self.lockstep.steps_per_turn == 0:        # the first turn loads the units
+            self.lockstep.hand_over(self.backend)
         self.resumed = time.perf_counter()
 
     def finish(self, t, status):
@@ -110,45 +117,18 @@ def warm_up(scene, fmu_dirs):
     """Ten communication steps of every kind of run, not timed: the first steps of a process pay one-off
     costs (lazy imports, first calls into LAPACK and the FMU libraries) that are not the per-step cost."""
     short = {**scene, "time": {**scene["time"], "stop": 10 * scene["coupling"]["step"]}}
-    for backend in (*BACKENDS, "standalone"):
+    for backend in ("fmu", "standalone", "direct"):
         result = run_scene(short, backend="direct" if backend == "direct" else "fmu", fmu_dir=fmu_dirs.get(backend))
         if result.status != "ok":
             raise RuntimeError(f"{scene['name']} ({backend}, warm-up): {result.status}: {result.message}")
 
 
-def whole_runs(scene, fmu_dirs):
-    """(stepping s, whole run s) of a run through the standalone FMUs, then of the same run in-process (the
-    stepping: the communication steps after the first, from the runs' progress hooks); raises unless both end
-    ok."""
-    out = []
-    for backend, fmu_dir in (("fmu", fmu_dirs["standalone"]), ("direct", None)):
-        clock, start = Clock(), time.perf_counter()
-        result = run_scene(scene, backend=backend, progress=clock, fmu_dir=fmu_dir)
-        if result.status != "ok":
-            raise RuntimeError(f"{scene['name']} ({backend}): {result.status}: {result.message}")
-        out += [clock.steps[-1] - clock.steps[0], time.perf_counter() - start]
-    return out
-
-
-class Clock:
-    """`run_scene`'s progress hook: the time (s, perf_counter) at which each communication step ended."""
-
-    def __init__(self):
-        self.steps = []
-
-    def update(self, t):
-        self.steps.append(time.perf_counter())
-
-    def finish(self, t, status):
-        pass
-
-
-def timed(scene, fmu_dirs):
+def timed(scene, fmu_dirs, backends, one_cpu, steps_per_turn=1):
     """{backend: (stepping s, whole run s, turns)} of one `Lockstep` run of each backend (stepping: the
-    steps after the first; turns: their times, s, one per step); raises unless both runs end ok."""
-    lockstep = Lockstep(scene, fmu_dirs).run()
+    steps after the first; turns: their times, s, one per step); raises unless every run ends ok."""
+    lockstep = Lockstep(scene, fmu_dirs, backends, one_cpu, steps_per_turn).run()
     out = {}
-    for backend in BACKENDS:
+    for backend in backends:
         result = lockstep.result.get(backend)
         if result is None:
             raise RuntimeError(f"{scene['name']} ({backend}): the run raised (its traceback is printed above)")
@@ -163,7 +143,7 @@ def figures(row):
     """(simulated s, stepping s through the ordinary FMUs, real-time factor, stepping s direct, overhead of the
     stepping and of the whole run through the ordinary FMUs, the same two through the standalone FMUs) of a
     result row (scene, simulated, stepping and whole run through the ordinary FMUs and direct in lockstep,
-    stepping and whole run through the standalone FMUs and direct after it)."""
+    stepping and whole run through the standalone FMUs and direct in lockstep)."""
     _, simulated, step_fmu, whole_fmu, step_direct, whole_direct, step_sa, whole_sa, step_alone, whole_alone = row
     return (simulated, step_fmu, step_fmu / simulated, step_direct, step_fmu / step_direct - 1,
             whole_fmu / whole_direct - 1, step_sa / step_alone - 1, whole_sa / whole_alone - 1)
@@ -243,9 +223,11 @@ def main(argv=None):
             print(f"{name}: {stop:g} s simulated ...", flush=True)
             warm_up(scene, fmu_dirs)
             for _ in range(args.repeat):
-                times = timed(scene, fmu_dirs)
-                rows.append((name, stop - step, *(value for b in BACKENDS for value in times[b][:2]),
-                             *whole_runs(scene, fmu_dirs)))
+                times = timed(scene, fmu_dirs, ("fmu", "direct"), one_cpu=True)
+                alone = timed(scene, fmu_dirs, ("standalone", "direct"), one_cpu=False,
+                              steps_per_turn=STANDALONE_STEPS_PER_TURN)
+                rows.append((name, stop - step, *times["fmu"][:2], *times["direct"][:2],
+                             *alone["standalone"][:2], *alone["direct"][:2]))
                 fmu_turns.setdefault(name, []).append(times["fmu"][2])
     if rows:
         met = print_tables(rows, fmu_turns, args.repeat)
