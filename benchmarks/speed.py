@@ -16,7 +16,8 @@ stepping wall time through the ordinary FMUs / simulated time (TARGET); overhead
 time / its in-process run's - 1, of the stepping (FMU_OVERHEAD_TARGET, STANDALONE_OVERHEAD_TARGET) and of the
 whole run. --repeat N runs each scene N times and adds per scene the ranges over the runs, the runs within
 the targets, the real-time factor of the fastest turn of each step summed over the steps (a floor that drops
-the machine's slow phases), and the median of each figure (docs/performance.md's table, from --repeat 5).
+the machine's slow phases) and the standalone overhead of those floors, and the median of each figure
+(docs/performance.md's table, from --repeat 5).
 """
 import argparse
 import os
@@ -160,9 +161,9 @@ def within(name, figure) -> bool:
             and standalone <= STANDALONE_OVERHEAD_TARGET.get(name, np.inf))
 
 
-def print_tables(rows, fmu_turns, repeat):
-    """Every run's figures, and with `repeat` > 1 the spread and the median per scene; True when every run met
-    its targets."""
+def print_tables(rows, step_times, repeat):
+    """Every run's figures, and with `repeat` > 1 the spread and the median per scene (`step_times`: per scene,
+    per kind of run, the wall times of the steps of each run); True when every run met its targets."""
     met, lines = True, []
     for row in rows:
         figure = figures(row)
@@ -176,14 +177,16 @@ def print_tables(rows, fmu_turns, repeat):
                         "whole run, FMUs", "whole run, standalone"], lines))
     if repeat > 1:
         spread, median = [], []
-        for name, turns in fmu_turns.items():
+        for name, steps in step_times.items():
             runs = np.array([figures(row) for row in rows if row[0] == name])
             factors, overheads, standalone = runs[:, 2], runs[:, 4], runs[:, 6]
             ok = "-" if name not in TARGET else sum(within(name, figure) for figure in runs)
-            fastest = np.min(turns, axis=0).sum() / runs[0, 0]
-            spread.append([name, len(turns), f"{factors.min():.2f}-{factors.max():.2f}", target(name), ok,
-                           f"{fastest:.2f}", f"{100 * overheads.min():+.1f}..{100 * overheads.max():+.1f}%",
-                           f"{100 * standalone.min():+.1f}..{100 * standalone.max():+.1f}%"])
+            fastest = {kind: np.min(times, axis=0).sum() for kind, times in steps.items()}
+            spread.append([name, len(runs), f"{factors.min():.2f}-{factors.max():.2f}", target(name), ok,
+                           f"{fastest['fmu'] / runs[0, 0]:.2f}",
+                           f"{100 * overheads.min():+.1f}..{100 * overheads.max():+.1f}%",
+                           f"{100 * standalone.min():+.1f}..{100 * standalone.max():+.1f}%",
+                           f"{100 * (fastest['standalone'] / fastest['direct beside standalone'] - 1):+.1f}%"])
             simulated, step_fmu, factor, step_direct, overhead, whole, sa, whole_sa = np.median(runs, axis=0)
             median.append([name, f"{simulated:.3g}", f"{step_fmu:.3g}", f"{factor:.2g}", target(name),
                            f"{step_direct:.3g}", f"{100 * overhead:+.1f}%", f"{100 * sa:+.1f}%",
@@ -191,7 +194,8 @@ def print_tables(rows, fmu_turns, repeat):
                            f"{100 * whole:+.1f}%", f"{100 * whole_sa:+.1f}%"])
         print("\n" + table(["scene", "runs", "real-time factor, FMUs (min-max)", "target", "runs within targets",
                             "fastest turn of each step, FMUs (real-time factor)", "overhead, FMUs (min-max)",
-                            "overhead, standalone FMUs (min-max)"], spread))
+                            "overhead, standalone FMUs (min-max)",
+                            "overhead, standalone FMUs, fastest turn of each step"], spread))
         print("\nMedian over the runs of each scene:\n\n" + table(
             ["scene", "simulated time (s)", "stepping through the FMUs (s)", "real-time factor", "target",
              "stepping, direct (s)", "overhead, FMUs", "overhead, standalone FMUs", "target",
@@ -209,7 +213,7 @@ def main(argv=None):
     process_setup()                                     # one BLAS thread, the allocator as wingsim runs it
     if args.repeat < 1:
         parser.error(f"--repeat must be at least 1, got {args.repeat}")
-    rows, fmu_turns = [], {}
+    rows, step_times = [], {}
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.scenes:
             scene = load_scene(ROOT / "scenes" / f"{name}.toml", [f"time.stop={args.stop}"] if args.stop else [])
@@ -228,9 +232,11 @@ def main(argv=None):
                               steps_per_turn=STANDALONE_STEPS_PER_TURN)
                 rows.append((name, stop - step, *times["fmu"][:2], *times["direct"][:2],
                              *alone["standalone"][:2], *alone["direct"][:2]))
-                fmu_turns.setdefault(name, []).append(times["fmu"][2])
+                for kind, steps in (("fmu", times["fmu"][2]), ("standalone", alone["standalone"][2]),
+                                    ("direct beside standalone", alone["direct"][2])):
+                    step_times.setdefault(name, {}).setdefault(kind, []).append(steps)
     if rows:
-        met = print_tables(rows, fmu_turns, args.repeat)
+        met = print_tables(rows, step_times, args.repeat)
         print(f"\nall targets met: {'yes' if met else 'no'} (real-time factors as above; overhead of the stepping "
               f"through the ordinary FMUs <= {100 * FMU_OVERHEAD_TARGET:.0f}%, through the standalone FMUs as above"
               f"{', in every run' if args.repeat > 1 else ''})")
