@@ -65,12 +65,9 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
     anything is built, when standalone FMUs (or their win64 binaries) cannot be built here
     (`standalone_fmu.unavailable_reason`, `win64.unavailable_reason`).
     """
-    if win64 and not standalone:
-        raise BuildError("win64 binaries are built for standalone FMUs only")
-    if standalone and standalone_fmu.unavailable_reason() is not None:
-        raise BuildError(f"standalone FMUs cannot be built here: {standalone_fmu.unavailable_reason()}")
-    if win64 and windows.unavailable_reason() is not None:
-        raise BuildError(f"win64 binaries cannot be built here: {windows.unavailable_reason()}")
+    refused = refusal(standalone, win64)
+    if refused is not None:
+        raise BuildError(refused[1])
     kinds = units_needed(scene)
     for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
         for _, source in _sources(kind):
@@ -92,6 +89,20 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
             raise BuildError(f"building the standalone FMUs of scene {scene.get('name', '?')!r} into {out_dir} "
                              f"failed: {type(exc).__name__}: {exc}") from exc
     return built
+
+
+def refusal(standalone: bool, win64: bool) -> tuple[str, str] | None:
+    """Why FMUs of this kind cannot be built here, as (the option to blame, "--standalone" or "--win64", the
+    reason), or None: win64 binaries without standalone FMUs, or what this machine lacks for either."""
+    if win64 and not standalone:
+        return "--win64", "win64 binaries are added to standalone FMUs only: give --standalone too"
+    missing = standalone_fmu.unavailable_reason() if standalone else None
+    if missing is not None:
+        return "--standalone", f"standalone FMUs cannot be built here: {missing}"
+    missing = windows.unavailable_reason() if win64 else None
+    if missing is not None:
+        return "--win64", f"win64 binaries cannot be built here: {missing}"
+    return None
 
 
 def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> bool:

@@ -191,20 +191,12 @@ def cmd_build(args: argparse.Namespace) -> int:
 def _require_standalone(standalone: bool, win64: bool = False) -> None:
     """Refuse --standalone, before anything is written, where standalone FMUs cannot be built, and --win64 without
     --standalone or where its binaries cannot be built (the cross compiler missing, the downloads failing, which
-    are fetched here the first time): exit 2."""
-    if win64 and not standalone:
-        raise SceneError("--win64", True, "win64 binaries are added to standalone FMUs only: give --standalone too")
-    if not standalone:
-        return
-    from orchestrator.standalone import unavailable_reason
+    are fetched here the first time): exit 2 (orchestrator.build.refusal)."""
+    from orchestrator.build import refusal
 
-    if unavailable_reason() is not None:
-        raise SceneError("--standalone", True, f"standalone FMUs cannot be built here: {unavailable_reason()}")
-    if win64:
-        from orchestrator import win64 as windows
-
-        if windows.unavailable_reason() is not None:
-            raise SceneError("--win64", True, f"win64 binaries cannot be built here: {windows.unavailable_reason()}")
+    refused = refusal(standalone, win64)
+    if refused is not None:
+        raise SceneError(refused[0], True, refused[1])
 
 
 def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:

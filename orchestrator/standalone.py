@@ -61,6 +61,8 @@ def make_standalone(fmus: list[Path], win64: bool = False) -> None:
         for fmu, folder in zip(fmus, folders):
             _unpack(fmu, folder)
         held = runtime.collect([folder / "resources" for folder in folders])
+        worker = Path(tmp) / "worker"                # one program serves every unit: compiled once
+        native_binary.compile_worker(worker, Path(native_binary.shared_libpython()))
         if win64:
             kit = windows.kit()
             windows_files = windows.runtime_files(held, kit)
@@ -79,15 +81,12 @@ def make_standalone(fmus: list[Path], win64: bool = False) -> None:
                 os.replace(linux / f"{identifier}.so", inner)
             runtime.write(held, linux / "runtime")
             _compile_sources(folder / "resources")
-            key = key or _runtime_key(linux / "runtime")
-            native_binary.compile_shim(linux / f"{identifier}.so", guid, identifier,
-                                       worker=(key, _packages(folder / "resources")))
-            native_binary.compile_worker(linux / native_binary.worker_name(identifier),
-                                         Path(native_binary.shared_libpython()))
+            key, packages = key or _runtime_key(linux / "runtime"), _packages(folder / "resources")
+            native_binary.compile_shim(linux / f"{identifier}.so", guid, identifier, worker=(key, packages))
+            shutil.copy2(worker, linux / native_binary.worker_name(identifier))
             description = _description(held, linux)
             if win64:
-                windows.add_binaries(folder, guid, identifier, key, _packages(folder / "resources"), windows_worker,
-                                     windows_files)
+                windows.add_binaries(folder, guid, identifier, key, packages, windows_worker, windows_files)
                 description["win64"] = {"windows": "10 or later, x64", "python": kit.python_version()}
             (folder / "resources" / DESCRIPTION).write_text(json.dumps(description, indent=1))
         for fmu, folder in zip(fmus, folders):

@@ -3,7 +3,8 @@
 - the C FMI 2.0 host of tests/fmi/c_host/ (compiled by the ``c_host`` fixture of conftest.py): ``run_c_host``;
 - its reference, the same call sequence through fmpy's FMU2Slave in this process: ``FmpyHost``, ``fmpy_run``;
 - the FMI Compliance Checker (the ``fmu_checker`` fixture): ``check``, ``assert_clean``, and
-  ``assert_replayed_by_fmpy``, which replays the checker's output through fmpy (tests/fmi/fmpy_replay.py).
+  ``assert_replayed_by_fmpy``, which replays the checker's output through fmpy (tests/fmi/fmpy_replay.py);
+- the processes a standalone FMU starts, from the process table: ``processes``, ``all_gone``.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -236,3 +238,32 @@ def assert_replayed_by_fmpy(fmu: Path, out_csv: Path, rows: int) -> None:
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert f"rows={rows}" in proc.stdout
     assert "max_abs_difference=0.0" in proc.stdout, proc.stdout
+
+
+# ---- the workers of standalone FMUs, from the process table ------------------------------------------------
+def processes(command_matches, zombies: bool = True) -> list[int]:
+    """The pids of the processes whose command line (bytes, its arguments separated by NUL) `command_matches`
+    accepts; zombies (ended, not yet reaped) too unless `zombies` is False."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes()
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if command_matches(command) and (zombies or state != "Z"):
+            found.append(int(entry.name))
+    return found
+
+
+def all_gone(find, patience: float) -> bool:
+    """Whether `find()` (a list of pids) comes out empty within `patience` s, the time the kernel may take to end
+    the processes."""
+    deadline = time.monotonic() + patience
+    while find():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True

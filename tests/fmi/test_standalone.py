@@ -21,7 +21,6 @@ import signal
 import struct
 import subprocess
 import sys
-import time
 import zipfile
 from pathlib import Path
 
@@ -29,6 +28,7 @@ import numpy as np
 import pytest
 from fmpy import extract
 
+from fmi_hosts import all_gone, processes
 from orchestrator import runtime
 from orchestrator.master import run_scene
 from orchestrator.scene import load_scene
@@ -53,16 +53,7 @@ def host(folder, *actions, env=None, timeout=300):
 
 def workers_of(folder) -> list[int]:
     """The processes running a program of the unpacked FMU `folder` (its workers), from the process table."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                program = (entry / "cmdline").read_bytes().split(b"\0")[0]
-            except OSError:
-                continue
-            if program.startswith(f"{folder}/".encode()):
-                found.append(int(entry.name))
-    return found
+    return processes(lambda command: command.split(b"\0")[0].startswith(f"{folder}/".encode()))
 
 
 def test_the_fmu_carries_linux64_binaries_and_every_library_they_need(rigid, tmp_path):
@@ -212,12 +203,7 @@ def _children() -> list[int]:
 
 def _gone(folder, patience=30.0) -> bool:
     """Whether the workers of `folder` are all gone, waiting up to `patience` s for the kernel to end them."""
-    deadline = time.monotonic() + patience
-    while workers_of(folder):
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
+    return all_gone(lambda: workers_of(folder), patience)
 
 
 def _text_section(library: Path) -> tuple[int, int]:

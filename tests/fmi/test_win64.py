@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmi_hosts import coupled_units, run_c_host
+from fmi_hosts import all_gone, coupled_units, processes, run_c_host
 from orchestrator import native_binary
 from orchestrator.build import build_fmus
 from orchestrator.master import run_scene
@@ -159,27 +159,11 @@ def workers(folder: Path) -> list[int]:
     """Linux pids of the running (not zombie) processes whose command line names a worker of the unpacked FMUs
     under `folder`: a Windows process under Wine is a Linux process with its Windows command line."""
     mark = windows_path(folder).encode()
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            command = (entry / "cmdline").read_bytes()
-            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
-            continue
-        if mark in command and b"_worker.exe" in command and state != "Z":
-            found.append(int(entry.name))
-    return found
+    return processes(lambda command: mark in command and b"_worker.exe" in command, zombies=False)
 
 
 def gone(folder: Path, patience: float = 20.0) -> bool:
-    deadline = time.monotonic() + patience
-    while workers(folder):
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
+    return all_gone(lambda: workers(folder), patience)
 
 
 # ---- the tests --------------------------------------------------------------------------------------------
