@@ -22,7 +22,7 @@ from report import ROOT, process_setup
 
 from aero_fmu.solver import AeroSolver
 from fmu_common.scene_schema import AERO_MODELS
-from orchestrator.scene import load_scene, resolve_scene
+from orchestrator.scene.load import load_scene, resolve_scene
 from structure_fmu.solver import StructureSolver
 
 MODELS = tuple(m for m in AERO_MODELS if m != "none")

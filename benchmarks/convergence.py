@@ -3,7 +3,7 @@ panels N: the curves of Otsuka et al. 2019, Sec. VII.A (Eqs. 28-30, Fig. 12).
 
     python benchmarks/convergence.py [--quick] [--jobs 2] [--resume] [--no-plots] [--scenes heaving_wing deploy_rigid]
 
-One parameter varied at a time; the error of a run against its reference is orchestrator.metrics.cl_error_pct
+One parameter varied at a time; the error of a run against its reference is orchestrator.studies.metrics.cl_error_pct
 over the communication points after t = 0 (every run's time grid is a subset of its reference's).
 heaving_wing (Otsuka et al. 2019, Sec. VI.D; the scene's M = 10, N = 5, L_w = 25, step 0.1 s = c/(M V),
 three periods): L_w = 1 ... 30 against the whole wake (aero.wake_length = inf); M = 1 ... 20 against M = 20
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from report import Report, table
 
-from orchestrator.metrics import cl_error_pct, converged_from
+from orchestrator.studies.metrics import cl_error_pct, converged_from
 
 REPORT = Report("convergence", __doc__, Report.root / "docs")
 PAPER_CHOICE = {"L_w": 5, "M": 2, "N": 7}          # Otsuka et al. 2019, Sec. VII.A, for the deployment
@@ -62,7 +62,7 @@ class Run:
         return f"{self.scene} {' '.join(self.overrides)}"
 
     def load(self):
-        from orchestrator.scene import load_scene
+        from orchestrator.scene.load import load_scene
 
         whole = ["aero.wake_length=inf"] if self.whole_wake else []
         return load_scene(REPORT.root / "scenes" / f"{self.scene}.toml", [*self.overrides, *whole])
@@ -101,7 +101,7 @@ def cost(run):
 
 def work(run):
     """The run's times (s), CL and wall time (s); an error unless the run ended ok."""
-    from orchestrator.master import run_scene
+    from orchestrator.run.master import run_scene
 
     result = run_scene(run.load(), backend="direct")
     if result.status != "ok":

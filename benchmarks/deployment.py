@@ -9,7 +9,7 @@ Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --bac
      structure.damping_model is not "deformation", also 0, 10, 20 m/s and still air with it;
   3. deploy_flexible at 10 m/s with every aero.model.
 --quick: rigid at 0, 15, 30 m/s, flexible at 0, 10, 20 m/s, part 3 with strip and uvlm-flat.
-The figures of merit are orchestrator.metrics'; the report (templates/deployment.md) defines them.
+The figures of merit are orchestrator.studies.metrics'; the report (templates/deployment.md) defines them.
 """
 import time
 from dataclasses import dataclass
@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from report import Report, fmt, ratio, status
 
-from orchestrator import metrics
-from orchestrator.scene import load_scene
+from orchestrator.studies import metrics
+from orchestrator.scene.load import load_scene
 
 REPORT = Report("deployment", __doc__)
 SPAN = 0.3                                            # m, deployed span (two 0.15 m bodies)
@@ -70,8 +70,8 @@ def plan(quick):
 
 def work(job):
     """The figures of one run (s, mm, microstrain, % of span), its CPU time (s) and the curves of the figures."""
-    from orchestrator.master import run_scene
-    from orchestrator.results import summarize
+    from orchestrator.run.master import run_scene
+    from orchestrator.output.results import summarize
 
     cpu = time.process_time()
     result = run_scene(load(job.scene, job.overrides), backend="direct")

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 from report import ROOT, Report, fmt, status
 
-from orchestrator import metrics
-from orchestrator.master import run_scene
-from orchestrator.results import summarize
-from orchestrator.scene import load_scene
+from orchestrator.studies import metrics
+from orchestrator.run.master import run_scene
+from orchestrator.output.results import summarize
+from orchestrator.scene.load import load_scene
 
 REPORT = Report("fidelity", __doc__)
 FIDELITIES = ("strain-based", "flexible", "rigid")

@@ -45,7 +45,7 @@ QUICK_STOP = {"spin_up": 5.0, "rotating_beam": 0.2}
 
 # ------------------------------------------------------------------------------------------------ scene data
 def _scene(path, stop, overrides=()):
-    from orchestrator.scene import load_scene
+    from orchestrator.scene.load import load_scene
     return load_scene(path, [*([f"time.stop={stop!r}"] if stop is not None else []), *overrides])
 
 

@@ -81,7 +81,7 @@ def time_step(chordwise):
 
 def wingsim_scene(model, chordwise, spanwise, steps):
     """The resolved wingsim scene: the AR-8 wing held at ALPHA_DEG by a prescribed motion, whole wake kept."""
-    from orchestrator.scene import resolve_scene
+    from orchestrator.scene.load import resolve_scene
 
     dt = time_step(chordwise)
     raw = {"time": {"stop": steps * dt}, "coupling": {"step": dt},

@@ -1,4 +1,4 @@
-"""What the study scripts share: their command line, their record (orchestrator.study), figures, tables and
+"""What the study scripts share: their command line, their record (orchestrator.studies.study), figures, tables and
 the markdown report rendered from benchmarks/templates/<name>.md (Jinja2)."""
 import argparse
 import math
@@ -11,12 +11,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fmu_common.threads import limit_blas_threads  # noqa: E402 - after the path: a checkout runs without install
-from orchestrator import allocator  # noqa: E402
+from orchestrator.run import allocator  # noqa: E402
 
 
 def process_setup() -> None:
     """This process as wingsim's own runs set theirs up: one BLAS thread, the allocator thresholds
-    (orchestrator.allocator)."""
+    (orchestrator.run.allocator)."""
     limit_blas_threads()
     allocator.tune()
 
@@ -58,8 +58,8 @@ class Report:
         return self.args
 
     def run(self, tasks, work, **options):
-        """{task: result}: orchestrator.study.Study.run in --jobs workers, resumed with --resume."""
-        from orchestrator.study import Study
+        """{task: result}: orchestrator.studies.study.Study.run in --jobs workers, resumed with --resume."""
+        from orchestrator.studies.study import Study
 
         if self._study is None:
             path = RECORDS / f"{self.name}{'_quick' if self.args.quick else ''}.jsonl"

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from report import ROOT, Report, fmt, status
 
-from orchestrator.master import RunResult, StructureCoordinates, run_scene
-from orchestrator.mechanism_view import instant_indices, write_mechanism_view
-from orchestrator.scene import load_scene
+from orchestrator.run.master import RunResult, StructureCoordinates, run_scene
+from orchestrator.output.mechanism_view import instant_indices, write_mechanism_view
+from orchestrator.scene.load import load_scene
 
 REPORT = Report("scissor", __doc__)
 RHOS = (1.0, 0.8, 0.5, 0.0)              # rho_inf of the array (Peng et al. 2019); the scene's is run first

@@ -10,7 +10,7 @@ each kind of run, then:
 - the run through the standalone FMUs (`wingsim run SCENE --standalone`: the units in a worker process beside
   the host) and in-process, taking turns of ten steps on every CPU the process may use, as a user runs them:
   the worker and its host each need a CPU, and a worker that waits for its host spins on its own for a while
-  (orchestrator/worker_channel.h), which a single CPU would take from the other run.
+  (orchestrator/build/worker_channel.h), which a single CPU would take from the other run.
 Stepping: the communication steps after the first (whose turn also loads the units). Real-time factor:
 stepping wall time through the ordinary FMUs / simulated time (TARGET); overhead, for each kind of FMU: wall
 time / its in-process run's - 1, of the stepping (FMU_OVERHEAD_TARGET, STANDALONE_OVERHEAD_TARGET) and of the
@@ -30,9 +30,9 @@ from pathlib import Path
 import numpy as np
 from report import ROOT, process_setup, table
 
-from orchestrator.build import build_fmus
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.build.fmus import build_fmus
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 
 TARGET = {"deploy_rigid": 0.5, "deploy_flexible": 5.0}   # real-time factor through the FMUs
 FMU_OVERHEAD_TARGET = 0.10

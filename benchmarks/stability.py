@@ -7,7 +7,7 @@ scenes/stability_wing.toml, a clamped wing under a sudden tip load (templates/st
 means), in five parts: 1. the largest stable structure.step against Young's modulus; 2. a map of flow speed x
 air density per coupling algorithm (the unstable runs the units did not report run on to RUN_ON_STOP);
 3. the largest stable coupling.step against density; 4. structure steps per coupling step; 5. flutter at
-60 m/s. The estimates the map is compared with are orchestrator.stability's. --quick: a few of each.
+60 m/s. The estimates the map is compared with are orchestrator.studies.stability's. --quick: a few of each.
 """
 import math
 import re
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 from report import Report, fmt, span, table
 
-from orchestrator import stability
-from orchestrator.scene import load_scene
-from orchestrator.stability import grid_probe, grid_step as step_of
+from orchestrator.studies import stability
+from orchestrator.scene.load import load_scene
+from orchestrator.studies.stability import grid_probe, grid_step as step_of
 
 REPORT = Report("stability", __doc__)
 SCENE = REPORT.root / "scenes" / "stability_wing.toml"
@@ -44,7 +44,7 @@ SYMBOL = {"": "S", "solver": "D", "runaway": "R", "energy": "E", "displacement":
 
 
 def probe(overrides, watch=True):
-    """One run of the scene with `overrides` (orchestrator.stability.sudden_load_run at the tip, stopped at
+    """One run of the scene with `overrides` (orchestrator.studies.stability.sudden_load_run at the tip, stopped at
     RUNAWAY_FACTOR P delta_s if `watch`) and twist_max (deg): the tip chord line turning out of its plane at rest."""
     record, series = stability.sudden_load_run(load_scene(SCENE, overrides), "wing", "tip",
                                                RUNAWAY_FACTOR if watch else None, RUNAWAY)
@@ -165,7 +165,7 @@ def describe(task, out):
 
 
 def estimates():
-    """The numbers the coupling map is compared with (orchestrator.stability, independent of the runs; SI
+    """The numbers the coupling map is compared with (orchestrator.studies.stability, independent of the runs; SI
     units, mu_* per kg/m^3 of air, mu_crit_* -), with divergence_speed(density factor) (m/s) and
     onset_factor(mu_crit), the density factor at which the lattice's largest added-mass ratio reaches it."""
     scene = load_scene(SCENE, ["aero.model=uvlm-flat"])

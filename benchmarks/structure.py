@@ -14,9 +14,9 @@ from pathlib import Path
 from report import ROOT, process_setup, table
 from speed import timed, warm_up
 
-from orchestrator.build import build_fmus
-from orchestrator.scene import load_scene
-from orchestrator.stability import frequency_range, rk4_step_limit
+from orchestrator.build.fmus import build_fmus
+from orchestrator.scene.load import load_scene
+from orchestrator.studies.stability import frequency_range, rk4_step_limit
 
 
 def main():

@@ -6,7 +6,7 @@ with the Pareto front, and the convergence findings of Otsuka et al. 2019 (Sec. 
 
 scenes/deploy_flexible.toml as shipped is the base; one factor at a time is changed (FACTORS, levels from
 the least to the most accurate), plus the most accurate run (every factor at its last level). Errors
-(orchestrator.metrics) are against the most accurate run of the same speed, and within each factor against
+(orchestrator.studies.metrics) are against the most accurate run of the same speed, and within each factor against
 its own most accurate level; the report (templates/tradeoff.md) defines them. --cost cpu draws the Pareto
 fronts against CPU time instead of wall time. --quick: time.stop 0.05 s, 10 m/s, QUICK_FACTORS. Speeds or
 a stop other than the defaults write to results/studies/tradeoff/.
@@ -18,8 +18,8 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 from report import RECORDS, Report, fmt, ratio, status
 
-from orchestrator import metrics
-from orchestrator.scene import load_scene
+from orchestrator.studies import metrics
+from orchestrator.scene.load import load_scene
 
 REPORT = Report("tradeoff", __doc__)
 SCENE = REPORT.root / "scenes" / "deploy_flexible.toml"
@@ -180,13 +180,13 @@ def cost(job):
 def warm_up():
     """Import the units in a worker before its first run, so that no run's wall or CPU time includes them."""
     import fmu_common.topology  # noqa: F401
-    import orchestrator.units  # noqa: F401
+    import orchestrator.run.units  # noqa: F401
 
 
 def work(job):
     """A run's deployment time (s), peak bending (mm), its (time (s), CL) history and its CPU time (s)."""
-    from orchestrator.master import run_scene
-    from orchestrator.results import summarize
+    from orchestrator.run.master import run_scene
+    from orchestrator.output.results import summarize
 
     cpu = time.process_time()
     result = run_scene(load_scene(SCENE, [f"time.stop={job.stop!r}", f"flow.speed={job.speed!r}",

@@ -9,7 +9,7 @@ slave module that imports it still exposes exactly one concrete slave.
 Errors. Every FMI call is answered as the FMI 2.0 standard says, without raising: a call the standard
 forbids in the unit's state, or with arguments it cannot use, is refused by logging a message at error
 status that names the problem, and returns normally with the state unchanged (do_step returns False). The
-FMU's binary (a shim over pythonfmu's, orchestrator/native_binary.py) returns the worst status logged during a
+FMU's binary (a shim over pythonfmu's, orchestrator/build/native_binary.py) returns the worst status logged during a
 call, so a refused call answers fmi2Error; with pythonfmu's own binary (no C compiler at build time) it
 answers fmi2OK (fmi2Discard for do_step) with the error logged, and a host must read the log. Refused:
   * fmi2Get/SetInteger, -Boolean, -String on a value reference that is not a variable of that type (every

@@ -110,7 +110,7 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     matrices of the bound panels' size (influence, their contractions, the LU, temporaries); aero input
     record: e and de of each aero step, at most AERO_INPUT_RECORD_VALUES numbers; structure coordinate record:
     E of each communication step (a numpy row and its time, a float in a list: ROW_BYTES + 32 bytes beyond
-    its numbers), thinned to about AERO_INPUT_RECORD_VALUES numbers (``orchestrator.master.StructureCoordinates``);
+    its numbers), thinned to about AERO_INPUT_RECORD_VALUES numbers (``orchestrator.run.master.StructureCoordinates``);
     shed wake: 4 numbers per corner (position, circulation) of at most MAX_WAKE_ROWS rows, in about 8 copies
     (states saved for implicit coupling, the velocities of a free wake). The factors were measured on the
     shipped scenes refined (structure: 50 and 100 elements per body; aero: 1024 and 2048 panels).

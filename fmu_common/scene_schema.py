@@ -3,7 +3,7 @@ against it and returns the resolved scene.
 
 SI units throughout (s, m, kg, N, Pa, m/s, kg/m^3); angles in degrees where the key says `_deg`. Each key
 has a type, a unit, a default (or is required), what is allowed and a one-line description; docs/scenes.md
-is generated from these declarations (`orchestrator.scene_docs`). Numbers are finite unless a key says inf
+is generated from these declarations (`orchestrator.scene.docs`). Numbers are finite unless a key says inf
 is allowed. The resolved scene is a plain, JSON-serialisable dict with every key present (None where a key
 has no value, e.g. a hinge without a stop) and every default filled, also the defaults that depend on
 another table (a probe's chord is its body's axis position); optional tables ([structure.motion], [load],
@@ -15,7 +15,7 @@ default needs (a probe's body), and the size bounds (`fmu_common.scene_bounds`);
 of `structure.scissors` into bodies, joints and probes (`fmu_common.scissors`). The relations between tables
 that building the units checks stay there: a joint's bodies exist, parent-child joints form a tree, a body root
 carries one joint, a mass, pin or slider sits at a node and a pin's two nodes coincide (`fmu_common.topology`,
-`structure_fmu.topology`, `structure_fmu.pins`), and a probe lies within its body (`orchestrator.scene`).
+`structure_fmu.topology`, `structure_fmu.pins`), and a probe lies within its body (`orchestrator.scene.load`).
 """
 from __future__ import annotations
 

@@ -42,8 +42,7 @@ from typing import Sequence
 
 from fmu_common.errors import SceneError
 from fmu_common.threads import limit_blas_threads
-from orchestrator import allocator
-
+from orchestrator.run import allocator
 DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
@@ -153,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from orchestrator.validate import main as validate_main
+    from orchestrator.export.validate import main as validate_main
 
     return validate_main(args.fmus)
 
@@ -171,16 +170,16 @@ def _start_compiling_kernels() -> None:
 
 def cmd_build(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
-    from orchestrator.build import build_fmus
-    from orchestrator.results import check_out_dir
-    from orchestrator.scene import load_scene
+    from orchestrator.build.fmus import build_fmus
+    from orchestrator.output.results import check_out_dir
+    from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene)
     _require_standalone(args.standalone, args.win64)
     out = check_out_dir(args.out or fmu_dir(scene, False, args.standalone))
     for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64):
         if args.standalone:
-            from orchestrator.standalone import describe
+            from orchestrator.build.standalone import describe
 
             print(describe(path))
         else:
@@ -191,8 +190,8 @@ def cmd_build(args: argparse.Namespace) -> int:
 def _require_standalone(standalone: bool, win64: bool = False) -> None:
     """Refuse --standalone, before anything is written, where standalone FMUs cannot be built, and --win64 without
     --standalone or where its binaries cannot be built (the cross compiler missing, the downloads failing, which
-    are fetched here the first time): exit 2 (orchestrator.build.refusal)."""
-    from orchestrator.build import refusal
+    are fetched here the first time): exit 2 (orchestrator.build.fmus.refusal)."""
+    from orchestrator.build.fmus import refusal
 
     refused = refusal(standalone, win64)
     if refused is not None:
@@ -207,7 +206,7 @@ def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:
     appended for standalone FMUs."""
     name = scene["name"]
     if overridden:
-        from orchestrator.build import scene_digest
+        from orchestrator.build.fmus import scene_digest
 
         name += f"-{scene_digest(scene)[:DIGEST_CHARS]}"
     return FMU_ROOT / (f"{name}-standalone" if standalone else name)
@@ -217,10 +216,10 @@ def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64
     """None when the FMUs are ready, else a failed RunResult saying why the build failed.
 
     The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included)
-    or other sources (``orchestrator.build.fmus_up_to_date`` compares digests embedded in the FMUs).
+    or other sources (``orchestrator.build.fmus.fmus_up_to_date`` compares digests embedded in the FMUs).
     """
-    from orchestrator.build import build_fmus, fmus_up_to_date
-    from orchestrator.master import RunResult, new_series
+    from orchestrator.build.fmus import build_fmus, fmus_up_to_date
+    from orchestrator.run.master import RunResult, new_series
 
     start = time.perf_counter()
     try:
@@ -241,12 +240,12 @@ def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64
 
 def cmd_run(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
-    from orchestrator.master import RunResult, new_series, run_scene
-    from orchestrator.plots import write_plots
-    from orchestrator.progress import Progress
-    from orchestrator.results import (WriteError, check_out_dir, deployment_time, latching_hinges,
+    from orchestrator.run.master import RunResult, new_series, run_scene
+    from orchestrator.output.plots import write_plots
+    from orchestrator.run.progress import Progress
+    from orchestrator.output.results import (WriteError, check_out_dir, deployment_time, latching_hinges,
                                       write_results, write_started)
-    from orchestrator.scene import load_scene
+    from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     if args.standalone and args.backend != "fmu":
@@ -292,11 +291,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from orchestrator.container import CONTAINER_FILE, ContainerUnavailable, write_container
-    from orchestrator.results import check_out_dir
-    from orchestrator.scene import load_scene
-    from orchestrator.ssp import write_ssp
-    from orchestrator.system import coupled_system
+    from orchestrator.export.container import CONTAINER_FILE, ContainerUnavailable, write_container
+    from orchestrator.output.results import check_out_dir
+    from orchestrator.scene.load import load_scene
+    from orchestrator.export.ssp import write_ssp
+    from orchestrator.export.system import coupled_system
 
     scene = load_scene(args.scene, args.overrides)
     _require_standalone(args.standalone, args.win64)
@@ -317,7 +316,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from orchestrator.results import check_out_dir
+    from orchestrator.output.results import check_out_dir
     from orchestrator.sweep import plan_sweep, run_sweep
 
     if args.jobs is not None and args.jobs < 1:
@@ -352,7 +351,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()
     allocator.tune()
-    from orchestrator.results import WriteError
+    from orchestrator.output.results import WriteError
 
     _received.clear()
     previous = _handle_signals()

@@ -48,8 +48,8 @@ from typing import Any, Iterable, Sequence, TextIO
 
 from fmu_common.errors import SceneError
 from fmu_common.threads import limit_blas_threads
-from orchestrator import allocator
-from orchestrator.overrides import INDEX_PATTERN
+from orchestrator.run import allocator
+from orchestrator.scene.overrides import INDEX_PATTERN
 
 DONE_STATUSES = ("ok", "diverged", "error")
 FIXED_COLUMNS = ("index",)
@@ -134,7 +134,7 @@ def combinations(grid: list[tuple[str, list[str]]], sets: Sequence[str] = ()) ->
 
 def plan_sweep(scene_path: Path, grid_items: Sequence[str], sets: Sequence[str] = ()) -> list[Run]:
     """The runs of a sweep, each with its resolved scene; SceneError (nothing run) for any bad input."""
-    from orchestrator.scene import load_scene
+    from orchestrator.scene.load import load_scene
 
     runs = combinations(parse_grid(grid_items), sets)
     for run in runs:
@@ -148,13 +148,13 @@ def run_one(scene: dict, backend: str, fmu_dir: str | None) -> Any:
     """Run one resolved scene; the worker-side task (returns the RunResult; never writes files)."""
     limit_blas_threads()   # one BLAS thread per worker
     allocator.tune()
-    from orchestrator.master import run_scene
+    from orchestrator.run.master import run_scene
 
     return run_scene(scene, backend=backend, fmu_dir=Path(fmu_dir) if fmu_dir else None, progress=None)
 
 
 def _failed(scene: dict, message: str, wall: float = 0.0) -> Any:
-    from orchestrator.master import RunResult, new_series
+    from orchestrator.run.master import RunResult, new_series
 
     return RunResult("error", message, wall, 0.0, scene, new_series(scene))
 
@@ -187,7 +187,7 @@ def _run_record(run: Run, backend: str) -> dict:
 
 def finished_summary(run: Run, run_dir: Path, backend: str) -> dict | None:
     """The run folder's summary if it holds a finished run of the same overrides, backend and scene."""
-    from orchestrator.results import SUMMARY_FILE, TIMESERIES_FILE, json_safe
+    from orchestrator.output.results import SUMMARY_FILE, TIMESERIES_FILE, json_safe
 
     try:
         record = json.loads((run_dir / RUN_FILE).read_text())
@@ -269,7 +269,7 @@ class SweepTable:
 
     def add(self, row: dict) -> None:
         """Keep the row and append it to the file; WriteError naming the file if that fails."""
-        from orchestrator.results import WriteError
+        from orchestrator.output.results import WriteError
 
         self.rows[row["index"]] = row
         try:
@@ -285,7 +285,7 @@ class SweepTable:
     def close(self) -> None:
         """Rewrite the file with every row so far, sorted by index, with the union of all columns;
         WriteError naming the file if that fails (the file appended so far stays)."""
-        from orchestrator.results import write_file
+        from orchestrator.output.results import write_file
 
         if self._file is not None:
             try:
@@ -319,7 +319,7 @@ class SweepOutcome:
 def _build_fmus(runs: list[Run], todo: list[Run], out: Path, stream: TextIO) -> dict[int, Any]:
     """Build (if needed) each run's FMUs into OUT/fmus/<run>/ before any run starts; failed builds
     as RunResults by run index."""
-    from orchestrator.build import build_fmus, fmus_up_to_date
+    from orchestrator.build.fmus import build_fmus, fmus_up_to_date
 
     failed = {}
     for run in todo:
@@ -342,7 +342,7 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
     """Run (or resume) the planned runs; writes the run folders and OUT/sweep.csv (``out`` must be a
     folder that can be written: ``results.check_out_dir``). A run folder that cannot be written, a failed
     run or results that cannot be written give the run's row status "error" and the sweep goes on."""
-    from orchestrator.results import TIMESERIES_FILE, WriteError, summarize, write_results, write_started
+    from orchestrator.output.results import TIMESERIES_FILE, WriteError, summarize, write_results, write_started
 
     stream = stream if stream is not None else sys.stderr
     out = Path(out)
@@ -386,7 +386,7 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
         else:
             if plots:
                 try:
-                    from orchestrator.plots import write_plots
+                    from orchestrator.output.plots import write_plots
 
                     write_plots(result, run_dir)
                 except Exception as err:

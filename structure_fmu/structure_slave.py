@@ -49,7 +49,7 @@ solver time): a gap is never integrated in one call, a step is never repeated wi
 A non-finite Q, `InputError`, `SolverDiverged` or any other failure in the step is logged the same way and
 `do_step` returns False with the state unchanged; the host can roll back or stop. Hosts of pythonfmu's own
 binary (no shim) get fmi2OK or fmi2Discard and must treat an error-status log message as a failed call
-(orchestrator.units does).
+(orchestrator.run.units does).
 """
 from __future__ import annotations
 

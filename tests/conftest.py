@@ -37,8 +37,8 @@ def built_fmus(tmp_path_factory):
     """built_fmus(scene, *overrides) -> the folder holding the FMUs of scenes/<scene>.toml with the `--set`
     overrides (structure.fmu, and aero.fmu where the scene has an aero model), built once per pytest run and
     shared by every test that asks for the same scene and overrides: read them, copy before changing."""
-    from orchestrator.build import build_fmus
-    from orchestrator.scene import load_scene
+    from orchestrator.build.fmus import build_fmus
+    from orchestrator.scene.load import load_scene
 
     folders: dict[tuple, Path] = {}
 
@@ -55,8 +55,8 @@ def built_fmus(tmp_path_factory):
 def standalone_fmus(tmp_path_factory):
     """standalone_fmus(scene, *overrides) -> the folder holding the standalone FMUs (`wingsim build --standalone`)
     of scenes/<scene>.toml with the `--set` overrides, built once per pytest run as `built_fmus` does."""
-    from orchestrator.build import build_fmus
-    from orchestrator.scene import load_scene
+    from orchestrator.build.fmus import build_fmus
+    from orchestrator.scene.load import load_scene
 
     folders: dict[tuple, Path] = {}
 
@@ -72,8 +72,7 @@ def standalone_fmus(tmp_path_factory):
 @pytest.fixture(scope="session")
 def c_compiler() -> list[str]:
     """The C compiler `wingsim build` uses ($CC, else cc), as a command; the test is skipped without one."""
-    from orchestrator import native_binary
-
+    from orchestrator.build import native_binary
     try:
         return native_binary.c_compiler()
     except native_binary.ShimUnavailable as missing:
@@ -83,8 +82,7 @@ def c_compiler() -> list[str]:
 @pytest.fixture(scope="session")
 def c_host(c_compiler, tmp_path_factory) -> Path:
     """The C FMI 2.0 host of tests/fmi/c_host/, compiled against fmpy's FMI headers, linked with -ldl only."""
-    from orchestrator import native_binary
-
+    from orchestrator.build import native_binary
     source = Path(__file__).resolve().parent / "fmi" / "c_host" / "fmi2_host.c"
     exe = tmp_path_factory.mktemp("c_host") / "fmi2_host"
     build = subprocess.run([*c_compiler, "-std=c99", "-O2", "-Wall", "-Wextra", "-I", str(native_binary.fmi_headers()),

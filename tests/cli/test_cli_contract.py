@@ -10,13 +10,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from orchestrator.master import RunResult, communication_times, run_scene
-from orchestrator.overrides import apply_overrides
-from orchestrator.plots import fold_angles_figure, write_plots
-from orchestrator.progress import Progress
-from orchestrator.results import deployment_time, energy_drift, summarize, write_results
-from orchestrator.scene import read_scene_file, resolve_scene
-from orchestrator.timeseries import TimeSeries
+from orchestrator.run.master import RunResult, communication_times, run_scene
+from orchestrator.scene.overrides import apply_overrides
+from orchestrator.output.plots import fold_angles_figure, write_plots
+from orchestrator.run.progress import Progress
+from orchestrator.output.results import deployment_time, energy_drift, summarize, write_results
+from orchestrator.scene.load import read_scene_file, resolve_scene
+from orchestrator.run.timeseries import TimeSeries
 from subprocesses import wingsim
 from repository import ROOT, SCENES
 
@@ -351,7 +351,7 @@ def test_ci_runs_the_readme_test_command():
     assert os.access(ROOT / ".ci" / "run", os.X_OK)
 
 
-# --- end to end, with the real structure unit (structure_fmu, orchestrator.units) -----------------
+# --- end to end, with the real structure unit (structure_fmu, orchestrator.run.units) -----------------
 
 @pytest.mark.parametrize("backend", ["direct", "fmu"])
 def test_run_example_scene(tmp_path, backend):

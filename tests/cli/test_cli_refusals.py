@@ -17,13 +17,13 @@ from pathlib import Path
 
 import pytest
 
-import orchestrator.master
-import orchestrator.results
-from orchestrator.build import embedded_scene, scene_digest
+import orchestrator.run.master
+import orchestrator.output.results
+from orchestrator.build.fmus import embedded_scene, scene_digest
 from orchestrator.cli import FMU_ROOT, fmu_dir, main
-from orchestrator.master import RunResult, new_series
-from orchestrator.results import summarize
-from orchestrator.scene import load_scene
+from orchestrator.run.master import RunResult, new_series
+from orchestrator.output.results import summarize
+from orchestrator.scene.load import load_scene
 from orchestrator.sweep import RUN_FILE, combinations, finished_summary, parse_grid
 from subprocesses import CODE_ROOT
 from repository import SCENES
@@ -116,8 +116,8 @@ def test_a_missing_out_folder_is_created(tmp_path, capsys, monkeypatch):
 def test_the_summary_is_written_before_the_run_and_completed_before_the_timeseries(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     seen = {}
-    real_run = orchestrator.master.run_scene
-    real_timeseries = orchestrator.results.write_timeseries
+    real_run = orchestrator.run.master.run_scene
+    real_timeseries = orchestrator.output.results.write_timeseries
 
     def run_scene(scene, **kwargs):
         seen["at run"] = json.loads((out / "summary.json").read_text())
@@ -128,8 +128,8 @@ def test_the_summary_is_written_before_the_run_and_completed_before_the_timeseri
         seen["at timeseries"] = json.loads((out / "summary.json").read_text())
         real_timeseries(series, path)
 
-    monkeypatch.setattr(orchestrator.master, "run_scene", run_scene)
-    monkeypatch.setattr(orchestrator.results, "write_timeseries", write_timeseries)
+    monkeypatch.setattr(orchestrator.run.master, "run_scene", run_scene)
+    monkeypatch.setattr(orchestrator.output.results, "write_timeseries", write_timeseries)
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(out)]) == 0
     started = seen["at run"]
@@ -142,7 +142,7 @@ def test_the_summary_is_written_before_the_run_and_completed_before_the_timeseri
 
 def test_a_full_disk_loses_the_timeseries_not_the_summary(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
-    monkeypatch.setattr(orchestrator.results, "write_timeseries", no_space)
+    monkeypatch.setattr(orchestrator.output.results, "write_timeseries", no_space)
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(out)]) == 1
     err = capsys.readouterr().err
@@ -155,14 +155,14 @@ def test_a_full_disk_loses_the_timeseries_not_the_summary(tmp_path, capsys, monk
 
 def test_a_disk_full_from_the_start_keeps_the_started_summary(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
-    real_write = orchestrator.results.write_file
+    real_write = orchestrator.output.results.write_file
     writes = []
 
     def fill_after_first(path, write):   # the disk fills up after the summary written before the run
         writes.append(Path(path).name)
         real_write(path, write if len(writes) == 1 else no_space)
 
-    monkeypatch.setattr(orchestrator.results, "write_file", fill_after_first)
+    monkeypatch.setattr(orchestrator.output.results, "write_file", fill_after_first)
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(out)]) == 1
     assert f"error: cannot write {out / 'summary.json'}: No space left on device" in capsys.readouterr().err
@@ -173,9 +173,9 @@ def test_a_disk_full_from_the_start_keeps_the_started_summary(tmp_path, capsys, 
 
 def test_a_summary_that_cannot_be_written_stops_before_the_run(tmp_path, capsys, monkeypatch):
     ran = []
-    real_write = orchestrator.results.write_file
-    monkeypatch.setattr(orchestrator.results, "write_file", lambda path, write: real_write(path, no_space))
-    monkeypatch.setattr(orchestrator.master, "run_scene", lambda *a, **k: ran.append(a))
+    real_write = orchestrator.output.results.write_file
+    monkeypatch.setattr(orchestrator.output.results, "write_file", lambda path, write: real_write(path, no_space))
+    monkeypatch.setattr(orchestrator.run.master, "run_scene", lambda *a, **k: ran.append(a))
     monkeypatch.chdir(tmp_path)
     assert main([*map(str, COMMANDS["run"]), "--out", str(tmp_path / "out")]) == 1
     assert capsys.readouterr().err == (f"error: cannot write {tmp_path / 'out' / 'summary.json'}: "
@@ -194,14 +194,14 @@ def test_a_sweep_goes_on_past_an_unwritable_run_folder_a_full_disk_and_a_diverge
     (out / "runs").mkdir(parents=True)
     (out / "runs" / names[0]).write_text("")          # run 0's folder is taken by a file
 
-    real_timeseries = orchestrator.results.write_timeseries
+    real_timeseries = orchestrator.output.results.write_timeseries
 
     def full_for_run_1(series, path):
         if Path(path).parent.name == names[1]:
             no_space()
         real_timeseries(series, path)
 
-    monkeypatch.setattr(orchestrator.results, "write_timeseries", full_for_run_1)
+    monkeypatch.setattr(orchestrator.output.results, "write_timeseries", full_for_run_1)
     monkeypatch.chdir(tmp_path)
     code = main(["sweep", str(SCENE), "--set", "aero.model=none", "--set", "time.stop=0.05", "--set",
                  "structure.step=1e-3", "--grid", grid, "--jobs", "1", "--out", str(out)])

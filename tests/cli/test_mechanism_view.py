@@ -1,4 +1,4 @@
-"""The picture of the mechanism at several instants (orchestrator/mechanism_view.py): the structure coordinates
+"""The picture of the mechanism at several instants (orchestrator/output/mechanism_view.py): the structure coordinates
 the master records, the reference lines drawn from them, the plane of a planar mechanism, and `wingsim run`
 writing mechanism.png without ever failing a run for it."""
 import sys
@@ -8,10 +8,11 @@ import pytest
 
 from fmu_common import scene_bounds
 from fmu_common.topology import Topology
-from orchestrator import cli, mechanism_view
-from orchestrator.master import StructureCoordinates, run_scene
-from orchestrator.plots import write_plots
-from orchestrator.scene import load_scene
+from orchestrator import cli
+from orchestrator.output import mechanism_view
+from orchestrator.run.master import StructureCoordinates, run_scene
+from orchestrator.output.plots import write_plots
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 PNG = b"\x89PNG\r\n\x1a\n"

@@ -5,8 +5,8 @@ import json
 
 import pytest
 
-from orchestrator.overrides import apply_overrides, parse_override, parse_value
-from orchestrator.scene import MISSING, load_scene, read_scene_file, resolve_scene
+from orchestrator.scene.overrides import apply_overrides, parse_override, parse_value
+from orchestrator.scene.load import MISSING, load_scene, read_scene_file, resolve_scene
 from fmu_common.errors import SceneError
 from repository import SCENES
 

@@ -21,7 +21,7 @@ from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import REQUIRED, Key, Table, Tables, Variants, item_label
 from fmu_common.scissors import chain_tables
 from orchestrator.cli import main
-from orchestrator.scene import load_scene, read_scene_file, resolve_scene
+from orchestrator.scene.load import load_scene, read_scene_file, resolve_scene
 from repository import SCENES
 
 SHIPPED = sorted(SCENES.glob("*.toml"))
@@ -210,8 +210,8 @@ def test_time_series_estimate_matches_the_recorded_rows():
 
 
 def test_the_bounds_restate_the_units_own_limits():
-    from orchestrator.acceleration import ACCELERATIONS as SCHEMES
-    from orchestrator.coupling import AeroInputs
+    from orchestrator.run.acceleration import ACCELERATIONS as SCHEMES
+    from orchestrator.run.coupling import AeroInputs
 
     assert AeroInputs.max_values == AERO_INPUT_RECORD_VALUES
     assert tuple(SCHEMES) == ACCELERATIONS
@@ -340,10 +340,10 @@ def test_build_refuses_an_infinite_youngs_modulus(tmp_path, capsys, monkeypatch)
 # --- docs/scenes.md --------------------------------------------------------------------------------------
 
 def test_docs_scenes_md_is_generated_from_the_schema():
-    from orchestrator.scene_docs import OUTPUT, generate
+    from orchestrator.scene.docs import OUTPUT, generate
 
     text = generate()
-    assert OUTPUT.read_text(encoding="utf-8") == text, "run python -m orchestrator.scene_docs"
+    assert OUTPUT.read_text(encoding="utf-8") == text, "run python -m orchestrator.scene.docs"
     for name, spec in SCENE.keys["structure"].keys.items():
         if isinstance(spec, Key):
             assert f"| `{name}` |" in text

@@ -1,8 +1,8 @@
-"""orchestrator.study: tasks in worker processes, recorded one JSON line each, resumed without running again."""
+"""orchestrator.studies.study: tasks in worker processes, recorded one JSON line each, resumed without running again."""
 import json
 import time
 
-from orchestrator.study import Study
+from orchestrator.studies.study import Study
 
 TASKS = ['{"x": 1}', '{"x": 2.5, "y": [1, 2]}', "not JSON"]
 

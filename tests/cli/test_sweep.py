@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.master import run_scene
-from orchestrator.results import summarize
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.output.results import summarize
+from orchestrator.scene.load import load_scene
 from orchestrator.sweep import combinations, parse_grid, split_values, summary_figures
 from fmu_common.errors import SceneError
 from subprocesses import wingsim

@@ -1,4 +1,4 @@
-"""The 3D picture of wing and wake (orchestrator/wake_view.py): written by `wingsim run` for aero scenes,
+"""The 3D picture of wing and wake (orchestrator/output/wake_view.py): written by `wingsim run` for aero scenes,
 drawn from a replay of the aero unit that reproduces the unit's wake bit for bit, and never able to fail
 a run."""
 import types
@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from aero_fmu.solver import AeroSolver
-from orchestrator import cli, units as real_units, wake_view
-from orchestrator.master import communication_times, run_scene
-from orchestrator.plots import write_plots
-from orchestrator.scene import load_scene
+from orchestrator import cli
+from orchestrator.run import units as real_units
+from orchestrator.output import wake_view
+from orchestrator.run.master import communication_times, run_scene
+from orchestrator.output.plots import write_plots
+from orchestrator.scene.load import load_scene
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 
@@ -34,7 +36,7 @@ def test_run_of_an_aero_scene_writes_the_wake_picture(tmp_path, capsys):
 
 
 def recording_units():
-    """orchestrator.units, but the aero unit's solver state is kept when the unit is terminated."""
+    """orchestrator.run.units, but the aero unit's solver state is kept when the unit is terminated."""
     kept = {}
 
     def make_unit(kind, **kw):

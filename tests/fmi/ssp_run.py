@@ -65,7 +65,7 @@ def run_libcosim(ssp: str, stop: float, step: float, parameters: list[str]) -> N
 def run_fmpy(ssp: str, stop: float, step: float) -> None:
     from fmpy.ssp.simulation import simulate_ssp
 
-    from orchestrator.ssp import parameter_set_for_fmpy
+    from orchestrator.export.ssp import parameter_set_for_fmpy
 
     result = simulate_ssp(ssp, stop_time=stop, step_size=step, parameter_set=parameter_set_for_fmpy(ssp))
     print(f"steps={len(result)}")   # one row per step: the time it started from, the outputs it ended with

@@ -12,12 +12,13 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from orchestrator import units as real_units
-from orchestrator.build import build_fmus, fmus_up_to_date
+from orchestrator.run import units as real_units
+from orchestrator.build.fmus import build_fmus, fmus_up_to_date
 from orchestrator.cli import fmu_dir as run_fmu_dir  # a fixture below is named fmu_dir
-from orchestrator.master import CouplingError, check_connection, run_scene
-from orchestrator.scene import load_scene
-from orchestrator.units import UnitError, make_unit
+from orchestrator.run.master import CouplingError, check_connection, run_scene
+from orchestrator.scene.load import load_scene
+from orchestrator.run.port import UnitError
+from orchestrator.run.units import make_unit
 from fmu_common.topology import Topology
 from repository import SCENES
 from subprocesses import simulate_in_fresh_python, wingsim
@@ -182,9 +183,9 @@ def test_master_fmu_and_direct_runs_record_the_same_CL(scene, fmu_dir):
 
 
 def test_replay_of_the_aero_fmu_reproduces_its_CL_bit_for_bit(scene, fmu_dir):
-    """The wake picture replays the aero unit in-process (orchestrator/wake_view.py): through fmpy the unit
+    """The wake picture replays the aero unit in-process (orchestrator/output/wake_view.py): through fmpy the unit
     gets exactly the recorded e, de and step times, so the replay's CL is the FMU's, bit for bit."""
-    from orchestrator.wake_view import replay
+    from orchestrator.output.wake_view import replay
 
     result = run_scene(scene, backend="fmu", fmu_dir=fmu_dir)
     assert result.status == "ok", result.message

@@ -4,7 +4,7 @@ started without an environment (as `env -i`; see tests/fmi_hosts.py, NUMERIC_PRE
 
 The reference for every scenario is the same call sequence through fmpy's FMU2Slave in this process:
 the same Python arithmetic runs behind both hosts, so the numbers must be equal bit for bit. The coupled
-run is also compared with wingsim's own master (orchestrator.master, fmu backend), which couples the units
+run is also compared with wingsim's own master (orchestrator.run.master, fmu backend), which couples the units
 in the same Gauss-Seidel order.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, numeric_env, run_c_host
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 SCENE = SCENES / "deploy_rigid.toml"

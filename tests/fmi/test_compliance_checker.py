@@ -13,8 +13,7 @@ from pathlib import Path
 import pytest
 
 from fmi_hosts import assert_clean, assert_replayed_by_fmpy, check
-from orchestrator import native_binary
-
+from orchestrator.build import native_binary
 pytestmark = pytest.mark.skipif(native_binary.unavailable_reason() is not None,
                                 reason=f"the FMUs keep pythonfmu's binary, which a host without Python cannot load: "
                                        f"{native_binary.unavailable_reason()}")

@@ -4,7 +4,7 @@ other tools against wingsim's own master.
 The reference for the deployment time is ``run_scene`` with ``coupling.algorithm = "jacobi"``: every other host
 here exchanges like Jacobi (both units step from the outputs at t, then the outputs are copied), read from their
 code: libcosim's fixed-step algorithm (as tests/fmi/test_libcosim.py compares), fmpy's ``simulate_ssp`` (its loop
-steps every component, then applies the connections), and wing.fmu's binary (orchestrator/container.c: each
+steps every component, then applies the connections), and wing.fmu's binary (orchestrator/export/container.c: each
 internal step, every unit steps, then the connections are copied). libcosim and the container exchange the
 initial outputs once at initialization, as the master does; fmpy's ``simulate_ssp`` starts every connection at
 0.0 instead, which the coupled system cannot take (the xfail below), so it runs the structure-only package. The
@@ -28,10 +28,10 @@ from lxml import etree
 
 from fmi_hosts import UnitSpec, assert_clean, assert_replayed_by_fmpy, check, fmpy_run, run_c_host
 from fmu_common.topology import Topology
-from orchestrator import native_binary
+from orchestrator.build import native_binary
 from orchestrator.cli import fmu_dir, main
-from orchestrator.master import run_scene
-from orchestrator.scene import hinge_joints, load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import hinge_joints, load_scene
 from repository import SCENES
 from subprocesses import wingsim
 
@@ -503,7 +503,8 @@ def test_a_unit_that_refuses_its_guid_makes_instantiate_fail_and_the_host_lives(
     configuration.write_text(configuration.read_text().replace(guid, "not-the-structure-s-guid"))
     statuses, log = failing_host(folder, "guid")
     assert statuses == {"instantiate": "NULL"}
-    # the unit's own refusal (orchestrator/fmi_shim.c names both GUIDs), prefixed with its name, then the container's
+    # the unit's own refusal (orchestrator/build/fmi_shim.c names both GUIDs), prefixed with its name, then
+    # the container's
     assert any(status == 3 and message.startswith("structure: ") and "not-the-structure-s-guid" in message
                and guid in message for status, message in log), log
     assert any(status == 3 and message.startswith("unit structure: fmi2Instantiate returned NULL")

@@ -4,9 +4,9 @@ import types
 
 import numpy as np
 
-from orchestrator import units as real_units
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run import units as real_units
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 

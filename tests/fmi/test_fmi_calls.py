@@ -22,9 +22,9 @@ from fmpy.fmi1 import FMICallException, calloc, free
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from orchestrator import native_binary
-from orchestrator.scene import load_scene
-from orchestrator.units import FMU_FILES, KINDS
+from orchestrator.build import native_binary
+from orchestrator.scene.load import load_scene
+from orchestrator.run.port import FMU_FILES, KINDS
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from structure_fmu.solver import StructureSolver
 from fmu_common.topology import Topology
@@ -35,7 +35,7 @@ ERROR = 3  # fmi2Error
 
 
 class Direct:
-    """A slave class instantiated in-process, as orchestrator.units' direct backend does. Every call
+    """A slave class instantiated in-process, as orchestrator.run.units' direct backend does. Every call
     records what the slave logged in `last` = (None, [(status, message)]); an exception fails the test."""
 
     backend = "direct"

@@ -10,10 +10,11 @@ import pytest
 from fmpy import read_model_description
 
 from orchestrator.cli import main
-from orchestrator.layout import Variable, mismatches
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
-from orchestrator.units import UnitError, make_unit
+from orchestrator.run.layout import Variable, mismatches
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
+from orchestrator.run.port import UnitError
+from orchestrator.run.units import make_unit
 from fmu_common.fmi_slave import fmi_name
 from fmu_common.topology import Topology
 from repository import SCENES

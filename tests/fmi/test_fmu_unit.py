@@ -11,9 +11,10 @@ from fmpy.validation import validate_fmu
 
 from fmu_common.fmi_slave import DIVERGED_CATEGORY
 from fmu_common.topology import Topology
-from orchestrator.build import embedded_scene, fmus_up_to_date
-from orchestrator.scene import joint_monitor_names, load_scene
-from orchestrator.units import UnitError, make_unit
+from orchestrator.build.fmus import embedded_scene, fmus_up_to_date
+from orchestrator.scene.load import joint_monitor_names, load_scene
+from orchestrator.run.port import UnitError
+from orchestrator.run.units import make_unit
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 from subprocesses import simulate_in_fresh_python

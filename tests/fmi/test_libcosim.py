@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 OVERRIDES = ["aero.model=uvlm-flat", "flow.speed=10", "time.stop=0.25", "coupling.step=0.001"]

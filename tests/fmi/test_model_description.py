@@ -8,7 +8,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from repository import ROOT, SCENES
 
 # SI definitions (kg, m, s, rad exponents and factor to SI) of units the FMUs use

@@ -1,4 +1,4 @@
-"""The FMU's native binary (orchestrator/fmi_shim.c, built by orchestrator.native_binary).
+"""The FMU's native binary (orchestrator/build/fmi_shim.c, built by orchestrator.build.native_binary).
 
 What the shim checks itself, through fmpy (a Python host: the shim forwards to pythonfmu's binary in the
 host's interpreter): the GUID, the FMU type, the resource location, the component and FMU state
@@ -20,7 +20,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 
 import pythonfmu
 from fmi_hosts import check
-from orchestrator import native_binary
+from orchestrator.build import native_binary
 from orchestrator.cli import main
 from repository import SCENES
 

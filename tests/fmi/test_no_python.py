@@ -25,8 +25,8 @@ import pytest
 import scipy.io
 
 from fmi_hosts import FmpyHost, UnitSpec, assert_clean, check, coupled_units, run_c_host
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import OMSIMULATOR, SCENES
 
 pytestmark = pytest.mark.slow

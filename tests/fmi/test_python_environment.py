@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from fmi_hosts import assert_clean, check
-from orchestrator import native_binary
+from orchestrator.build import native_binary
 from orchestrator.cli import main
 from repository import SCENES
 
@@ -99,7 +99,8 @@ def test_standalone_build_without_a_shared_libpython_is_refused_before_anything_
 
 def test_standalone_build_says_what_each_fmu_needs(standalone_fmus, tmp_path):
     """The build prints each FMU's size and the oldest glibc its binaries run on (read from them)."""
-    from orchestrator import runtime, standalone
+    from orchestrator.build import runtime
+    from orchestrator.build import standalone
     folder = standalone_fmus("deploy_rigid")
     for unit in ("structure", "aero"):
         line = standalone.describe(folder / f"{unit}.fmu")

@@ -1,4 +1,4 @@
-"""Standalone FMUs (`wingsim build --standalone`, orchestrator/standalone.py): a unit that carries its Python
+"""Standalone FMUs (`wingsim build --standalone`, orchestrator/build/standalone.py): a unit that carries its Python
 runtime and runs it in a worker process of its own.
 
 What is checked, against behaviour or an independent number:
@@ -29,9 +29,9 @@ import pytest
 from fmpy import extract
 
 from fmi_hosts import all_gone, processes
-from orchestrator import runtime
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.build import runtime
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 HOST = Path(__file__).resolve().parent / "fmpy_host.py"
@@ -88,7 +88,7 @@ def test_the_coupled_deployment_equals_the_ordinary_fmus_bit_for_bit(rigid, buil
 def test_every_shipped_scene_builds_standalone_and_runs_as_the_ordinary_fmus(name, tmp_path):
     """Each shipped scene, cut to its first ten communication steps, through its standalone FMUs and through its
     ordinary ones: the same code in another process, so the same numbers bit for bit."""
-    from orchestrator.build import build_fmus
+    from orchestrator.build.fmus import build_fmus
     step = load_scene(SCENES / f"{name}.toml")["coupling"]["step"]
     scene = load_scene(SCENES / f"{name}.toml", [f"time.stop={10 * step!r}"])
     ordinary, standalone = tmp_path / "ordinary", tmp_path / "standalone"

@@ -85,7 +85,7 @@ def test_two_builds_from_different_sources_run_side_by_side(standalone_fmus, tmp
     assert built.returncode == 0, built.stderr[-3000:]
     expected = {}
     for name, path in (("this", CODE_ROOT), ("other", copy)):
-        code = ("from orchestrator.scene import load_scene; from fmu_common.topology import Topology; "
+        code = ("from orchestrator.scene.load import load_scene; from fmu_common.topology import Topology; "
                 f"print(Topology.from_scene(load_scene({str(scene)!r})).topology_hash)")
         out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(path)},
                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
@@ -136,7 +136,7 @@ def test_two_instances_step_in_parallel_when_libcosim_steps_them_in_parallel(sta
     steps_of: dict[str, list[tuple[int, int]]] = {}
     for line in trace.read_text().splitlines():
         pid, op, began, ended = line.split()
-        if int(op) == 25:                                  # OP_DO_STEP (orchestrator/worker_channel.h)
+        if int(op) == 25:                                  # OP_DO_STEP (orchestrator/build/worker_channel.h)
             steps_of.setdefault(pid, []).append((int(began), int(ended)))
     assert len(steps_of) == 2 and all(len(v) == steps for v in steps_of.values()), steps_of.keys()
     first, second = steps_of.values()

@@ -5,8 +5,8 @@ import shutil
 import numpy as np
 
 from fmu_common.topology import Topology
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 STRAIN = ["structure.fidelity=strain-based", "time.stop=0.02"]

@@ -1,4 +1,4 @@
-"""The win64 binaries of standalone FMUs (`wingsim build --standalone --win64`, orchestrator/win64.py), run under
+"""The win64 binaries of standalone FMUs (`wingsim build --standalone --win64`, orchestrator/build/win64.py), run under
 Wine (slow: the FMUs are built with their Windows runtime, a Wine prefix is made).
 
 The host is our C FMI host (tests/fmi/c_host/fmi2_host.c) cross-compiled for Windows (LoadLibrary, GetProcAddress),
@@ -7,7 +7,7 @@ started by Wine's 64-bit loader in a prefix of its own, with Wine's Visual C++ r
 FMU must bring them. On the structure and aero FMUs of deploy_rigid:
 - what the FMU holds: its win64 binaries, and every DLL they import is in the FMU or is one of Windows's own
   (read with mingw's objdump, not with the build's own reader);
-- the two units coupled for 300 steps equal Linux's `wingsim run` (orchestrator.master with the ordinary FMUs, in
+- the two units coupled for 300 steps equal Linux's `wingsim run` (orchestrator.run.master with the ordinary FMUs, in
   this process), every output within 1e-12 of that output's largest magnitude: another C library, another
   OpenBLAS build, the kernels compiled by another compiler, so equal to the rounding, not bit for bit. The
   reference for the outputs the master does not record (e, de, Q, ...) is our C host on the ordinary FMUs on
@@ -38,10 +38,10 @@ import numpy as np
 import pytest
 
 from fmi_hosts import all_gone, coupled_units, processes, run_c_host
-from orchestrator import native_binary
-from orchestrator.build import build_fmus
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.build import native_binary
+from orchestrator.build.fmus import build_fmus
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 pytestmark = pytest.mark.slow

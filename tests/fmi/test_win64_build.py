@@ -1,4 +1,4 @@
-"""What `--win64` refuses, and how the downloads of its Windows runtime are kept (orchestrator/win64.py); the
+"""What `--win64` refuses, and how the downloads of its Windows runtime are kept (orchestrator/build/win64.py); the
 binaries themselves are run under Wine in tests/fmi/test_win64.py (slow).
 
 - `--win64` without `--standalone`, without the mingw-w64 cross compiler, or when pip cannot download the
@@ -10,7 +10,7 @@ binaries themselves are run under Wine in tests/fmi/test_win64.py (slow).
 import json
 from pathlib import Path
 
-from orchestrator import win64
+from orchestrator.build import win64
 from orchestrator.cli import main
 from repository import SCENES
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from aero_fmu.solver import AeroSolver
-from orchestrator.overrides import parse_value
-from orchestrator.scene import load_scene, resolve_scene
+from orchestrator.scene.overrides import parse_value
+from orchestrator.scene.load import load_scene, resolve_scene
 from fmu_common.errors import SceneError
 from structure_fmu.solver import StructureSolver
 from flat_wing import assert_heave_matches, fitted_amplitude, heave_theory, wing_scene

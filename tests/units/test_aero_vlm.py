@@ -164,7 +164,7 @@ def test_scene_wake_length_inf_is_the_semi_infinite_flat_wake():
     semi-infinite horseshoe legs: once steady (second step, fixed wing) its C_L is the steady VLM's with
     semi-infinite legs (`SteadyVLM`, a separate implementation), and differs from the 50-chord wake's."""
     from aero_fmu.solver import AeroSolver
-    from orchestrator.scene import load_scene
+    from orchestrator.scene.load import load_scene
 
     scene = load_scene(SCENES / "steady_wing.toml", overrides=["aero.wake_length=inf"])
     assert scene["aero"]["wake_length"] == np.inf

@@ -3,7 +3,7 @@ against finite differences of the residual Phi (exact for these quadratic constr
 import numpy as np
 import pytest
 
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 

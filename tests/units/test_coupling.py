@@ -1,4 +1,4 @@
-"""Implicit coupling of the structure and aero units (orchestrator/coupling.py): convergence at
+"""Implicit coupling of the structure and aero units (orchestrator/run/coupling.py): convergence at
 every step with Aitken and IQN-ILS, agreement with Gauss-Seidel at a smaller step, the explicit schemes'
 coupling error falling with the step, stability where Gauss-Seidel diverges, non-convergence and rollback
 failures, the replay of the accepted aero inputs, and the fmu backend.
@@ -12,13 +12,13 @@ import types
 import numpy as np
 import pytest
 
-from orchestrator import units as real_units
-from orchestrator import wake_view
-from orchestrator.acceleration import IQNILS, Aitken, interface_residual
-from orchestrator.master import run_scene
-from orchestrator.results import deployment_time, summarize, write_results
-from orchestrator.scene import load_scene
-from orchestrator.units import UnitError
+from orchestrator.run import units as real_units
+from orchestrator.output import wake_view
+from orchestrator.run.acceleration import IQNILS, Aitken, interface_residual
+from orchestrator.run.master import run_scene
+from orchestrator.output.results import deployment_time, summarize, write_results
+from orchestrator.scene.load import load_scene
+from orchestrator.run.port import UnitError
 from repository import SCENES
 
 SCENE = SCENES / "deploy_rigid.toml"
@@ -175,7 +175,7 @@ def test_implicit_coupling_is_stable_where_gauss_seidel_diverges():
 # --- failures -------------------------------------------------------------------------------------
 
 def wrapped_units(kind, wrap):
-    """orchestrator.units, with ``wrap(unit)`` applied to the unit of ``kind``."""
+    """orchestrator.run.units, with ``wrap(unit)`` applied to the unit of ``kind``."""
     def make_unit(**kwargs):
         unit = real_units.make_unit(**kwargs)
         if kwargs["kind"] == kind:
@@ -301,6 +301,6 @@ def test_implicit_coupling_of_the_two_fmus_matches_the_direct_backend(built_fmus
 
 
 def test_unknown_acceleration_is_refused_with_the_allowed_names():
-    from orchestrator.acceleration import make_acceleration
+    from orchestrator.run.acceleration import make_acceleration
     with pytest.raises(ValueError, match="aitken, iqn-ils"):
         make_acceleration({"acceleration": "broyden"})

@@ -4,7 +4,7 @@ damping the energy changes by that work (energy balance), in the ANCF and the st
 import numpy as np
 import pytest
 
-from orchestrator.scene import read_scene_file, resolve_scene
+from orchestrator.scene.load import read_scene_file, resolve_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from repository import SCENES
 
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from structure_fmu import integrators
 from structure_fmu.iteration_lu import IterationLU
 from structure_fmu.solver import StructureSolver

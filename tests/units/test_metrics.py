@@ -1,11 +1,11 @@
-"""orchestrator.metrics against hand-computed cases and analytic series."""
+"""orchestrator.studies.metrics against hand-computed cases and analytic series."""
 import math
 
 import numpy as np
 import pytest
 
-from orchestrator import metrics
-from orchestrator.timeseries import TimeSeries
+from orchestrator.studies import metrics
+from orchestrator.run.timeseries import TimeSeries
 
 T = np.round(np.arange(0, 101) * 0.01, 12)          # s, 0 ... 1 in 0.01 s steps
 REF = np.sin(2 * np.pi * T)                          # max |CL_ref| = 1 at t = 0.25

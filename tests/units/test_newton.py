@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import root
 
 from aero_fmu.solver import AeroSolver
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 

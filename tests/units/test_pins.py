@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from fmu_common.errors import SceneError
-from orchestrator.scene import resolve_scene
+from orchestrator.scene.load import resolve_scene
 from structure_fmu.solver import StructureSolver
 from structure_fmu.topology import StructureTopology
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from fmu_common.scene_schema import resolve_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver

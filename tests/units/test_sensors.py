@@ -1,6 +1,6 @@
 """Probes and strain gauges as outputs of the structure FMU, against independent computations.
 
-The FMUs are driven by name through fmpy directly (not through orchestrator.units), their outputs compared
+The FMUs are driven by name through fmpy directly (not through orchestrator.run.units), their outputs compared
 with: a rigid-body formula (deploy_rigid), the element's shape functions evaluated on the element's own
 coordinates (deploy_flexible), a central difference of positions (velocities) and of the reference line
 (curvature). The master's timeseries.csv columns are then compared with the same outputs read from a unit
@@ -14,9 +14,10 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 import structure_fmu.structure_slave  # noqa: F401  (the host's copy, shared by the FMUs loaded here)
-from orchestrator.master import communication_times, new_series, run_scene
-from orchestrator.scene import load_scene
-from orchestrator.units import UnitError, make_unit
+from orchestrator.run.master import communication_times, new_series, run_scene
+from orchestrator.scene.load import load_scene
+from orchestrator.run.port import UnitError
+from orchestrator.run.units import make_unit
 from structure_fmu.solver import StructureSolver
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import fmi_name

@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 
 from fmu_common.errors import SceneError
 from fmu_common.vectors import perpendiculars, rotation_about
-from orchestrator.scene import resolve_scene
+from orchestrator.scene.load import resolve_scene
 from structure_fmu.solver import StructureSolver
 
 PROJECTION_TOLERANCE = 1e-13

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from structure_fmu.motion import SpinUp
 from structure_fmu.solver import StructureSolver
 from repository import SCENES

@@ -1,4 +1,4 @@
-"""orchestrator.stability against analytic cases: the generalized-alpha spectral radius, the added-mass limit
+"""orchestrator.studies.stability against analytic cases: the generalized-alpha spectral radius, the added-mass limit
 of explicit coupling of a free mass, the tip load's scale, the lattice's modal energies and lift slope, and the
 torsional divergence pressure."""
 import itertools
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from orchestrator import stability
-from orchestrator.scene import load_scene
+from orchestrator.studies import stability
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 SCENE = SCENES / "stability_wing.toml"

@@ -1,11 +1,11 @@
-"""orchestrator.stability's run helpers: the judged sudden-load run, the kinetic-energy stop and the grid
+"""orchestrator.studies.stability's run helpers: the judged sudden-load run, the kinetic-energy stop and the grid
 search's ends, against energy conservation and hand-made searches."""
 import math
 
 import pytest
 
-from orchestrator import stability
-from orchestrator.scene import load_scene
+from orchestrator.studies import stability
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 SCENE = SCENES / "stability_wing.toml"

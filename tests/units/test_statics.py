@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from orchestrator.cli import main
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 

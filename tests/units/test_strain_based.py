@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError, SolverDiverged
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu import strain_kinematics as sk
 from structure_fmu.modes import natural_frequencies

@@ -16,8 +16,8 @@ HOST = """
 import json, sys
 import numpy, scipy.linalg
 from threadpoolctl import threadpool_info
-from orchestrator.scene import load_scene
-from orchestrator.units import make_unit
+from orchestrator.scene.load import load_scene
+from orchestrator.run.units import make_unit
 
 blas = lambda: [(i["filepath"], i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"]
 before = blas()

@@ -7,10 +7,10 @@ docs/studies/deployment.md has the tables.
 """
 import pytest
 
-from orchestrator import metrics
-from orchestrator.master import run_scene
-from orchestrator.results import summarize
-from orchestrator.scene import load_scene
+from orchestrator.studies import metrics
+from orchestrator.run.master import run_scene
+from orchestrator.output.results import summarize
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 FLEXIBLE, RIGID = SCENES / "deploy_flexible.toml", SCENES / "deploy_rigid.toml"

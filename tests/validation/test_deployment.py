@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from orchestrator.cli import main
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 STILL_AIR = ["aero.model=none"]

@@ -5,13 +5,13 @@ Euler with quaternions, scipy's DOP853 to 1e-10) with the flexible bars stiffene
 
 The paper integrates with RK4 at 1e-4 s, as the scene does. That step is stable in the strain-based and the rigid
 fidelities; the flexible ANCF bars' highest frequency puts RK4's limit at 5.1e-5 s
-(orchestrator.stability.rk4_step_limit), so that fidelity runs RK4 at 4e-5 s. The slow set runs the paper's 2 s
+(orchestrator.studies.stability.rk4_step_limit), so that fidelity runs RK4 at 4e-5 s. The slow set runs the paper's 2 s
 (the track over its first second); the default set the first 0.1 s of each case and the track over 0.3 s."""
 import numpy as np
 import pytest
 
 import rigid_double_pendulum
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from orchestrator.cli import main
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from structure_fmu.modes import natural_frequencies
 from structure_fmu.solver import StructureSolver
 from repository import SCENES

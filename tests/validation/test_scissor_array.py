@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import scissor_mechanism
-from orchestrator.scene import load_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 

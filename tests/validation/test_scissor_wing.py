@@ -6,8 +6,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import scissor_mechanism
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 

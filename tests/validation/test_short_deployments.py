@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from orchestrator import metrics
-from orchestrator.master import run_scene
-from orchestrator.results import summarize
-from orchestrator.scene import load_scene
+from orchestrator.studies import metrics
+from orchestrator.run.master import run_scene
+from orchestrator.output.results import summarize
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 RIGID, FLEXIBLE = SCENES / "deploy_rigid.toml", SCENES / "deploy_flexible.toml"

@@ -17,9 +17,9 @@ import re
 import numpy as np
 import pytest
 
-from orchestrator import stability
-from orchestrator.master import run_scene
-from orchestrator.scene import load_scene
+from orchestrator.studies import stability
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
 from repository import SCENES
 
 SCENE = SCENES / "stability_wing.toml"

@@ -1,0 +1,156 @@
+"""The coupled system as another tool sees it: the built FMUs, their connections and their public variables.
+
+`coupled_system(scene, fmu_dir)` reads the model descriptions of the scene's FMUs (built by
+``orchestrator.build.fmus`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and
+``aero`` for an aero scene), every coupling connection (``e[k]`` and ``de[k]`` from the structure's output
+to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure's input, k = 1..n,
+docs/architecture.md), each component's parameters with the values the FMU was built with (its start
+values, the scene's), the outputs a user reads (every Real output that is not a coupling variable: fold
+angles, latch times, probes, CL, lift, ...), and the experiment (start 0, stop ``time.stop``, communication step
+``coupling.step``, s). A structure-only scene is the structure alone, its Q inputs held at their start
+value 0, as ``wingsim run`` holds them.
+
+``orchestrator.export.ssp`` writes this as an SSP package, ``orchestrator.export.container`` as one FMU.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from orchestrator.build.fmus import units_needed
+from orchestrator.build.sources import UNITS
+
+COUPLING = re.compile(r"^(e|de|Q)\[(\d+)\]$")
+"""The names of the coupling variables: indexed blocks e, de (structure -> aero) and Q (aero -> structure)."""
+
+FLOWS = (("e", "structure", "aero"), ("de", "structure", "aero"), ("Q", "aero", "structure"))
+"""(block, from component, to component) of every coupling connection."""
+
+
+class IncompatibleFMUs(RuntimeError):
+    """The built FMUs cannot form the scene's coupled system; the message names the mismatch."""
+
+
+@dataclass(frozen=True)
+class Component:
+    """One FMU of the system: ``name`` is its kind ("structure" or "aero"), ``fmu`` its file and
+    ``model_description`` what fmpy reads from it."""
+
+    name: str
+    fmu: Path
+    model_description: Any
+
+    def variables(self, causality: str) -> list:
+        """The Real variables of this causality, in the order the FMU declares them."""
+        return [v for v in self.model_description.modelVariables if v.type == "Real" and v.causality == causality]
+
+    @property
+    def parameters(self) -> list:
+        """The Real parameters (tunable scalars, docs/fmu.md), their start values as built."""
+        return self.variables("parameter")
+
+    @property
+    def public_outputs(self) -> list:
+        """The Real outputs that are not coupling variables: what a user plots."""
+        return [v for v in self.variables("output") if not COUPLING.match(v.name)]
+
+    def block(self, name: str, causality: str) -> list:
+        """The variables ``name[1..n]`` of this causality, in index order; empty if there are none."""
+        indexed = {}
+        for v in self.variables(causality):
+            match = COUPLING.match(v.name)
+            if match and match.group(1) == name:
+                indexed[int(match.group(2))] = v
+        if indexed and sorted(indexed) != list(range(1, len(indexed) + 1)):
+            raise IncompatibleFMUs(f"{self.fmu}: the {causality}s {name}[k] are not numbered 1..{len(indexed)}")
+        return [indexed[k] for k in sorted(indexed)]
+
+    def constant(self, name: str) -> str | None:
+        """The start value of a variable (e.g. the String ``topology_hash``), None if it has none."""
+        for v in self.model_description.modelVariables:
+            if v.name == name:
+                return v.start
+        return None
+
+
+@dataclass(frozen=True)
+class Connection:
+    """One coupling connection: ``start`` component's output ``variable`` to ``end`` component's input of
+    the same name."""
+
+    start: str
+    end: str
+    variable: str
+
+
+@dataclass
+class System:
+    """The scene's coupled system (see the module docstring). Times in s."""
+
+    name: str
+    description: str
+    components: list[Component]
+    connections: list[Connection] = field(default_factory=list)
+    start_time: float = 0.0
+    stop_time: float = 1.0
+    step: float = 1e-3
+
+    def component(self, name: str) -> Component:
+        return next(c for c in self.components if c.name == name)
+
+    @property
+    def unit_definitions(self) -> list:
+        """The UnitDefinitions of all components, each name once (fmpy ``Unit`` objects)."""
+        units: dict[str, Any] = {}
+        for c in self.components:
+            for unit in c.model_description.unitDefinitions:
+                known = units.setdefault(unit.name, unit)
+                if _base(known) != _base(unit):
+                    raise IncompatibleFMUs(f"the unit {unit.name!r} is defined differently in the components' "
+                                       f"model descriptions ({known.baseUnit} vs {unit.baseUnit})")
+        return [units[name] for name in sorted(units)]
+
+
+def _base(unit) -> tuple | None:
+    base = unit.baseUnit
+    return None if base is None else tuple(getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad",
+                                                                        "factor", "offset"))
+
+
+def coupled_system(scene: dict, fmu_dir: Path) -> System:
+    """The `System` of the scene's FMUs in ``fmu_dir`` (built from ``scene``; see ``orchestrator.build.fmus``).
+
+    Raises IncompatibleFMUs when the FMUs cannot be connected: a different number of coupling variables, or
+    different structural topologies (``topology_hash``).
+    """
+    from fmpy import read_model_description
+
+    components = []
+    for kind in units_needed(scene):
+        path = Path(fmu_dir) / UNITS[kind][0]
+        components.append(Component(kind, path, read_model_description(str(path))))
+    system = System(scene["name"], scene["description"], components, start_time=0.0,
+                    stop_time=float(scene["time"]["stop"]), step=float(scene["coupling"]["step"]))
+    if len(components) == 2:
+        system.connections = _connections(*components)
+    return system
+
+
+def _connections(structure: Component, aero: Component) -> list[Connection]:
+    hashes = structure.constant("topology_hash"), aero.constant("topology_hash")
+    if hashes[0] != hashes[1]:
+        raise IncompatibleFMUs(f"{structure.fmu} and {aero.fmu} carry different structural topologies (topology_hash "
+                           f"{hashes[0]} vs {hashes[1]}): rebuild both from one scene (wingsim build SCENE)")
+    by_name = {c.name: c for c in (structure, aero)}
+    connections = []
+    n = len(structure.block("e", "output"))
+    for block, start, end in FLOWS:
+        outputs, inputs = by_name[start].block(block, "output"), by_name[end].block(block, "input")
+        if len(outputs) != n or len(inputs) != n:
+            raise IncompatibleFMUs(f"{block}[k]: {start} has {len(outputs)} outputs and {end} {len(inputs)} inputs, "
+                               f"but the structure has n = {n} coordinates: rebuild both FMUs from one scene")
+        connections += [Connection(start, end, v.name) for v in outputs]
+    # the order a host exchanges them in does not matter: every exchange happens between steps
+    return connections

@@ -1,0 +1,7 @@
+"""Output stage: what a run leaves in its output folder.
+
+- ``results``         ``timeseries.csv`` and ``summary.json`` (README, Outputs), also for a failed run
+- ``plots``           PNG plots of a run
+- ``mechanism_view``  the mechanism at several instants (``mechanism.png``)
+- ``wake_view``       the wing and its wake in 3D (``wake_3d.png``), by replaying the aero unit
+"""

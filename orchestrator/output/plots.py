@@ -1,0 +1,177 @@
+"""PNG plots of a run (matplotlib, Agg backend; no display needed).
+
+- ``fold_angles.png``: fold angle of each hinge (degrees) vs time (s), with its stop angle and the time it
+  latched there (the structure unit's latch time, the deployment time of a single hinge);
+- ``probe_displacements.png``: displacement of each probe from its initial position (m), per
+  global component, vs time (s);
+- ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
+- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s), with the joints'
+  monitors (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
+- ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
+- ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
+  aero unit in-process with the recorded inputs (``orchestrator.output.wake_view``; capped in wall time);
+- ``mechanism.png``: the bodies' reference lines at 5 instants from t = 0 to the end, from the structure
+  coordinates the master recorded (``orchestrator.output.mechanism_view``), in the mechanism's plane when it is
+  planar, else in 3D.
+
+A failure of one of the two pictures prints a warning and never affects the other plots or the run's status.
+
+A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
+that name from an earlier run in the same folder is removed.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from orchestrator.run.master import RunResult
+from orchestrator.scene.load import hinge_joints
+
+PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
+              "lift_coefficient.png")
+DPI = 120
+
+
+def _title(result: RunResult, what: str) -> str:
+    status = "" if result.status == "ok" else f" ({result.status} at t = {result.simulated_time_s:.4g} s)"
+    return f"{result.scene['name']}: {what}{status}"
+
+
+def fold_angles_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.hinge_names:
+        return None
+    stops = {j["name"]: j["stop_angle_deg"] for j in hinge_joints(result.scene)}
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    for i, hinge in enumerate(series.hinge_names):
+        line, = ax.plot(series.time, series.fold_angles_deg[:, i], label=hinge)
+        if stops.get(hinge) is not None:
+            ax.axhline(stops[hinge], color=line.get_color(), linestyle=":", label=f"{hinge} stop")
+            if hinge in result.latch_times:
+                latched = result.latch_times[hinge]
+                ax.plot([latched], [stops[hinge]], "o", color=line.get_color(),
+                        label=f"{hinge} latched, {latched:.4g} s")
+    ax.set(title=_title(result, "fold angles"), xlabel="time (s)", ylabel="fold angle (deg)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def probe_displacements_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.probe_names:
+        return None
+    positions = series.positions                               # (samples, probes, 3), m
+    displacement = positions - positions[:1]
+    fig = Figure(figsize=(7, 7))
+    axes = fig.subplots(3, 1, sharex=True)
+    for c, (ax, axis) in enumerate(zip(axes, "xyz")):
+        for i, probe in enumerate(series.probe_names):
+            ax.plot(series.time, displacement[:, i, c], label=probe)
+        ax.set_ylabel(f"d{axis} (m)")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title(_title(result, "probe displacement from initial position (global frame)"))
+    axes[0].legend()
+    axes[-1].set_xlabel("time (s)")
+    return fig
+
+
+def strain_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.strain_names:
+        return None
+    gauges = {g["name"]: g for g in result.scene["strain_gauges"]}
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    for i, name in enumerate(series.strain_names):
+        g = gauges.get(name, {})
+        where = f" ({g['body']}, {1e3 * g['span']:g} mm)" if g else ""
+        ax.plot(series.time, 1e6 * series.strains[:, i], label=name + where)
+    ax.set(title=_title(result, "surface strain (bending curvature x distance to the surface)"),
+           xlabel="time (s)", ylabel="strain (microstrain)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def monitors_figure(result: RunResult) -> Figure:
+    series = result.series
+    fig = Figure(figsize=(7, 6))
+    energy_ax, residual_ax = fig.subplots(2, 1, sharex=True)
+    energy_ax.plot(series.time, series.energy)
+    energy_ax.set(title=_title(result, "energy and constraint residual"), ylabel="energy (J)")
+    residual = series.constraint_residual
+    residual_ax.plot(series.time, residual, label="constraint residual")
+    curves = [residual]
+    for name in series.joint_names:      # the joints' own conditions, on the same (log) scale
+        curves.append(np.abs(series.column(name)))
+        residual_ax.plot(series.time, curves[-1], label=name)
+    if any(np.any(np.isfinite(c) & (c > 0)) for c in curves):
+        residual_ax.set_yscale("log")
+    if series.joint_names:
+        residual_ax.legend(fontsize=7)
+    residual_ax.set(xlabel="time (s)", ylabel="residual, joint monitors (-, m)")
+    for ax in (energy_ax, residual_ax):
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
+def lift_figure(result: RunResult) -> Figure | None:
+    series = result.series
+    if not series.has_aero:
+        return None
+    fig = Figure(figsize=(7, 6))
+    cl_ax, lift_ax = fig.subplots(2, 1, sharex=True)
+    cl_ax.plot(series.time, series.CL)
+    model = result.scene["aero"]["model"]
+    cl_ax.set(title=_title(result, f"lift coefficient ({model})"), ylabel="CL (-)")
+    lift_ax.plot(series.time, series.lift)
+    lift_ax.set(xlabel="time (s)", ylabel="lift (N)")
+    for ax in (cl_ax, lift_ax):
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
+def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
+    """Write the plots that apply into ``out_dir``; returns the paths written."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    empty = len(result.series) == 0
+    figures = dict(zip(PLOT_FILES, (None,) * len(PLOT_FILES) if empty else (
+        fold_angles_figure(result), probe_displacements_figure(result), strain_figure(result),
+        monitors_figure(result), lift_figure(result))))
+    written = []
+    for filename, fig in figures.items():
+        path = out_dir / filename
+        if fig is None:
+            path.unlink(missing_ok=True)
+            continue
+        FigureCanvasAgg(fig)
+        fig.tight_layout()
+        fig.savefig(path, dpi=DPI)
+        written.append(path)
+    try:
+        from orchestrator.output.wake_view import write_wake_view
+
+        path = write_wake_view(result, out_dir)
+        if path is not None:
+            written.append(path)
+    except Exception as err:  # the picture is a courtesy: never fail the run or the other plots
+        (out_dir / "wake_3d.png").unlink(missing_ok=True)  # no stale picture of an earlier run
+        print(f"warning: wake picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    try:
+        from orchestrator.output.mechanism_view import write_mechanism_view
+
+        path = write_mechanism_view(result, out_dir)
+        if path is not None:
+            written.append(path)
+    except Exception as err:  # as the wake picture
+        (out_dir / "mechanism.png").unlink(missing_ok=True)
+        print(f"warning: mechanism picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    return written

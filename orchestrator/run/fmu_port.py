@@ -1,0 +1,228 @@
+"""The fmu backend of a unit: its FMU loaded with fmpy (FMU2Slave), every get and set batched over
+precomputed value references and ctypes buffers, every status checked, every log message kept with its
+category; the FMU refused before any step if it was built from another scene or declares its variables
+otherwise than its unit's code registers them (`orchestrator.run.layout`)."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import weakref
+from ctypes import byref
+from pathlib import Path
+
+import numpy as np
+
+from orchestrator.run.port import (ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, reported_divergence,
+                                   warnings_and_errors)
+
+
+class FmuState:
+    """An fmi2FMUstate of one instance, freed when collected (or when the instance goes away first)."""
+
+    def __init__(self, port: "FmuPort", handle):
+        self._port, self.handle = weakref.ref(port), handle
+        port._live_states.add(self)
+
+    def free(self):
+        port = self._port()
+        if self.handle is not None and port is not None and port._fmu is not None:
+            try:
+                port._fmu.fmi2FreeFMUstate(port._fmu.component, byref(self.handle))
+            except Exception:  # noqa: BLE001 - freeing is best effort
+                pass
+        self.handle = None
+
+    def __del__(self):
+        self.free()
+
+
+class FmuPort:
+    backend = "fmu"
+
+    def __init__(self, fmu_path: Path, scene: dict, instance_name: str, kind: str = "structure",
+                 check_layout: bool = True):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi1 import calloc, free
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+        self.label = f"{instance_name} ({fmu_path.name}, fmu)"
+        self.kind, spec = kind, KINDS[kind]
+        self._fmu = None
+        self._dir = None
+        self._live_states = weakref.WeakSet()
+        self._initialized = False
+        self.log: list[LogEntry] = []
+        if not fmu_path.is_file():
+            raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
+        try:
+            md = read_model_description(str(fmu_path))
+            self._dir = extract(str(fmu_path))
+        except Exception as exc:
+            self.close()
+            raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
+        try:
+            self._check_scene(scene, spec.scene_sections)
+            if check_layout:
+                self._check_layout(md)
+        except UnitError:
+            self.close()
+            raise
+        self._vr = {v.name: v.valueReference for v in md.modelVariables}
+        self._scalar_outputs = [v.name for v in md.modelVariables if v.causality == "output"
+                                and v.type == "Real" and not INDEXED.match(v.name)]
+
+        def logger(env, inst, status, category, message):
+            # The FMU's printf-style message arrives unformatted: fmpy's formatting proxy (addLoggerProxy) is
+            # not used, as it keeps ONE logger for the whole process (messages of every instance would go to
+            # the last one registered, and into freed memory once that one is gone). The slave doubles '%'.
+            text = message.decode("utf-8", "replace") if message else ""
+            self.log.append(LogEntry(int(status), category.decode("utf-8", "replace") if category else "",
+                                     text.replace("%%", "%")))
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
+                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance_name)
+        try:
+            self._call("fmi2Instantiate", fmu.instantiate, callbacks=self._callbacks, loggingOn=True)
+        except UnitError:
+            self.close()
+            raise
+        self._fmu = fmu
+
+    def _check_scene(self, scene: dict, sections: tuple[str, ...]) -> None:
+        """Refuse an FMU built from a different scene than `scene` in `sections` (stale build)."""
+        try:
+            built = json.loads(Path(self._dir, "resources", "scene.json").read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise UnitError(f"{self.label}: resources/scene.json missing ({exc}); rebuild the FMU") from exc
+        keys = []
+        for section in sections:
+            want = json.loads(json.dumps(scene.get(section)))
+            if built.get(section) != want:
+                keys += differing_keys(built.get(section), want, section)
+        if keys:
+            raise UnitError(f"{self.label} was built from a different scene (differs at {', '.join(keys[:5])}); "
+                            "rebuild it (wingsim build SCENE)")
+
+    def _check_layout(self, md) -> None:
+        """Refuse an FMU whose model description declares its variables otherwise than its unit's code
+        registers them (names, value references, causality, variability, type, unit: `orchestrator.run.layout`)."""
+        from orchestrator.run.layout import check
+
+        problems = check(md, self.kind, Path(self._dir, "resources"))
+        if problems:
+            raise UnitError(f"{self.label}: refused: " + "; ".join(problems))
+
+    def _reasons(self, since: int) -> str:
+        entries = [entry._replace(text=" ".join(entry.text.split())) for entry in self.log[since:] if entry.text]
+        return warnings_and_errors(entries) or "no reason logged by the unit"
+
+    def _call(self, what: str, fn, *args, **kwargs):
+        """fn(*args); UnitError if it fails (fmpy raises on a status above warning) or logs an error."""
+        mark = len(self.log)
+        try:
+            result = fn(*args, **kwargs)
+        except Exception as exc:
+            raise UnitError(f"{self.label}: {what} failed ({exc}): {self._reasons(mark)}",
+                            diverged=reported_divergence(self.log[mark:])) from None
+        if any(entry.status >= ERROR_STATUS for entry in self.log[mark:]):
+            raise UnitError(f"{self.label}: {what} failed: {self._reasons(mark)}",
+                            diverged=reported_divergence(self.log[mark:]))
+        return result
+
+    def value_references(self) -> dict[str, int]:
+        return dict(self._vr)
+
+    def scalar_outputs(self) -> list[str]:
+        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
+        return list(self._scalar_outputs)
+
+    def reader(self, vrs: list[int]):
+        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
+        n = len(vrs)
+        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
+        view = np.ctypeslib.as_array(buf)
+
+        def read() -> np.ndarray:
+            self._call("fmi2GetReal", self._fmu.fmi2GetReal, self._fmu.component, vr_arr, n, buf)
+            return view.copy()
+        return read
+
+    def writer(self, vrs: list[int]):
+        from fmpy.fmi2 import fmi2Real, fmi2ValueReference
+        n = len(vrs)
+        vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
+        view = np.ctypeslib.as_array(buf)
+
+        def write(values: np.ndarray) -> None:
+            view[:] = values
+            self._call("fmi2SetReal", self._fmu.fmi2SetReal, self._fmu.component, vr_arr, n, buf)
+        return write
+
+    def get_string(self, vr: int) -> str:
+        return self._call("fmi2GetString", self._fmu.getString, [vr])[0].decode("utf-8")
+
+    def setup(self) -> None:
+        self._call("fmi2SetupExperiment", self._fmu.setupExperiment, startTime=0.0)
+        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
+
+    def initialize(self) -> None:
+        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        self._initialized = True
+
+    def do_step(self, t: float, h: float) -> None:
+        from fmpy.fmi2 import fmi2False
+        self._call(f"fmi2DoStep(t = {t:.6g} s, h = {h:.6g} s)", self._fmu.fmi2DoStep,
+                   self._fmu.component, t, h, fmi2False)
+
+    def get_state(self) -> FmuState:
+        return FmuState(self, self._call("fmi2GetFMUstate", self._fmu.getFMUstate))
+
+    def set_state(self, state: FmuState) -> None:
+        if not isinstance(state, FmuState) or state._port() is not self or state.handle is None:
+            raise UnitError(f"{self.label}: set_state needs a live state from this unit's get_state()")
+        self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state.handle)
+
+    def serialize_state(self, state: FmuState) -> bytes:
+        return bytes(self._call("fmi2SerializeFMUstate", self._fmu.serializeFMUstate, state.handle))
+
+    def deserialize_state(self, data: bytes) -> FmuState:
+        return FmuState(self, self._call("fmi2DeSerializeFMUstate", self._fmu.deSerializeFMUstate, data))
+
+    def close(self) -> None:
+        if self._fmu is not None:
+            for s in list(self._live_states):  # states are freed while the instance still exists
+                s.free()
+            fmu, self._fmu = self._fmu, None
+            for fn in ((fmu.terminate,) if self._initialized else ()) + (fmu.freeInstance,):
+                try:
+                    fn()
+                except Exception:  # noqa: BLE001 - e.g. terminate after a fatal status; free anyway
+                    pass
+        if self._dir is not None:
+            # pythonfmu put <dir>/resources first on sys.path at instantiation: take it out with the folder
+            resources = os.path.normpath(os.path.join(self._dir, "resources"))
+            sys.path[:] = [p for p in sys.path if os.path.normpath(p) != resources]
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+
+def differing_keys(a, b, prefix: str) -> list[str]:
+    """Dotted keys at which two JSON-like values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in list(a) + [k for k in b if k not in a]:
+            out += differing_keys(a.get(k), b.get(k), f"{prefix}.{k}")
+        return out
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        out = []
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += differing_keys(x, y, f"{prefix}[{i}]")
+        return out
+    return [] if a == b else [prefix]

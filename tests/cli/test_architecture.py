@@ -1,0 +1,109 @@
+"""The package layout is the architecture: no import runs in a circle, the stages of the master import only
+the stages before them, the product never imports the study toolkit, and the two units never import each
+other or the master. Every import counts, also one inside a function (a lazy import is still a dependency).
+"""
+import ast
+
+import pytest
+
+from repository import ROOT
+
+PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator")
+STAGES = ("scene", "build", "run", "output", "export", "sweep", "cli", "__main__")
+"""The master's stages in order (orchestrator/__init__.py): each may import only itself and those before it."""
+
+
+def _module_name(path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports() -> dict[str, set[str]]:
+    """{module: the project's modules it imports}, from every import statement of its source."""
+    files = {_module_name(p): p for package in PACKAGES for p in (ROOT / package).rglob("*.py")}
+    graph = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                found.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1] + [base]).strip(".")
+                found.add(base)
+                found.update(f"{base}.{alias.name}" for alias in node.names)
+        graph[name] = {m for m in found if m in files and m != name}
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import circle as a list of modules (first == last), or [] when there is none."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        state[node] = "done"
+        stack.pop()
+        return []
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return []
+
+
+GRAPH = _imports()
+
+
+def test_the_import_graph_is_read():
+    # the graph is not vacuous: the run loop imports the coupling schemes, the units their solvers
+    assert "orchestrator.run.coupling" in GRAPH["orchestrator.run.master"]
+    assert "structure_fmu.solver" in GRAPH["structure_fmu.structure_slave"]
+
+
+def test_no_import_circle():
+    assert _cycle(GRAPH) == [], " -> ".join(_cycle(GRAPH))
+
+
+def test_a_circle_is_found():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+
+
+def _stage(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if parts[0] == "orchestrator" and len(parts) > 1 and parts[1] in (*STAGES, "studies") else None
+
+
+@pytest.mark.parametrize("module", sorted(m for m in GRAPH if _stage(m) in STAGES))
+def test_a_stage_imports_only_the_stages_before_it(module):
+    own = STAGES.index(_stage(module))
+    later = sorted(m for m in GRAPH[module] if _stage(m) is not None
+                   and (_stage(m) == "studies" or STAGES.index(_stage(m)) > own))
+    assert later == [], f"{module} imports {later}"
+
+
+def test_the_units_import_neither_each_other_nor_the_master():
+    for module, imported in GRAPH.items():
+        top = module.split(".")[0]
+        if top in ("structure_fmu", "aero_fmu", "fmu_common"):
+            foreign = {m.split(".")[0] for m in imported} - {top, "fmu_common"}
+            assert not foreign, f"{module} imports {sorted(foreign)}"
+
+
+def test_the_package_maps_name_every_module():
+    # each package's docstring lists its modules, so a newcomer finds every one from orchestrator/__init__.py
+    for package in sorted(m for m in GRAPH if (ROOT / m.replace(".", "/") / "__init__.py").is_file()):
+        if not package.startswith("orchestrator"):
+            continue
+        text = ast.get_docstring(ast.parse((ROOT / package.replace(".", "/") / "__init__.py").read_text()))
+        children = sorted(m.rpartition(".")[2] for m in GRAPH if m.rpartition(".")[0] == package)
+        missing = [c for c in children if f"``{c}``" not in text]
+        assert not missing, f"{package}/__init__.py does not name {missing}"
