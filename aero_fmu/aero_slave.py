@@ -25,8 +25,8 @@ Variables, value references laid out contiguously so that get/set are numpy fanc
 
 The start values of e are the scene's initial coordinates (Topology.initial_coordinates), of de zero; a
 host sets both from the structure unit before each step. Q is work-conjugate to e (Otsuka et al. 2019, Eq. 12).
-Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
-resolved scene's `flow.direction`, normalized.
+Parameters are AeroSolver.tunable_parameters(scene): flow.speed, flow.density and flow.direction[1..3], the
+components of the resolved scene's `flow.direction` (any length: the solver normalizes it).
 
 Errors, exactly as the structure slave (fmu_common/fmi_slave.py lists every refused call): after
 construction no FMI call raises. A refused call logs its reason at error status and returns with the state

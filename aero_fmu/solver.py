@@ -4,7 +4,8 @@ Scene keys used (of the resolved scene, fmu_common.scene_schema): aero.model (st
 uvlm-prescribed | uvlm-free), aero.chordwise_panels, aero.spanwise_panels, aero.wake_length (chords; inf
 allowed), aero.step (s, or None), aero.span_correction, flow.speed, flow.density, flow.direction; the structure
 table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters: flow.speed
-(m/s), flow.density (kg/m^3), flow.direction_x/_y/_z (their defaults flow.direction, normalized).
+(m/s), flow.density (kg/m^3), flow.direction[1], [2], [3] (the components of flow.direction, any length:
+the solver normalizes them).
 
 Multi-rate (aero.step): `advance(t_end, e, de)` takes k = ceil((t_end - t) / aero.step) equal model steps
 over [t, t_end] when t_end - t exceeds aero.step (1e-9 relative slack, so a communication step equal to
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
+from fmu_common.scene_schema import tunable_parameters
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
 
@@ -86,10 +88,10 @@ class AeroSolver:
         for name in ("flow.speed", "flow.density"):
             if values[name] < 0:
                 raise SceneError(name, values[name], "a value >= 0")
-        direction = np.array([values[f"flow.direction_{c}"] for c in "xyz"])
+        direction = np.array([values[f"flow.direction[{i}]"] for i in (1, 2, 3)])
         norm = float(np.linalg.norm(direction))
         if not norm > 0:
-            raise SceneError("flow.direction_x/_y/_z", list(direction), "a non-zero direction")
+            raise SceneError("flow.direction", list(direction), "a non-zero direction")
         self.parameters = values
         self.direction = direction / norm
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
@@ -105,14 +107,9 @@ class AeroSolver:
 
     @staticmethod
     def tunable_parameters(scene: dict) -> dict:
-        """name -> (default, unit, description) of the scalars a system tool may change before a run."""
-        flow = scene["flow"]
-        direction = np.asarray(flow["direction"], dtype=float)
-        out = {"flow.speed": (flow["speed"], "m/s", "free-stream speed"),
-               "flow.density": (flow["density"], "kg/m3", "air density")}
-        for c, value in zip("xyz", direction / np.linalg.norm(direction)):
-            out[f"flow.direction_{c}"] = (float(value), "1", f"free-stream direction, {c} component (normalized)")
-        return out
+        """name -> (default, unit, description) of the scalars a system tool may change before a run: the
+        tunable keys of the scene's `flow` table (`fmu_common.scene_schema.tunable_parameters`)."""
+        return tunable_parameters(scene, "flow")
 
     # ---------------------------------------------------------------- stepping
     @property

@@ -72,13 +72,14 @@ SCENE_RESOURCE = "scene.json"
 DIVERGED_CATEGORY = "wingsim.diverged"
 """Log category of the error a step logs when its solver diverged (`SolverDiverged`)."""
 _COMPONENTS = [(vec, axis) for vec in ("r", "r_x", "r_y") for axis in "xyz"]
-_BNAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_BNAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?")   # an identifier, or an array element 'gravity[3]'
 COORDINATE_UNITS = {"r": ("m", "m/s", "N"), "r_x": ("1", "1/s", "N.m"), "r_y": ("1", "1/s", "N.m")}
 """Per vector of a node: units of e, de and the work-conjugate generalized force Q (Otsuka et al. 2019, Eq. 12)."""
 
 
 def fmi_name(name: str) -> str:
-    """FMI structured name for a dotted name: parts that are not identifiers are quoted ('outer wing')."""
+    """FMI structured name for a dotted name: parts that are neither identifiers nor array elements
+    (`direction[1]`) are quoted ('outer wing')."""
     return ".".join(p if _BNAME.fullmatch(p) else "'" + p.replace("'", "_") + "'" for p in name.split("."))
 
 

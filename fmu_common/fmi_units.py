@@ -36,6 +36,12 @@ _SYMBOLS = {
 }
 
 
+def fmi_unit(unit: str) -> str:
+    """A scene schema's unit in the notation of our FMI variables: 'N m/rad' -> 'N.m/rad', 'm/s^2' -> 'm/s2',
+    '-' -> '1'."""
+    return "1" if unit == "-" else ".".join(unit.split()).replace("^", "")
+
+
 def base_unit(unit: str) -> tuple[dict, float] | None:
     """Exponents and factor of a unit string like 'N.m/rad', 'N m s/rad', 'm/s2', 'm/s^2', '1/s'.
 

@@ -27,6 +27,7 @@ from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
 from .scissors import expand_scissors
+from .fmi_units import fmi_unit
 from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, Table, Tables, Text, Variants,
                      Vector, item_label)
 
@@ -47,12 +48,12 @@ PLATE = ("thickness", "density", "youngs_modulus")
 EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
 
 
-def positive(unit, doc, default=REQUIRED, **bounds):
-    return Number(unit, default, doc, low=0.0, low_open=True, **bounds)
+def positive(unit, doc, default=REQUIRED, **options):
+    return Number(unit, default, doc, low=0.0, low_open=True, **options)
 
 
-def non_negative(unit, doc, default=REQUIRED):
-    return Number(unit, default, doc, low=0.0)
+def non_negative(unit, doc, default=REQUIRED, tunable=False):
+    return Number(unit, default, doc, low=0.0, tunable=tunable)
 
 
 def fraction(doc, default):
@@ -137,7 +138,7 @@ BODY = Table({
                          "direction of r_y from the leading to the trailing edge, perpendicular to span_axis "
                          "(a hinge's child: its parent's, if given)", nonzero=True),
     "damping": non_negative("1/s", "alpha: damping of deformation or of all motion (structure.damping_model)",
-                            0.0),
+                            0.0, tunable=True),
     "elements": Integer("-", Absent("structure.elements_per_body; 1 in the rigid and prescribed fidelities"),
                         "elements along this body: a rigid body stays rigid whatever its count, its nodes are where "
                         "pins, sliders, masses and loads can sit", low=1, high=MAX_ELEMENTS_PER_BODY,
@@ -180,8 +181,8 @@ JOINT = Variants("type", {
         "ramp_time": positive("s", "time to reach omega"),
     }, doc="the root of `body` is a clamp rotating about its chord axis r_y by the angle law"),
     "revolute": Table({
-        "name": Name("-", REQUIRED, "joint name: the `fold_angle_<name>` column and the `<name>.stiffness`, "
-                                    "`<name>.damping`, `<name>.torque` parameters"),
+        "name": Name("-", REQUIRED, "joint name: the `fold_angle_<name>` column and the parameters "
+                                    "`structure.joints.<name>.stiffness`, `.damping`, `.torque`"),
         **_JOINT_BODIES,
         "axis": Vector("-", [0.0, 1.0, 0.0], "rotation axis: components along the parent's tip span, chord and "
                                              "normal (with the ground: global); the default is the chord",
@@ -189,9 +190,9 @@ JOINT = Variants("type", {
         "orientation_deg": _ORIENTATION,
         "initial_angle_deg": angle("fold angle at t = 0 (in (-180, 180) like the fold angle, which wraps at "
                                    "+-180)", 0.0),
-        "stiffness": non_negative("N m/rad", "actuator stiffness K", 0.0),
-        "damping": non_negative("N m s/rad", "actuator damping C", 0.0),
-        "torque": Number("N m", 0.0, "actuator constant torque T_const"),
+        "stiffness": non_negative("N m/rad", "actuator stiffness K", 0.0, tunable=True),
+        "damping": non_negative("N m s/rad", "actuator damping C", 0.0, tunable=True),
+        "torque": Number("N m", 0.0, "actuator constant torque T_const", tunable=True),
         "stop_angle_deg": angle("latch: when the fold angle first reaches it, from either side, K is multiplied "
                                 "by latch_factor (Otsuka et al. 2022, Sec. 5); the fold angle wraps at +-180, so "
                                 "a stop outside (-180, 180) would never be reached", Absent("no latch")),
@@ -357,11 +358,11 @@ SCENE = Table({
                                        "step", low=0.0, high=1.0, low_open=True),
     }),
     "flow": Table({
-        "speed": non_negative("m/s", "free-stream speed", 0.0),
-        "density": non_negative("kg/m^3", "air density", 1.2),
+        "speed": non_negative("m/s", "free-stream speed", 0.0, tunable=True),
+        "density": non_negative("kg/m^3", "air density", 1.2, tunable=True),
         "direction": Vector("-", Absent("the chord_axis of the first body that is not a hinge's child"),
                             "free-stream direction: the air velocity is speed x direction / |direction|",
-                            nonzero=True),
+                            nonzero=True, tunable=True),
     }),
     "aero": Table({
         "model": Choice("-", "none", "aerodynamic model; none builds no aero unit", options=AERO_MODELS),
@@ -385,13 +386,13 @@ SCENE = Table({
                                      high=MAX_ELEMENTS_PER_BODY, why=DENSE_STRUCTURE),
         "integrator": Choice("-", "generalized-alpha", "time integrator", options=INTEGRATORS),
         "step": positive("s", "internal time step; the last one in a communication step is shortened to land "
-                              "on it", 1e-4),
+                              "on it", 1e-4, tunable=True),
         "rho_inf": Number("-", 0.8, "spectral radius at infinity of generalized-alpha", low=0.0, high=1.0),
         "damping_model": Choice("-", "deformation", "what each body's damping alpha acts on: deformation "
                                                     "(zero for rigid motion) or mass-proportional (all motion, as "
                                                     "Otsuka et al. 2019, Sec. II.C write it)",
                                 options=DAMPING_MODELS),
-        "gravity": Vector("m/s^2", [0.0, 0.0, 0.0], "gravity vector, global frame"),
+        "gravity": Vector("m/s^2", [0.0, 0.0, 0.0], "gravity vector, global frame", tunable=True),
         "bodies": Tables(BODY, "body", doc="at least one, here or from structure.scissors"),
         "joints": Tables(JOINT, "joint"),
         "scissors": Tables(SCISSOR, "scissor chain"),
@@ -438,6 +439,31 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     fill_derived_defaults(scene)
     check_sizes(scene)
     return scene
+
+
+def without_tunables(scene: dict) -> dict:
+    """The resolved scene with the value of every tunable key blanked (`fmu_common.schema.TUNABLE`): what an
+    FMU's build depends on. Two scenes that differ only in tunable keys run on the same FMUs, which the master
+    gives the tunable values as parameters."""
+    return SCENE.blanked(scene)
+
+
+def tunable_parameters(scene: dict, section: str) -> dict[str, tuple[float, str, str]]:
+    """{FMI parameter name: (value, unit, description)} of the tunable keys of the resolved scene in `section`
+    ("structure": the structure unit's; "flow": the aero unit's), in schema order. A parameter is named by
+    its dotted key (`structure.joints.fold.stiffness`), a vector's components by `key[1]` .. `key[3]`
+    (x, y, z); the unit is the key's, in FMI's notation (`fmu_common.fmi_units.fmi_unit`)."""
+    out = {}
+    for key, declaration, value in SCENE.tunables("", scene):
+        if key.split(".")[0] != section:
+            continue
+        unit = fmi_unit(declaration.unit)
+        if isinstance(declaration, Vector):
+            for i, (axis, component) in enumerate(zip("xyz", value)):
+                out[f"{key}[{i + 1}]"] = (float(component), unit, f"{declaration.doc}: {axis} component")
+        else:
+            out[key] = (float(value), unit, declaration.doc)
+    return out
 
 
 def _resolve_item(section: str, key: str, raw: dict) -> dict:

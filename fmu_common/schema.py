@@ -10,6 +10,11 @@ of tables an item is named by its `name` when it has a valid one, else by its 0-
 Defaults: `REQUIRED` (the scene must give the key), a value, or `Absent(text)`: the key resolves to None
 when not given, and `text` says what that means or what fills it (e.g. a default that depends on another
 table, filled by `fmu_common.scene_schema.resolve_scene`).
+
+Tunable keys (`tunable=True`) change neither the size nor the layout of a unit: each is an FMI parameter of
+the unit that owns its section, named by its dotted key (a vector's components `key[1]` .. `key[3]`), that a
+host sets before initialization. `tunables(scene)` lists them with their values in a resolved scene, and
+`without_tunables(scene)` is the scene with their values blanked: what an FMU's build depends on.
 """
 from __future__ import annotations
 
@@ -21,6 +26,8 @@ from typing import Any, Callable
 from .errors import SceneError, reject_unknown_keys
 
 MISSING = "<missing>"
+TUNABLE = "<tunable>"
+"""What `without_tunables` puts in place of a tunable key's value."""
 """The value reported in a SceneError for a required key that is absent."""
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
@@ -70,13 +77,23 @@ def _fmt(x: float) -> str:
 
 @dataclass(frozen=True)
 class Key:
-    """A scalar key: unit, default, one-line description."""
+    """A scalar key: unit, default, one-line description; `tunable`: an FMI parameter (module docstring)."""
 
     unit: str = "-"
     default: Any = REQUIRED
     doc: str = ""
+    tunable: bool = field(default=False, kw_only=True)
 
     type_name = "value"
+
+    def tunables(self, key: str, value: Any):
+        """(dotted key, declaration, value) of the tunable keys in `value` resolved at `key`."""
+        if self.tunable and value is not None:
+            yield key, self, value
+
+    def blanked(self, value: Any) -> Any:
+        """`value` with the values of its tunable keys replaced by TUNABLE."""
+        return TUNABLE if self.tunable else value
 
     def allowed(self) -> str:
         raise NotImplementedError
@@ -259,6 +276,14 @@ class Table:
             rule(key, out)
         return out
 
+    def tunables(self, key: str, value: dict):
+        for name, spec in self.keys.items():
+            if name in value:
+                yield from spec.tunables(f"{key}.{name}" if key else name, value[name])
+
+    def blanked(self, value: dict) -> dict:
+        return {name: self.keys[name].blanked(v) if name in self.keys else v for name, v in value.items()}
+
 
 @dataclass(frozen=True)
 class Variants:
@@ -286,6 +311,12 @@ class Variants:
         table = self.tables[kind]
         resolved = Table({self.selector: self.selector_key, **table.keys}, rules=table.rules).resolve(key, value)
         return resolved
+
+    def tunables(self, key: str, value: dict):
+        yield from self.tables[value[self.selector]].tunables(key, value)
+
+    def blanked(self, value: dict | None) -> dict | None:
+        return None if value is None else self.tables[value[self.selector]].blanked(value)
 
 
 @dataclass(frozen=True)
@@ -325,3 +356,10 @@ class Tables:
                 seen.add(name)
             out.append(resolved)
         return out
+
+    def tunables(self, key: str, value: list):
+        for index, item in enumerate(value):
+            yield from self.item.tunables(f"{key}.{item_label(index, item)}", item)
+
+    def blanked(self, value: list) -> list:
+        return [self.item.blanked(item) for item in value]

@@ -176,7 +176,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene)
     _require_standalone(args.standalone, args.win64)
-    out = check_out_dir(args.out or fmu_dir(scene, False, args.standalone))
+    out = check_out_dir(args.out or fmu_dir(scene, scene, args.standalone))
     for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64):
         if args.standalone:
             from orchestrator.build.standalone import describe
@@ -198,36 +198,53 @@ def _require_standalone(standalone: bool, win64: bool = False) -> None:
         raise SceneError(refused[0], True, refused[1])
 
 
-def fmu_dir(scene: dict, overridden: bool, standalone: bool = False) -> Path:
-    """The folder `run` and `export` build a scene's FMUs into and run them from: ``fmus/<scene>/`` for the
-    scene as its file writes it (where `build` puts them), ``fmus/<scene>-<digest>/`` for a ``--set``
-    variant (``overridden``), keyed by the first DIGEST_CHARS hex digits of the resolved scene's SHA-256,
-    so that concurrent runs of different variants never rebuild each other's FMUs; ``-standalone``
-    appended for standalone FMUs."""
-    name = scene["name"]
-    if overridden:
-        from orchestrator.build.fmus import scene_digest
+def _file_scene(args: argparse.Namespace, scene: dict) -> dict | None:
+    """The scene as its file writes it (`scene` itself without ``--set``); None when the file alone is not a
+    valid scene (a ``--set`` completes it)."""
+    from orchestrator.scene.load import load_scene
 
-        name += f"-{scene_digest(scene)[:DIGEST_CHARS]}"
+    if not args.overrides:
+        return scene
+    try:
+        return load_scene(args.scene)
+    except SceneError:
+        return None
+
+
+def fmu_dir(scene: dict, file_scene: dict | None, standalone: bool = False) -> Path:
+    """The folder `run` and `export` build a scene's FMUs into and run them from: ``fmus/<scene>/`` for the
+    scene as its file writes it (`file_scene`, where `build` puts them; None: not a valid scene alone) and
+    for every ``--set`` variant that changes tunable keys only (the master sets those as parameters of the
+    same FMUs); for a variant that changes what the FMUs are built from, ``fmus/<scene>-<digest>/``, keyed
+    by the first DIGEST_CHARS hex digits of its build digest (``orchestrator.build.fmus.build_digest``), so
+    that concurrent runs of different variants never rebuild each other's FMUs; ``-standalone`` appended for
+    standalone FMUs."""
+    from orchestrator.build.fmus import build_digest
+
+    name, digest = scene["name"], build_digest(scene)
+    if file_scene is None or digest != build_digest(file_scene):
+        name += f"-{digest[:DIGEST_CHARS]}"
     return FMU_ROOT / (f"{name}-standalone" if standalone else name)
 
 
 def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64: bool = False):
     """None when the FMUs are ready, else a failed RunResult saying why the build failed.
 
-    The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included)
-    or other sources (``orchestrator.build.fmus.fmus_up_to_date`` compares digests embedded in the FMUs).
+    The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included; but for
+    its tunable keys) or other sources (``orchestrator.build.fmus.fmus_up_to_date`` compares digests embedded
+    in the FMUs).
     """
-    from orchestrator.build.fmus import build_fmus, fmus_up_to_date
+    from orchestrator.build.fmus import build_fmus, build_lock, fmus_up_to_date
     from orchestrator.run.master import RunResult, new_series
 
     start = time.perf_counter()
     try:
-        if fmus_up_to_date(scene, fmu_dir, standalone, win64):
-            return None
-        kind = "standalone FMUs" + (" with win64 binaries" if win64 else "") if standalone else "FMUs"
-        print(f"building the {kind} of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
-        fmus = build_fmus(scene, fmu_dir, standalone=standalone, win64=win64)
+        with build_lock(fmu_dir):   # a concurrent run of the same folder builds it, this one waits
+            if fmus_up_to_date(scene, fmu_dir, standalone, win64):
+                return None
+            kind = "standalone FMUs" + (" with win64 binaries" if win64 else "") if standalone else "FMUs"
+            print(f"building the {kind} of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
+            fmus = build_fmus(scene, fmu_dir, standalone=standalone, win64=win64)
     except SceneError:
         raise
     except Exception as err:
@@ -259,7 +276,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         except WriteError as err:
             print(f"error: {err}; nothing was run", file=sys.stderr)
             return 1
-        folder = fmu_dir(scene, bool(args.overrides), args.standalone)
+        folder = fmu_dir(scene, _file_scene(args, scene), args.standalone)
         result = _build_if_needed(scene, folder, args.standalone) if args.backend == "fmu" else None
         if result is None:
             progress = Progress(scene["time"]["stop"], label=scene["name"])
@@ -300,7 +317,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, args.overrides)
     _require_standalone(args.standalone, args.win64)
     out = check_out_dir(args.out or EXPORT_ROOT / (scene["name"] + ("-standalone" if args.standalone else "")))
-    folder = fmu_dir(scene, bool(args.overrides), args.standalone)
+    folder = fmu_dir(scene, _file_scene(args, scene), args.standalone)
     failed = _build_if_needed(scene, folder, args.standalone, args.win64)
     if failed is not None:
         print(f"error: {failed.message}", file=sys.stderr)

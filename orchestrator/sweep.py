@@ -6,7 +6,8 @@ before anything runs, so a bad key or value exits 2 and runs nothing. The runs g
 processes (``jobs``, default ``os.cpu_count()``) or, with ``scheduler``, to a Dask distributed
 cluster. Workers only compute: they return the RunResult and this process writes every file, so
 Dask workers need no shared file system (except with ``backend="fmu"``, whose FMUs are built here
-before any run starts and opened by the workers from ``OUT/fmus/<run>/``).
+before any run starts and opened by the workers from ``OUT/fmus/<digest>/``: one pair of FMUs for all the
+runs that differ only in tunable keys, such as ``flow.speed``, which the master sets as parameters).
 
 Layout of the output folder ``OUT``:
 
@@ -316,24 +317,38 @@ class SweepOutcome:
     table: Path
 
 
-def _build_fmus(runs: list[Run], todo: list[Run], out: Path, stream: TextIO) -> dict[int, Any]:
-    """Build (if needed) each run's FMUs into OUT/fmus/<run>/ before any run starts; failed builds
-    as RunResults by run index."""
-    from orchestrator.build.fmus import build_fmus, fmus_up_to_date
+def fmu_folder(out: Path, scene: dict) -> Path:
+    """Where a run's FMUs are: ``OUT/fmus/<digest>/``, the first 12 hex digits of the scene's build digest
+    (``orchestrator.build.fmus.build_digest``), one folder for all the runs that differ in tunable keys only
+    (the master sets those as parameters)."""
+    from orchestrator.build.fmus import build_digest
 
-    failed = {}
+    return out / "fmus" / build_digest(scene)[:12]
+
+
+def _build_fmus(todo: list[Run], out: Path, stream: TextIO) -> dict[int, Any]:
+    """Build (if needed) the FMUs of every run into its ``fmu_folder`` before any run starts, once per
+    folder; failed builds as RunResults by run index."""
+    from orchestrator.build.fmus import build_fmus, build_lock, fmus_up_to_date
+
+    failed, built = {}, {}   # built: folder -> None, or the failure message
     for run in todo:
-        fmu_dir = out / "fmus" / run.name
-        start = time.perf_counter()
-        try:
-            if not fmus_up_to_date(run.scene, fmu_dir):
-                print(f"building the FMUs of {run.name} into {fmu_dir} ...", file=stream)
-                build_fmus(run.scene, fmu_dir)
-        except SceneError:
-            raise
-        except Exception as err:
-            failed[run.index] = _failed(run.scene, f"building the FMUs into {fmu_dir} failed: "
-                                                   f"{type(err).__name__}: {err}", time.perf_counter() - start)
+        fmu_dir = fmu_folder(out, run.scene)
+        if fmu_dir not in built:
+            start = time.perf_counter()
+            built[fmu_dir] = None
+            try:
+                with build_lock(fmu_dir):
+                    if not fmus_up_to_date(run.scene, fmu_dir):
+                        print(f"building the FMUs of {run.name} into {fmu_dir} ...", file=stream)
+                        build_fmus(run.scene, fmu_dir)
+            except SceneError:
+                raise
+            except Exception as err:
+                built[fmu_dir] = (f"building the FMUs into {fmu_dir} failed: {type(err).__name__}: {err}",
+                                  time.perf_counter() - start)
+        if built[fmu_dir] is not None:
+            failed[run.index] = _failed(run.scene, *built[fmu_dir])
     return failed
 
 
@@ -416,10 +431,10 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
         todo = [run for run in todo if prepare(run)]
         fmu_dirs: dict[int, str | None] = {run.index: None for run in todo}
         if backend == "fmu" and todo:
-            for index, result in _build_fmus(runs, todo, out, stream).items():
+            for index, result in _build_fmus(todo, out, stream).items():
                 todo.remove(by_index[index])
                 finish(by_index[index], result)
-            fmu_dirs = {run.index: str((out / "fmus" / run.name).resolve()) for run in todo}
+            fmu_dirs = {run.index: str(fmu_folder(out, run.scene).resolve()) for run in todo}
         if todo and scheduler:
             _run_dask(todo, backend, fmu_dirs, scheduler, finish)
         elif todo:

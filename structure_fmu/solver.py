@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
+from fmu_common.scene_schema import tunable_parameters
 
 from .integrators import RK4, GeneralizedAlpha, State, constrained_accelerations, project
 from .joint_monitors import joint_monitors, monitor_names
@@ -42,13 +43,13 @@ class StructureSolver:
         self.parameters = values
         if values["structure.step"] <= 0:
             raise SceneError("structure.step", values["structure.step"], "a time step > 0 (s)")
-        hinge_parameters = {h: {k: values[f"{h}.{k}"] for k in ("stiffness", "damping", "torque")}
-                            for h in self.topology.hinge_names}
+        hinge_parameters = {h: {k: values[f"structure.joints.{h}.{k}"]
+                                for k in ("stiffness", "damping", "torque")} for h in self.topology.hinge_names}
         for h, p in hinge_parameters.items():
             if p["stiffness"] < 0 or p["damping"] < 0:
-                raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
-        body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
-        gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
+                raise SceneError(f"structure.joints.{h}.stiffness/damping", p, "K >= 0 and C >= 0")
+        body_damping = {b: values[f"structure.bodies.{b}.damping"] for b in self.topology.bodies}
+        gravity = [values[f"structure.gravity[{i}]"] for i in (1, 2, 3)]
         model = StrainBasedModel if structure["fidelity"] == "strain-based" else StructureModel
         self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
         self.step_size = values["structure.step"]
@@ -81,24 +82,9 @@ class StructureSolver:
 
     @staticmethod
     def tunable_parameters(scene: dict) -> dict:
-        """name -> (default, unit, description) of the scalars a system tool may change before a run."""
-        structure = scene["structure"]
-        gravity = structure["gravity"]
-        out = {"structure.step": (structure["step"], "s", "internal time step"),
-               "gravity_x": (float(gravity[0]), "m/s2", "gravity, x component"),
-               "gravity_y": (float(gravity[1]), "m/s2", "gravity, y component"),
-               "gravity_z": (float(gravity[2]), "m/s2", "gravity, z component")}
-        for body in structure["bodies"]:
-            out[f"{body['name']}.damping"] = (body["damping"], "1/s",
-                                              "mass-proportional damping alpha (of deformation, or of all motion: "
-                                              "structure.damping_model)")
-        for joint in structure["joints"]:
-            if joint["type"] == "revolute":
-                name = joint["name"]
-                out[f"{name}.stiffness"] = (joint["stiffness"], "N.m/rad", "actuator stiffness K")
-                out[f"{name}.damping"] = (joint["damping"], "N.m.s/rad", "actuator damping C")
-                out[f"{name}.torque"] = (joint["torque"], "N.m", "actuator constant torque T_const")
-        return out
+        """name -> (default, unit, description) of the scalars a system tool may change before a run: the
+        tunable keys of the scene's `structure` table (`fmu_common.scene_schema.tunable_parameters`)."""
+        return tunable_parameters(scene, "structure")
 
     def _check_initial_constraints(self):
         if self.model.constraint_count == 0:

@@ -20,6 +20,8 @@ binaries and a Windows runtime too (`orchestrator.build.win64`).
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import importlib
 import importlib.metadata
@@ -36,6 +38,7 @@ from fmu_common import c_library
 from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
+from fmu_common.scene_schema import without_tunables
 from orchestrator.build import native_binary, standalone as standalone_fmu, win64 as windows
 from orchestrator.build.sources import UNITS, BuildError, requirements, slave_script, source_digest, sources
 
@@ -82,6 +85,22 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
     return built
 
 
+@contextlib.contextmanager
+def build_lock(out_dir: Path):
+    """Hold the folder `out_dir` (created if missing) for one process while it checks and builds FMUs there:
+    runs of variants that share one folder (they differ in tunable keys only) then build it once, the others
+    waiting and finding the FMUs up to date. An advisory lock (flock) on `out_dir/.build.lock`, released when
+    the block ends or the process dies."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with open(out_dir / ".build.lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
 def refusal(standalone: bool, win64: bool) -> tuple[str, str] | None:
     """Why FMUs of this kind cannot be built here, as (the option to blame, "--standalone" or "--win64", the
     reason), or None: win64 binaries without standalone FMUs, or what this machine lacks for either."""
@@ -97,8 +116,9 @@ def refusal(standalone: bool, win64: bool) -> tuple[str, str] | None:
 
 
 def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> bool:
-    """True if every FMU the scene needs exists in `out_dir`, of the kind asked for, built from this scene and
-    these sources (an FMU with win64 binaries serves where none are asked for)."""
+    """True if every FMU the scene needs exists in `out_dir`, of the kind asked for, built from this scene (but
+    for its tunable keys, which the master sets as parameters: `build_digest`) and these sources (an FMU with
+    win64 binaries serves where none are asked for)."""
     for kind in units_needed(scene):
         fmu = Path(out_dir) / UNITS[kind][0]
         try:
@@ -133,13 +153,15 @@ def _require(kind: str, scene: dict) -> None:
     slave_script(kind)
 
 
-def scene_digest(scene: dict) -> str:
-    """SHA-256 (hex) of the resolved scene as canonical JSON: the `scene_sha256` its FMUs carry."""
-    return hashlib.sha256(json.dumps(scene, sort_keys=True).encode()).hexdigest()
+def build_digest(scene: dict) -> str:
+    """SHA-256 (hex) of what the FMUs of a resolved scene are built from: the scene as canonical JSON with the
+    values of its tunable keys blanked (`fmu_common.scene_schema.without_tunables`), the `scene_sha256` its
+    FMUs carry. Scenes that differ only in tunable keys have one digest and run on the same FMUs."""
+    return hashlib.sha256(json.dumps(without_tunables(scene), sort_keys=True).encode()).hexdigest()
 
 
 def _build_info(kind: str, scene: dict, standalone: bool, win64: bool = False) -> dict:
-    info = {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": scene_digest(scene),
+    info = {"unit": kind, "sources_sha256": source_digest(kind), "scene_sha256": build_digest(scene),
             "native_binary_sha256": native_binary.source_digest(), "standalone": standalone}
     if win64:
         info["win64"] = True

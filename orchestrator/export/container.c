@@ -40,6 +40,9 @@
  *                                       T1..TN of unit TO (one block, one fmi2GetReal and one fmi2SetReal)
  *   variable VR KIND UNIT UVR NAME      container value reference VR (> 0) is unit UNIT's value reference
  *                                       UVR; KIND is `output` or `parameter`; NAME is for messages
+ *   start VR VALUE                      the parameter VR (declared above) starts at VALUE: it is set on its
+ *                                       unit after fmi2Instantiate and after fmi2Reset, so that the units run
+ *                                       the container's start values whatever values they were built with
  *
  * C99 and POSIX; links only libdl (and -pthread for the lock of the instance list).
  */
@@ -93,6 +96,8 @@ typedef struct {
     size_t unit;
     fmi2ValueReference unit_vr;
     char *name;
+    int has_start;                   /* a parameter with a start value of the container's own */
+    fmi2Real start;
 } Variable;
 
 typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } Phase;
@@ -387,6 +392,37 @@ static int parse_variable(Line *line)
     return 1;
 }
 
+static int parse_start(Line *line)
+{
+    Container *c = line->c;
+    fmi2ValueReference vr;
+    const char *w = NULL;
+    char *end = NULL;
+    if (!read_vr(line, &vr) || (w = word(line)) == NULL) return bad(line, "expected: start VR VALUE");
+    double value = strtod(w, &end);
+    if (*end != '\0' || !(value > -1e308 && value < 1e308) || word(line) != NULL)
+        return bad(line, "expected: start VR VALUE, a finite number");
+    if (vr >= c->n_variables || c->variables[vr].kind != PARAMETER)
+        return bad(line, "start: VR is not a parameter declared above");
+    c->variables[vr].has_start = 1;
+    c->variables[vr].start = value;
+    return 1;
+}
+
+/* Set every parameter that has a start value on its unit; `call` names the container call, for messages. */
+static fmi2Status apply_starts(Container *c, const char *call)
+{
+    fmi2Status status = fmi2OK;
+    for (size_t vr = 0; vr < c->n_variables && status <= fmi2Warning; ++vr) {
+        Variable *v = &c->variables[vr];
+        if (!v->has_start) continue;
+        Unit *u = &c->units[v->unit];
+        status = worse(status, checked(c, u, u->fmi.SetReal(u->component, &v->unit_vr, 1, &v->start),
+                                       "fmi2SetReal of the start value of %s in %s", v->name, call));
+    }
+    return status;
+}
+
 static int parse_line(Line *line)
 {
     const char *record = word(line);
@@ -408,7 +444,8 @@ static int parse_line(Line *line)
     if (strcmp(record, "unit") == 0) return parse_unit(line);
     if (strcmp(record, "connection") == 0) return parse_connection(line);
     if (strcmp(record, "variable") == 0) return parse_variable(line);
-    return bad(line, "unknown record (expected guid, step, unit, connection or variable)");
+    if (strcmp(record, "start") == 0) return parse_start(line);
+    return bad(line, "unknown record (expected guid, step, unit, connection, variable or start)");
 }
 
 /* Read resources/container.txt into `c`; 0 (the reason logged) if it is missing or wrong. */
@@ -696,7 +733,7 @@ static int start(Container *c, fmi2String fmuGUID, fmi2String location, fmi2Bool
     }
     for (size_t i = 0; ok && i < c->n_units; ++i) ok = start_unit(&c->units[i], resources, logging_on);
     free(resources);
-    return ok;
+    return ok && apply_starts(c, "fmi2Instantiate") <= fmi2Warning;
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -839,6 +876,7 @@ fmi2Status fmi2Reset(fmi2Component component)
         Unit *u = &c->units[i];
         status = worse(status, checked(c, u, u->fmi.Reset(u->component), "fmi2Reset"));
     }
+    if (status <= fmi2Warning) status = worse(status, apply_starts(c, "fmi2Reset"));
     c->phase = INSTANTIATED;
     c->time = 0.0;
     c->failed = 0;

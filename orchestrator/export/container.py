@@ -8,7 +8,8 @@ headers fmpy ships, for ``linux64`` only. The FMU holds:
   - the outputs: every Real output of each unit that is not a coupling variable (fold angles, latch times,
     probes, strain gauges, energies of the structure; CL, lift, ... of the aero unit), under the unit's
     own name, with its unit and description;
-  - the parameters: every parameter of each unit, under the unit's own name, start value as built;
+  - the parameters: every parameter of each unit, under the unit's own name, start value the scene's
+    (set on the unit at instantiation: the units may have been built with other values of these tunable keys);
   - ``time`` (value reference 0, which the container answers itself);
 - ``resources/<unit>/``: each unit FMU unpacked whole (its binaries, its resources, its model
   description), the permissions of its files kept;
@@ -69,7 +70,7 @@ def _container_description(system: System, public: list, parameters: list):
                          description="simulation time (s)")
     # outputs are computed by the units: no start value in the container, so initial="calculated"
     outputs = [copy(v, initial="calculated", start=None) for _, v in public]
-    params = [copy(v, initial="exact") for _, v in parameters]
+    params = [copy(v, initial="exact", start=repr(c.value(v))) for c, v in parameters]
     for vr, variable in enumerate([time] + outputs + params):
         variable.valueReference = vr
     guids = "|".join(c.model_description.guid for c in system.components)
@@ -123,6 +124,8 @@ def _configuration(system: System, description, exposed: list) -> str:
     for container_var, (component, v) in exposed:
         lines.append(f"variable {container_var.valueReference} {v.causality} {component.name} {v.valueReference} "
                      f"{v.name}")
+        if v.causality == "parameter":   # the scene's value, which the unit may not have been built with
+            lines.append(f"start {container_var.valueReference} {component.value(v)!r}")
     return "\n".join(lines) + "\n"
 
 

@@ -8,7 +8,8 @@
 - every coupling Connection of ``orchestrator.export.system`` (``e[k]``, ``de[k]``: structure -> aero;
   ``Q[k]``: aero -> structure);
 - on each Component, a ParameterBinding with an inline ``ssv:ParameterSet`` holding its parameters at
-  the values the FMU was built with (the scene's), names as in the FMU (libcosim applies them; fmpy's
+  the scene's values (the FMUs are shared by the variants of a scene that differ in tunable keys only:
+  each variant's package carries its own parameter set), names as in the FMU (libcosim applies them; fmpy's
   ``simulate_ssp`` applies only a parameter set passed to it, with names ``<component>.<parameter>``:
   `parameter_set_for_fmpy` builds that set);
 - the Units of the FMUs' UnitDefinitions;
@@ -101,7 +102,7 @@ def _component(elements: ET.Element, component, connected_inputs: set, system_na
                              name=f"{system_name} {component.name}")
         parameters = _sub(parameter_set, "ssv:Parameters")
         for v in component.parameters:
-            _sub(_sub(parameters, "ssv:Parameter", name=v.name), "ssv:Real", value=_number(v.start))
+            _sub(_sub(parameters, "ssv:Parameter", name=v.name), "ssv:Real", value=_number(component.value(v)))
 
 
 def _units(root: ET.Element, units: list) -> None:

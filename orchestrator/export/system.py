@@ -4,10 +4,10 @@
 ``orchestrator.build.fmus`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and
 ``aero`` for an aero scene), every coupling connection (``e[k]`` and ``de[k]`` from the structure's output
 to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure's input, k = 1..n,
-docs/architecture.md), each component's parameters with the values the FMU was built with (its start
-values, the scene's), the outputs a user reads (every Real output that is not a coupling variable: fold
-angles, latch times, probes, CL, lift, ...), and the experiment (start 0, stop ``time.stop``, communication step
-``coupling.step``, s). A structure-only scene is the structure alone, its Q inputs held at their start
+docs/architecture.md), each component's parameters with the scene's values (its tunable keys, which may
+differ from the values the FMUs were built with: ``orchestrator.build.fmus.build_digest``), the outputs a
+user reads (every Real output that is not a coupling variable: fold angles, latch times, probes, CL, lift,
+...), and the experiment (start 0, stop ``time.stop``, communication step ``coupling.step``, s). A structure-only scene is the structure alone, its Q inputs held at their start
 value 0, as ``wingsim run`` holds them.
 
 ``orchestrator.export.ssp`` writes this as an SSP package, ``orchestrator.export.container`` as one FMU.
@@ -41,6 +41,12 @@ class Component:
     name: str
     fmu: Path
     model_description: Any
+    values: dict[str, float] = field(default_factory=dict)   # parameter name -> the scene's value
+
+    def value(self, parameter) -> float:
+        """The value of a parameter variable in the scene of the system: the scene's (its tunable key), else
+        the FMU's start value."""
+        return self.values.get(parameter.name, float(parameter.start))
 
     def variables(self, causality: str) -> list:
         """The Real variables of this causality, in the order the FMU declares them."""
@@ -48,7 +54,8 @@ class Component:
 
     @property
     def parameters(self) -> list:
-        """The Real parameters (tunable scalars, docs/fmu.md), their start values as built."""
+        """The Real parameters (tunable scalars, docs/fmu.md), their start values as built (`value`: the
+        scene's)."""
         return self.variables("parameter")
 
     @property
@@ -127,10 +134,19 @@ def coupled_system(scene: dict, fmu_dir: Path) -> System:
     """
     from fmpy import read_model_description
 
+    from fmu_common.fmi_slave import fmi_name
+    from orchestrator.run.units import scene_parameters
+
     components = []
     for kind in units_needed(scene):
         path = Path(fmu_dir) / UNITS[kind][0]
-        components.append(Component(kind, path, read_model_description(str(path))))
+        values = {fmi_name(name): value for name, value in scene_parameters(kind, scene).items()}
+        component = Component(kind, path, read_model_description(str(path)), values)
+        missing = sorted(set(values) - {v.name for v in component.parameters})
+        if missing:
+            raise IncompatibleFMUs(f"{path} has no parameter {missing[0]} of the scene's tunable keys: rebuild it "
+                                   "(wingsim build SCENE)")
+        components.append(component)
     system = System(scene["name"], scene["description"], components, start_time=0.0,
                     stop_time=float(scene["time"]["stop"]), step=float(scene["coupling"]["step"]))
     if len(components) == 2:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmu_common.scene_schema import without_tunables
 from orchestrator.run.port import (ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, reported_divergence,
                                    warnings_and_errors)
 
@@ -96,11 +97,19 @@ class FmuPort:
         self._fmu = fmu
 
     def _check_scene(self, scene: dict, sections: tuple[str, ...]) -> None:
-        """Refuse an FMU built from a different scene than `scene` in `sections` (stale build)."""
+        """Refuse an FMU built from a different scene than `scene` in `sections`, but for their tunable keys
+        (stale build)."""
         try:
             built = json.loads(Path(self._dir, "resources", "scene.json").read_text(encoding="utf-8"))
         except OSError as exc:
             raise UnitError(f"{self.label}: resources/scene.json missing ({exc}); rebuild the FMU") from exc
+        # the tunable keys may differ: the unit gets the scene's values as parameters (orchestrator.run.units)
+        try:
+            built = without_tunables(built)
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise UnitError(f"{self.label}: resources/scene.json is not a resolved scene ({type(exc).__name__}: "
+                            f"{exc}); rebuild the FMU") from exc
+        scene = without_tunables(scene)
         keys = []
         for section in sections:
             want = json.loads(json.dumps(scene.get(section)))

@@ -51,20 +51,19 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     """Create, set up and initialize a unit of `kind` ("structure" or "aero") for `scene`.
 
     backend: "fmu" (fmu_dir/<kind>.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
-    unused). parameters: optional {tunable name: value} set before initialization (names as in
-    StructureSolver / AeroSolver.tunable_parameters). check_layout=False skips the fmu backend's layout check
-    (`orchestrator.run.layout`) for a caller that has just made it. Raises UnitError on any failure, naming what
-    was wrong.
+    unused). Every tunable parameter (StructureSolver / AeroSolver.tunable_parameters: the scene's tunable
+    keys) is set to the scene's value before initialization; `parameters` ({name: value}) overrides some.
+    check_layout=False skips the fmu backend's layout check (`orchestrator.run.layout`) for a caller that has
+    just made it. Raises UnitError on any failure, naming what was wrong.
     """
     if kind not in KINDS:
         raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(KINDS)}")
     spec = KINDS[kind]
-    # Import the host's packages first: an FMU loaded in this process then shares them instead of importing
-    # its embedded copy from a temporary folder that is deleted at terminate().
-    try:
-        importlib.import_module(spec.slave[0])
-    except ImportError as exc:
-        raise UnitError(f"the {kind} unit cannot be loaded: {spec.slave[0]} does not import ({exc})") from exc
+    # Every tunable parameter at the scene's value: an FMU built from a scene that differs in tunable keys only
+    # (orchestrator.build.fmus.build_digest) then runs this scene. This imports the host's packages first: an
+    # FMU loaded in this process then shares them instead of importing its embedded copy from a temporary
+    # folder that is deleted at terminate().
+    values = scene_parameters(kind, scene)
     name = instance_name or kind
     port: Port
     if backend == "fmu":
@@ -78,10 +77,22 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     else:
         raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
     try:
-        return Unit(port, scene, parameters or {}, kind)
+        return Unit(port, scene, {**values, **(parameters or {})}, kind)
     except BaseException:
         port.close()
         raise
+
+
+def scene_parameters(kind: str, scene: dict) -> dict[str, float]:
+    """{parameter name: value} of the `kind` unit ("structure" | "aero") for `scene`: its tunable keys at the
+    scene's values (StructureSolver / AeroSolver.tunable_parameters). Imports the unit's slave module first,
+    so that an FMU loaded later in this process shares the host's packages; UnitError if it does not import."""
+    spec = KINDS[kind]
+    try:
+        slave_class = getattr(importlib.import_module(spec.slave[0]), spec.slave[1])
+    except ImportError as exc:
+        raise UnitError(f"the {kind} unit cannot be loaded: {spec.slave[0]} does not import ({exc})") from exc
+    return {name: float(v[0]) for name, v in slave_class.solver_class.tunable_parameters(scene).items()}
 
 
 class Unit:

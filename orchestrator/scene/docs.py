@@ -71,8 +71,9 @@ def _rows(table: Table, prefix: str = "") -> Iterator[str]:
     for name, spec in table.keys.items():
         if isinstance(spec, Key):
             unit = "" if spec.unit == "-" else spec.unit
+            doc = spec.doc + (" (*tunable*)" if spec.tunable else "")
             yield (f"| `{prefix}{name}` | {spec.type_name} | {_cell(unit)} | {_cell(default_text(spec))} | "
-                   f"{allowed_text(spec)} | {_cell(spec.doc)} |")
+                   f"{allowed_text(spec)} | {_cell(doc)} |")
         elif isinstance(spec, Table) and not spec.optional:
             yield from _rows(spec, f"{prefix}{name}.")
 

@@ -172,8 +172,8 @@ def lift_slope(scene: dict, alpha: float = 0.01, speed: float = 10.0) -> float:
     from aero_fmu.solver import AeroSolver
 
     _, _, E0 = _rest_coordinates(scene)
-    aero = AeroSolver(scene, {"flow.speed": speed, "flow.direction_x": math.cos(alpha),
-                              "flow.direction_y": math.sin(alpha), "flow.direction_z": 0.0})
+    aero = AeroSolver(scene, {"flow.speed": speed, "flow.direction[1]": math.cos(alpha),
+                              "flow.direction[2]": math.sin(alpha), "flow.direction[3]": 0.0})
     aero.advance(0.0, E0, np.zeros_like(E0))
     return abs(aero.outputs()["CL"]) / alpha
 

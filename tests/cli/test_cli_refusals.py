@@ -19,7 +19,7 @@ import pytest
 
 import orchestrator.run.master
 import orchestrator.output.results
-from orchestrator.build.fmus import embedded_scene, scene_digest
+from orchestrator.build.fmus import build_digest, embedded_scene
 from orchestrator.cli import FMU_ROOT, fmu_dir, main
 from orchestrator.run.master import RunResult, new_series
 from orchestrator.output.results import summarize
@@ -377,26 +377,49 @@ def test_a_signal_to_a_run_writes_its_results_so_far(signum, code, tmp_path):
 
 # --- FMU folders of --set variants ------------------------------------------------------------------------
 
-def test_fmu_folders_are_keyed_by_the_resolved_scene_of_a_variant():
+def test_fmu_folders_are_keyed_by_what_the_fmus_are_built_from():
     written = load_scene(SCENE)
-    slow, fast = load_scene(SCENE, ["flow.speed=8"]), load_scene(SCENE, ["flow.speed=12"])
-    assert fmu_dir(written, overridden=False) == FMU_ROOT / "deploy_rigid"   # where `wingsim build` puts them
-    assert fmu_dir(slow, overridden=True) == FMU_ROOT / f"deploy_rigid-{scene_digest(slow)[:12]}"
-    assert fmu_dir(slow, True) != fmu_dir(fast, True)
-    assert fmu_dir(load_scene(SCENE, ["flow.speed=8"]), True) == fmu_dir(slow, True)   # the same variant: reused
+    assert fmu_dir(written, written) == FMU_ROOT / "deploy_rigid"   # where `wingsim build` puts them
+    # tunable keys are parameters of the FMUs built for the file's scene
+    assert fmu_dir(load_scene(SCENE, ["flow.speed=8", "structure.joints.fold.torque=0.1"]), written) == fmu_dir(
+        written, written)
+    coarse, fine = load_scene(SCENE, ["aero.spanwise_panels=5"]), load_scene(SCENE, ["aero.spanwise_panels=9"])
+    assert fmu_dir(coarse, written) == FMU_ROOT / f"deploy_rigid-{build_digest(coarse)[:12]}"
+    assert fmu_dir(coarse, written) != fmu_dir(fine, written)
+    assert fmu_dir(load_scene(SCENE, ["aero.spanwise_panels=5", "flow.speed=8"]), written) == fmu_dir(coarse, written)
+    assert fmu_dir(written, None) == FMU_ROOT / f"deploy_rigid-{build_digest(written)[:12]}"   # no valid file scene
 
 
 def test_concurrent_runs_of_two_variants_both_succeed(tmp_path):
-    speeds = ("8", "12")
-    procs = [start("run", SCENE, "--set", f"flow.speed={speed}", "--set", "time.stop=0.02", "--out",
-                   tmp_path / f"out{speed}", cwd=tmp_path, marker=uuid.uuid4().hex) for speed in speeds]
+    panels = ("5", "6")
+    procs = [start("run", SCENE, "--set", f"aero.spanwise_panels={n}", "--set", "time.stop=0.02", "--out",
+                   tmp_path / f"out{n}", cwd=tmp_path, marker=uuid.uuid4().hex) for n in panels]
     for proc in procs:
         _, err = proc.communicate(timeout=600)
         assert proc.returncode == 0, err
+    for n in panels:
+        summary = json.loads((tmp_path / f"out{n}" / "summary.json").read_text())
+        assert summary["status"] == "ok" and summary["scene"]["aero"]["spanwise_panels"] == int(n)
+        folder = tmp_path / fmu_dir(load_scene(SCENE, [f"aero.spanwise_panels={n}", "time.stop=0.02"]),
+                                    load_scene(SCENE))
+        for unit in ("structure.fmu", "aero.fmu"):   # each variant's FMUs carry its own scene
+            assert zipfile.is_zipfile(folder / unit)
+            assert embedded_scene(folder / unit)["aero"]["spanwise_panels"] == int(n)
+
+
+def test_concurrent_runs_of_tunable_variants_share_one_build(tmp_path):
+    # flow.speed is tunable: both runs need the FMUs of one folder, which one of them builds while the other
+    # waits (orchestrator.build.fmus.build_lock); each runs its own speed on them
+    speeds = ("8", "12")
+    procs = [start("run", SCENE, "--set", f"flow.speed={speed}", "--set", "time.stop=0.02", "--out",
+                   tmp_path / f"out{speed}", cwd=tmp_path, marker=uuid.uuid4().hex) for speed in speeds]
+    errors = [proc.communicate(timeout=600)[1] for proc in procs]
+    assert [proc.returncode for proc in procs] == [0, 0], errors
+    assert sum(err.count("building the FMUs") for err in errors) == 1, errors
+    lift = {}
     for speed in speeds:
         summary = json.loads((tmp_path / f"out{speed}" / "summary.json").read_text())
         assert summary["status"] == "ok" and summary["scene"]["flow"]["speed"] == float(speed)
-        folder = tmp_path / fmu_dir(load_scene(SCENE, [f"flow.speed={speed}", "time.stop=0.02"]), True)
-        for unit in ("structure.fmu", "aero.fmu"):   # each variant's FMUs carry its own scene
-            assert zipfile.is_zipfile(folder / unit)
-            assert embedded_scene(folder / unit)["flow"]["speed"] == float(speed)
+        with open(tmp_path / f"out{speed}" / "timeseries.csv", newline="") as handle:
+            lift[speed] = float(list(csv.DictReader(handle))[-1]["lift"])
+    assert lift["8"] != lift["12"]   # each run got its own speed

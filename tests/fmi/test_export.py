@@ -46,17 +46,17 @@ TIME_TOL = 1e-12   # s: the communication points' round-off (module docstring)
 STILL_AIR = ["aero.model=none"]
 
 
-def export(folder: Path, *overrides: str) -> dict[str, Path]:
-    """`wingsim export` of deploy_rigid in a fresh process in `folder` (its FMUs go to folder/fmus/<folder>/,
-    ``orchestrator.cli.fmu_dir``)."""
-    args = ["export", SCENE, "--out", folder / "export"]
+def export(folder: Path, *overrides: str, out: str = "export") -> dict[str, Path]:
+    """`wingsim export` of deploy_rigid in a fresh process in `folder` into folder/`out` (its FMUs go to
+    folder/fmus/<folder>/, ``orchestrator.cli.fmu_dir``)."""
+    args = ["export", SCENE, "--out", folder / out]
     for item in overrides:
         args += ["--set", item]
     out = wingsim(*args, cwd=folder)
     assert out.returncode == 0, out.stdout + out.stderr
     written = [Path(line) for line in out.stdout.split()]
     assert [p.name for p in written] == ["deploy_rigid.ssp", "wing.fmu"]
-    fmus = folder / fmu_dir(load_scene(SCENE, overrides), overridden=bool(overrides))   # where export built them
+    fmus = folder / fmu_dir(load_scene(SCENE, overrides), load_scene(SCENE))   # where export built them
     return {"ssp": folder / written[0], "container": folder / written[1], "fmus": fmus}
 
 
@@ -144,9 +144,9 @@ def test_parameters_carry_the_scene_values_and_the_experiment_its_times(coupled)
         assert set(values) == declared and declared   # every parameter connector bound, and only those
         bound[component.get("name")] = values
     fold = next(j for j in hinge_joints(scene) if j["name"] == "fold")
-    assert {k: bound["structure"][f"fold.{k}"] for k in ("stiffness", "damping", "torque")} == \
+    assert {k: bound["structure"][f"structure.joints.fold.{k}"] for k in ("stiffness", "damping", "torque")} == \
         {k: fold[k] for k in ("stiffness", "damping", "torque")}
-    assert [bound["structure"][f"gravity_{c}"] for c in "xyz"] == scene["structure"]["gravity"]
+    assert [bound["structure"][f"structure.gravity[{i}]"] for i in (1, 2, 3)] == scene["structure"]["gravity"]
     assert bound["structure"]["structure.step"] == scene["structure"]["step"]
     assert bound["aero"]["flow.speed"] == scene["flow"]["speed"] == 10.0
     assert bound["aero"]["flow.density"] == scene["flow"]["density"]
@@ -181,12 +181,12 @@ def test_bad_input_exits_2_before_anything_is_built(tmp_path, monkeypatch, capsy
 
 # ---- the package in other tools -------------------------------------------------------------------------
 def test_libcosim_runs_the_package_to_the_jacobi_deployment_time(coupled, jacobi, tmp_path):
-    cosim = run_tool("libcosim", coupled["ssp"], "fold.torque", "flow.speed")
+    cosim = run_tool("libcosim", coupled["ssp"], "structure.joints.fold.torque", "flow.speed")
     # libcosim took its step from the package's annotation: 300 steps reached the stop time
     assert cosim["time_s"] == pytest.approx(0.3, abs=TIME_TOL)
     assert cosim["deployment_time_s"] == pytest.approx(jacobi, abs=TIME_TOL)
     assert 0.15 < jacobi < 0.25   # it deployed within the run (the fold hinge latched)
-    assert (cosim["fold.torque"], cosim["flow.speed"]) == (0.043, 10.0)
+    assert (cosim["structure.joints.fold.torque"], cosim["flow.speed"]) == (0.043, 10.0)
 
     # libcosim applies the package's parameter bindings: change two of them in the SSD, not in the FMUs
     changed = tmp_path / "changed.ssp"
@@ -195,12 +195,12 @@ def test_libcosim_runs_the_package_to_the_jacobi_deployment_time(coupled, jacobi
             data = source.read(info)
             if info.filename == "SystemStructure.ssd":
                 root = etree.fromstring(data)
-                for name, value in (("fold.torque", "0.05"), ("flow.speed", "12.5")):
+                for name, value in (("structure.joints.fold.torque", "0.05"), ("flow.speed", "12.5")):
                     root.find(f".//ssv:Parameter[@name='{name}']/ssv:Real", NS).set("value", value)
                 data = etree.tostring(root, xml_declaration=True, encoding="utf-8")
             target.writestr(info, data)
-    cosim_changed = run_tool("libcosim", changed, "fold.torque", "flow.speed")
-    assert (cosim_changed["fold.torque"], cosim_changed["flow.speed"]) == (0.05, 12.5)
+    cosim_changed = run_tool("libcosim", changed, "structure.joints.fold.torque", "flow.speed")
+    assert (cosim_changed["structure.joints.fold.torque"], cosim_changed["flow.speed"]) == (0.05, 12.5)
     assert cosim_changed["deployment_time_s"] < cosim["deployment_time_s"] - 1e-3   # more torque: sooner
 
 
@@ -359,6 +359,28 @@ class JacobiReference:
             slave.freeInstance()
 
 
+def test_a_tunable_variant_is_exported_on_the_same_fmus_with_its_own_parameter_values(coupled):
+    # structure.joints.fold.torque is tunable: the variant's package carries the FMUs of the scene itself and
+    # binds its own value; its container sets that value on the unit, whatever the unit was built with
+    from fmpy import simulate_fmu
+
+    torque = "structure.joints.fold.torque"
+    variant = export(coupled["fmus"].parents[1], f"{torque}=0.05", out="variant")   # where the scene was exported
+    assert variant["fmus"] == coupled["fmus"]
+    with zipfile.ZipFile(variant["ssp"]) as z:
+        bound = float(etree.fromstring(z.read("SystemStructure.ssd")).find(
+            f".//ssv:Parameter[@name='{torque}']/ssv:Real", NS).get("value"))
+        fmus = {kind: z.read(f"resources/{kind}.fmu") for kind in ("structure", "aero")}
+    assert bound == 0.05
+    assert fmus == {kind: (coupled["fmus"] / f"{kind}.fmu").read_bytes() for kind in ("structure", "aero")}
+    # the reference: wingsim's master, Jacobi coupled as the container, on FMUs built from the variant's scene
+    scene = load_scene(SCENE, [f"{torque}=0.05", "coupling.algorithm=jacobi"])
+    reference = run_scene(scene, backend="direct")
+    result = simulate_fmu(str(variant["container"]), stop_time=0.3, output_interval=0.001,
+                          output=["latch_time_fold"])
+    assert result["latch_time_fold"][-1] == pytest.approx(reference.latch_times["fold"], abs=TIME_TOL)
+
+
 def test_a_host_step_of_2_5_internal_steps_is_the_documented_sequence_of_internal_steps(coupled, tmp_path):
     """Host steps H = 2.5 coupling.step: the container's outputs at every communication point equal, bit for
     bit, the two unit FMUs driven through fmpy with internal steps h, h, h/2 per host step (JacobiReference)."""
@@ -472,7 +494,7 @@ else:
         print("status instantiate NULL", flush=True)
     if case != "guid":
         wing.setupExperiment(startTime=0.0)
-        wing.setReal([vr["fold.torque"]], [float(sys.argv[3])])
+        wing.setReal([vr["structure.joints.fold.torque"]], [float(sys.argv[3])])
         wing.enterInitializationMode()
         call("exitInitializationMode")
         call("doStep", 0.0, 1e-3)
@@ -515,7 +537,8 @@ def test_a_unit_that_refuses_a_parameter_makes_initialization_fail_and_the_host_
     statuses, log = failing_host(unpacked(coupled["container"], tmp_path / "wing"), "nan", "nan")
     assert statuses["instantiate"] == "0"
     assert statuses["exitInitializationMode"] == "3"
-    assert any(message.startswith("structure: ") and "fold.torque" in message for _, message in log), log
+    assert any(message.startswith("structure: ") and "structure.joints.fold.torque" in message
+               for _, message in log), log
     assert statuses["doStep"] == "3"   # the container does not step after a failed initialization
 
 

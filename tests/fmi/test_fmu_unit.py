@@ -65,7 +65,9 @@ def test_build_embeds_scene_and_package_and_validates(scene, fmu_dir):
         assert member in names
     assert embedded_scene(fmu) == json.loads(json.dumps(scene))
     assert fmus_up_to_date(scene, fmu_dir)
-    assert not fmus_up_to_date({**scene, "structure": {**scene["structure"], "step": 5e-5}}, fmu_dir)
+    # a tunable key is a parameter of the same FMU; any other key needs another build
+    assert fmus_up_to_date({**scene, "structure": {**scene["structure"], "step": 5e-5}}, fmu_dir)
+    assert not fmus_up_to_date({**scene, "structure": {**scene["structure"], "rho_inf": 0.5}}, fmu_dir)
     md = read_model_description(str(fmu))
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
 
@@ -185,8 +187,8 @@ def test_the_divergence_log_category_is_declared(fmu_dir):
 @pytest.mark.parametrize("backend", ["fmu", "direct"])
 def test_refused_parameter_is_reported(scene, fmu_dir, backend):
     hinge = Topology.from_scene(scene).hinge_names[0]
-    with pytest.raises(UnitError, match=f"{hinge}.stiffness"):
-        make_unit("structure", scene, backend, fmu_dir, parameters={f"{hinge}.stiffness": -1.0})
+    with pytest.raises(UnitError, match=f"structure.joints.{hinge}.stiffness"):
+        make_unit("structure", scene, backend, fmu_dir, parameters={f"structure.joints.{hinge}.stiffness": -1.0})
 
 
 def test_rollback_reproduces_a_step_exactly_through_fmpy(units):
@@ -208,7 +210,7 @@ def test_rollback_reproduces_a_step_exactly_through_fmpy(units):
 
 def test_parameters_are_applied_in_both_backends(scene, units):
     hinge = Topology.from_scene(scene).hinge_names[0]
-    name = f"{hinge}.torque"
+    name = f"structure.joints.{hinge}.torque"
     value = 3.0 * StructureSolver.tunable_parameters(scene)[name][0] + 0.05
     ref = run(units("direct"), 20)[0]
     e_f = run(units("fmu", parameters={name: value}), 20)[0]
@@ -218,8 +220,8 @@ def test_parameters_are_applied_in_both_backends(scene, units):
 
 
 def test_stale_or_missing_fmu_and_bad_arguments_are_refused(scene, fmu_dir, tmp_path):
-    changed = {**scene, "structure": {**scene["structure"], "step": 5e-5}}
-    with pytest.raises(UnitError, match=r"structure\.step.*rebuild"):
+    changed = {**scene, "structure": {**scene["structure"], "rho_inf": 0.5}}   # not tunable: another build
+    with pytest.raises(UnitError, match=r"structure\.rho_inf.*rebuild"):
         make_unit("structure", changed, "fmu", fmu_dir)
     with pytest.raises(UnitError, match="not found"):
         make_unit("structure", scene, "fmu", tmp_path)

@@ -227,7 +227,8 @@ def test_generalized_force_is_consistent_with_the_panel_force_resultants(model):
     the panel forces about the origin: Otsuka et al. 2019, Eq. (12) to 1e-10 (relative)."""
     scene = folded_scene(model)
     rng = np.random.default_rng(3)
-    aero = AeroSolver(scene, parameters={"flow.direction_x": 1.0, "flow.direction_y": 0.2, "flow.direction_z": 0.3})
+    aero = AeroSolver(scene, parameters={"flow.direction[1]": 1.0, "flow.direction[2]": 0.2,
+                                             "flow.direction[3]": 0.3})
     E0 = aero.topology.initial_coordinates()
     shape = 0.02 * rng.standard_normal(E0.size)
     rate = 0.5 * rng.standard_normal(E0.size)
@@ -419,7 +420,8 @@ def test_requests_that_make_no_sense_are_refused_clearly():
     with pytest.raises(SceneError, match="aero.model"):
         AeroSolver(dict(scene, aero=dict(scene["aero"], model="none")))
     for parameters, match in (({"flow.speed": -1.0}, "flow.speed"), ({"flow.density": float("nan")}, "flow.density"),
-                              ({"flow.direction_x": 0.0}, "flow.direction"), ({"gravity_z": 1.0}, "gravity_z")):
+                              ({"flow.direction[1]": 0.0}, "flow.direction"),
+                              ({"structure.gravity[3]": 1.0}, r"structure\.gravity\[3\]")):
         with pytest.raises(SceneError, match=match):
             AeroSolver(scene, parameters=parameters)
     structure, aero = StructureSolver(scene), AeroSolver(scene)

@@ -240,7 +240,8 @@ def test_an_fmu_built_with_other_probes_is_refused(rigid):
 # --- unique names ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("override, key, taken", [
-    ("probes.tip.name=gravity", "probes.gravity.name", "'gravity_x' is not already a parameter"),
+    ("strain_gauges.strain_20mm.name=structure.step", "strain_gauges.structure.step.name",
+     "'structure.step' is not already a parameter of the structure unit"),
     ("strain_gauges.strain_20mm.name=latch_time_fold", "strain_gauges.latch_time_fold.name",
      "'latch_time_fold' is not already an output of hinge fold"),
     ("strain_gauges.strain_20mm.name=tip_vx", "strain_gauges.tip_vx.name",
