@@ -7,8 +7,9 @@ to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure'
 docs/architecture.md), each component's parameters with the scene's values (its tunable keys, which may
 differ from the values the FMUs were built with: ``orchestrator.build.fmus.build_digest``), the outputs a
 user reads (every Real output that is not a coupling variable: fold angles, latch times, probes, CL, lift,
-...), and the experiment (start 0, stop ``time.stop``, communication step ``coupling.step``, s). A structure-only scene is the structure alone, its Q inputs held at their start
-value 0, as ``wingsim run`` holds them.
+...), and the experiment (start 0, stop ``time.stop``, communication step ``coupling.step``, s). A
+structure-only scene is the structure alone, its Q inputs held at their start value 0, as ``wingsim run``
+holds them.
 
 ``orchestrator.export.ssp`` writes this as an SSP package, ``orchestrator.export.container`` as one FMU.
 """
