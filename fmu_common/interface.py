@@ -19,7 +19,7 @@ register and publish from it (fmu_common.fmi_slave), the master reads the monito
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -252,7 +252,7 @@ class Layout:
 
     variables: tuple[Variable, ...]
     rows: tuple[Laid, ...]
-    tunables: dict = field(default_factory=dict)
+    tunables: dict
 
     @property
     def reals(self) -> tuple[Variable, ...]:

@@ -127,7 +127,8 @@ class Unit:
                 raise UnitError(f"{port.label}: the master does not know what {row.items.placeholder} stands for "
                                 f"in a scene (output {row.names[0]})")
             row_items = () if row.items is None else tuple(items[row.items.placeholder])
-            names = list(row.names_of()) if row.items is None else [n for i in row_items for n in row.names_of(i)]
+            names = (list(row.names_of()) if row.items is None else
+                     [name for item in row_items for name in row.names_of(item)])
             where = slice(len(monitor_names), len(monitor_names) + len(names))
             self._monitor_rows.append((row, row_items, len(row.names), where))
             monitor_names += names
