@@ -12,7 +12,8 @@
   biot_savart.py    velocity of straight vortex segments with a Scully core (Eq. 19)
   biot_savart.c     the same in C, pair by pair (compiled and loaded by fmu_common.c_library)
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
-  aero_slave.py     the FMI slave over AeroSolver
+  interface.py      the unit's FMI interface, declared once: blocks, loads, parameters
+  aero_slave.py     the FMI slave over AeroSolver, registering and publishing that interface
 
 It imports only fmu_common (what both units share: topology, shape functions, errors, FMI plumbing, compiled
 kernels) and its own modules, never the structure unit.

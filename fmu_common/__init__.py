@@ -12,6 +12,8 @@
   vectors.py          3-vector kernels: cross product, rotation about an axis, perpendiculars
   compiled.py         which kernels run (compiled or numpy) and the per-machine cache folder of the C kernels
   c_library.py        C kernels: compiled once per machine (or into an FMU by its build), loaded with ctypes
+  interface.py        the vocabulary of a unit's FMI interface table (blocks, outputs, parameters) and its
+                      layout into variables with contiguous value references
   fmi_slave.py        the pythonfmu plumbing of both FMI slaves (SolverSlave: layout, refusals, phases, states)
   fmi_state.py        a unit's state as bytes, read back by an unpickler that builds nothing but the state
   fmi_units.py        SI units of FMI variables (UnitReal) and the model description's UnitDefinitions

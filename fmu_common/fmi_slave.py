@@ -1,10 +1,11 @@
 """What the structure and aero FMI slaves share: pythonfmu plumbing, no physics.
 
-`SolverSlave` is an abstract pythonfmu slave over a solver (`StructureSolver`, `AeroSolver`): one Real value
-buffer laid out contiguously (get/set by numpy fancy indexing), variables with SI units and a
-UnitDefinitions block, tunable parameters applied at exitInitializationMode, the complete state (solver
-internals, inputs, parameters) saved, restored and pickled. Pythonfmu's builder skips abstract classes, so a
-slave module that imports it still exposes exactly one concrete slave.
+`SolverSlave` is an abstract pythonfmu slave over a solver (`StructureSolver`, `AeroSolver`) and the unit's
+interface table (fmu_common.interface): one Real value buffer laid out contiguously from the table (get/set by
+numpy fancy indexing), its variables registered and its outputs published from the table in one loop each,
+with SI units and a UnitDefinitions block, tunable parameters applied at exitInitializationMode, the complete
+state (solver internals, inputs, parameters) saved, restored and pickled. Pythonfmu's builder skips abstract
+classes, so a slave module that imports it still exposes exactly one concrete slave.
 
 Errors. Every FMI call is answered as the FMI 2.0 standard says, without raising: a call the standard
 forbids in the unit's state, or with arguments it cannot use, is refused by logging a message at error
@@ -44,43 +45,42 @@ Facts about pythonfmu 0.7.0 this encodes (measured, see docs/fmu.md):
     of the class; with several instances of the same FMU in one process it cannot tell which one called,
     and the refused state is then refused, with the same reason, by the fmi2SetFMUstate it is passed to;
   * log text is passed to the FMI logger as a printf format: '%' is doubled;
+  * fmi2Instantiate looks for the slave class by executing the slave script again in its module's globals,
+    and then releases a reference to those globals that it does not own, once per instance: the module's
+    dictionary is freed under the slave (a segfault at the next fmi2Instantiate). A script whose classes define
+    methods gets the reference back by accident (each run leaves a class whose methods hold the globals);
+    our slave classes define none, so each run of a slave class statement takes one (`__init_subclass__`);
   * pythonfmu has no unit attribute on variables: `fmi_units.UnitReal` adds one.
 """
 from __future__ import annotations
 
+import ctypes
 import gc
 import io
 import json
 import math
 import os
 import pickle
-import re
+import sys
 import traceback
 import weakref
 from abc import abstractmethod
+from typing import Callable
 
 import numpy as np
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import (Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer,
+                       Real, String)
 from pythonfmu.enums import Fmi2Status
 
 from .errors import InputError, SolverDiverged
 from .fmi_state import STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler
 from .fmi_units import UnitReal, unit_definitions
+from .interface import INPUT, OUTPUT, Block, Interface, Layout, Output, Parameters, Reading, Variable, layout
 from .threads import limit_blas_threads
 
 SCENE_RESOURCE = "scene.json"
 DIVERGED_CATEGORY = "wingsim.diverged"
 """Log category of the error a step logs when its solver diverged (`SolverDiverged`)."""
-_COMPONENTS = [(vec, axis) for vec in ("r", "r_x", "r_y") for axis in "xyz"]
-_BNAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?")   # an identifier, or an array element 'gravity[3]'
-COORDINATE_UNITS = {"r": ("m", "m/s", "N"), "r_x": ("1", "1/s", "N.m"), "r_y": ("1", "1/s", "N.m")}
-"""Per vector of a node: units of e, de and the work-conjugate generalized force Q (Otsuka et al. 2019, Eq. 12)."""
-
-
-def fmi_name(name: str) -> str:
-    """FMI structured name for a dotted name: parts that are neither identifiers nor array elements
-    (`direction[1]`) are quoted ('outer wing')."""
-    return ".".join(p if _BNAME.fullmatch(p) else "'" + p.replace("'", "_") + "'" for p in name.split("."))
 
 
 def read_scene(resources: str | None, label: str) -> dict:
@@ -94,12 +94,6 @@ def read_scene(resources: str | None, label: str) -> dict:
             return json.load(f)
     except FileNotFoundError:
         raise FileNotFoundError(f"{label}: resource {path} is missing; rebuild the FMU") from None
-
-
-def coordinate_description(topology, k: int) -> tuple[str, str, str]:
-    """(node name, component label like 'r_x[z]', vector 'r' | 'r_x' | 'r_y') of 0-based coordinate k."""
-    vec, axis = _COMPONENTS[k % 9]
-    return topology.node_names[k // 9], f"{vec}[{axis}]", vec
 
 
 TIME_TOLERANCE = 1e-9
@@ -128,25 +122,100 @@ _LIVE: "weakref.WeakKeyDictionary[type, weakref.WeakSet]" = weakref.WeakKeyDicti
 """Slave class -> its instances, to log a refusal made in a call on the class (see `_log_on`)."""
 
 
+def _hold_module_globals(cls: type) -> None:
+    """Take one reference to the globals of the module defining the class `cls`, for the one pythonfmu 0.7.0's
+    fmi2Instantiate releases after running the slave script again, which defines the class again (module
+    docstring). Where the class is defined once (in-process), the dictionary keeps one more reference it never
+    loses: a module's dictionary lives as long as the process anyway."""
+    module = sys.modules.get(cls.__module__)
+    if module is not None:
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(vars(module)))
+
+
 def _fmi_type(var) -> str:
     return next((t.__name__ for t in (Real, Integer, Boolean, String) if isinstance(var, t)), type(var).__name__)
 
 
+def _together(reading: Reading, values: tuple) -> list[float]:
+    """The values of consecutive rows of one variable each, for one assignment to the value buffer."""
+    return [value(reading, ()) for value in values]
+
+
+def _publication(laid_out: Layout) -> list[tuple[slice, Callable, tuple]]:
+    """The output rows of a layout as (value references, value, items): `value(reading, items)` gives the
+    values of those references. Rows of one variable that follow each other are read `_together`, for one
+    buffer assignment (publishing runs at every step); rows without variables are left out."""
+    runs: list[tuple[slice, Callable, tuple]] = []
+    for laid in laid_out.rows:
+        if not laid.is_output or laid.where.start == laid.where.stop:
+            continue
+        if isinstance(laid.row, Output) and laid.row.items is None:       # its value is one float
+            if runs and runs[-1][1] is _together and runs[-1][0].stop == laid.where.start:
+                where, _, values = runs.pop()
+                runs.append((slice(where.start, laid.where.stop), _together, (*values, laid.row.value)))
+            else:
+                runs.append((laid.where, _together, (laid.row.value,)))
+        else:
+            runs.append((laid.where, laid.row.value, laid.items))
+    return runs
+
+
+_CAUSALITY = {"input": Fmi2Causality.input, "output": Fmi2Causality.output, "parameter": Fmi2Causality.parameter}
+_VARIABILITY = {"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variability.discrete,
+                "fixed": Fmi2Variability.fixed, "constant": Fmi2Variability.constant}
+
+
 class SolverSlave(Fmi2Slave):
-    """Abstract slave over a solver. Subclasses set `label` and `solver_class`, lay out `self._real`
-    (with `self._settable` and `self.sl_par`, the parameters' slice), set `input_blocks` (label, slice, what,
-    e.g. ("Q", sl_q, "generalized force on"): the inputs `do_step` checks and hands to the solver's
-    `advance(t_end, *inputs)`), register their variables with `_reg` and `_register_parameters_and_hash`,
-    and implement `_publish`."""
+    """Abstract slave over a solver. Subclasses set `label`, `model_name`, `solver_class` and `interface` (the
+    unit's table); construction reads the scene, builds the solver, lays the table out (`layout`: the value
+    buffer `_real`, the parameters' slice `sl_par`, the input blocks `do_step` checks and hands to the solver's
+    `advance(t_end, *inputs)`) and registers every variable; `_publish` copies the solver's outputs into the
+    buffer, row by row."""
 
     label = "unit"
+    model_name = "unit"
     solver_class = None
     log_categories = {**Fmi2Slave.log_categories,
                       DIVERGED_CATEGORY: "A step failed because the solver diverged (logged at fmi2Error)."}
 
+    @property
+    @abstractmethod
+    def interface(self) -> Interface:
+        """The unit's interface table (a class attribute of the concrete slave)."""
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        _hold_module_globals(cls)
+
     def __init__(self, **kwargs):
         limit_blas_threads()   # the unit starts here, in whatever host: one BLAS thread (threads.py)
         super().__init__(**kwargs)
+        self.scene = read_scene(self.resources, self.label)
+        self.modelName = self.model_name
+        self._solver = self.solver_class(self.scene)
+        self.layout = layout(self.interface, self._solver, self.scene)
+        self.topology = self._solver.topology
+        self.topology_hash = str(self.topology.topology_hash)
+        self.n = int(self.topology.n_coordinates)
+        self.tunables = self.layout.tunables
+        self.defaults = {name: float(v[0]) for name, v in self.tunables.items()}
+        self._solver_parameters = dict(self.defaults)
+        reals = self.layout.reals
+        self._real = np.array([v.start for v in reals], dtype=float)
+        self._settable = np.array([v.causality != OUTPUT for v in reals], dtype=bool)
+        self.sl_par = self.layout.where(Parameters)
+        self.input_blocks = [laid for laid in self.layout.rows
+                             if isinstance(laid.row, Block) and laid.row.causality == INPUT]
+        self._published = _publication(self.layout)
+        self._t0 = 0.0                                  # FMI start time; solver time = t - t0
+        self._phase = "instantiated"                    # one of PHASES
+        self._checked_references = {}   # ("get" | "set", value references) -> index array, checked once
+        self._failure: str | None = None                # set when the unit cannot go on
+        _LIVE.setdefault(type(self), weakref.WeakSet()).add(self)
+        for variable in self.layout.variables:
+            self._register(variable)
+        stop, step = self.scene["time"]["stop"], self.scene["coupling"]["step"]
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=stop, step_size=step)
 
     @staticmethod
     def _state_packages() -> frozenset[str]:
@@ -155,42 +224,29 @@ class SolverSlave(Fmi2Slave):
         return frozenset(sub.solver_class.__module__.split(".")[0] for sub in SolverSlave.__subclasses__()
                          if sub.solver_class is not None)
 
-    def _start(self, tunables: dict):
-        """Common construction: the tunables, a solver with the defaults, the bookkeeping of a run."""
-        self.tunables = tunables
-        self.defaults = {name: float(v[0]) for name, v in tunables.items()}
-        self._solver = self.solver_class(self.scene)
-        self._solver_parameters = dict(self.defaults)
-        self._t0 = 0.0                                  # FMI start time; solver time = t - t0
-        self._phase = "instantiated"                    # one of PHASES
-        self._checked_references = {}   # ("get" | "set", value references) -> index array, checked once
-        self._failure: str | None = None                # set when the unit cannot go on
-        _LIVE.setdefault(type(self), weakref.WeakSet()).add(self)
-
     @property
     def unit_time(self) -> float:
         """The unit's time (s): the FMI start time plus the solver's time."""
         return self._t0 + float(self._solver.time)
 
     # ---- variables ------------------------------------------------------------------------------
-    def _reg(self, name, index, unit, description, **kw):
-        if not unit or not description:  # construction may raise: a build then fails naming the variable
-            raise ValueError(f"{self.label}: variable {name} needs a unit and a description")
-        var = UnitReal(name, unit=unit, description=description,
-                       getter=lambda i=index: float(self._real[i]), **kw)
-        if self._settable[index]:
-            var.setter = lambda v, i=index: self.set_real([i], [v])
+    def _register(self, v: Variable) -> None:
+        """Register one variable of the layout: a Real reads (and an input or parameter writes) its slot of the
+        value buffer, the String `topology_hash` is a constant."""
+        if not v.description or (v.type == "Real" and not v.unit):
+            # construction may raise: a build then fails naming the variable
+            raise ValueError(f"{self.label}: variable {v.name} needs a unit and a description")
+        kw = dict(causality=_CAUSALITY[v.causality], variability=_VARIABILITY[v.variability], description=v.description,
+                  initial=None if v.initial is None else Fmi2Initial[v.initial])
+        if v.type == "String":
+            var = String(v.name, getter=lambda: self.topology_hash, **kw)
+        else:
+            index = v.value_reference
+            var = UnitReal(v.name, unit=v.unit, start=v.start, getter=lambda i=index: float(self._real[i]), **kw)
+            if self._settable[index]:
+                var.setter = lambda value, i=index: self.set_real([i], [value])
         self.register_variable(var, nested=False)
-        assert var.value_reference == index, "value references must follow the buffer layout"
-
-    def _register_parameters_and_hash(self, other_unit: str):
-        for j, (name, (default, unit, text)) in enumerate(self.tunables.items()):
-            self._reg(fmi_name(name), self.sl_par.start + j, unit, text, causality=Fmi2Causality.parameter,
-                      variability=Fmi2Variability.fixed, initial=Fmi2Initial.exact, start=float(default))
-        self.register_variable(String("topology_hash", causality=Fmi2Causality.output,
-                                      variability=Fmi2Variability.constant, initial=Fmi2Initial.exact,
-                                      description=f"hash of the structural topology; must match the {other_unit}'s",
-                                      getter=lambda: self.topology_hash), nested=False)
+        assert var.value_reference == v.value_reference, "value references must follow the layout"
 
     def to_xml(self, model_options: dict | None = None):
         """pythonfmu's model description plus the UnitDefinitions of every declared unit."""
@@ -376,9 +432,12 @@ class SolverSlave(Fmi2Slave):
         if not self._refused_in_phase("fmi2Terminate"):
             self._phase = "terminated"
 
-    @abstractmethod
     def _publish(self) -> None:
-        """Copy the solver's outputs into the output slots of the value buffer."""
+        """Copy the solver's outputs into the output slots of the value buffer, row by row of the table."""
+        reading = Reading(self._solver, self._t0)
+        real = self._real
+        for where, value, items in self._published:
+            real[where] = value(reading, items)
 
     def do_step(self, current_time, step_size):
         """fmi2DoStep: refused (logged, False) out of phase, for a step size or a communication point it cannot
@@ -386,12 +445,12 @@ class SolverSlave(Fmi2Slave):
         with the inputs held over the step."""
         if self._step_refused(current_time, step_size):
             return False
-        for label, block, what in self.input_blocks:
-            reason = self._non_finite(label, block, what, current_time)
+        for block in self.input_blocks:
+            reason = self._non_finite(block.row.name, block.where, current_time)
             if reason is not None:
                 self._error(reason)
                 return False
-        inputs = [self._real[block].copy() for _, block, _ in self.input_blocks]
+        inputs = [self._real[block.where].copy() for block in self.input_blocks]
         t_end = current_time + step_size - self._t0
         return self._advance(current_time, lambda: self._solver.advance(t_end, *inputs))
 
@@ -419,16 +478,16 @@ class SolverSlave(Fmi2Slave):
         self._error(f"{self.label}: fmi2DoStep refused: {reason}; state unchanged")
         return True
 
-    def _non_finite(self, label: str, block: slice, what: str, current_time) -> str | None:
-        """The reason the input block `label` (e.g. Q) cannot be used (NaN or inf), or None."""
+    def _non_finite(self, label: str, block: slice, current_time) -> str | None:
+        """The reason the input block `label` (e.g. Q) at `block` cannot be used (NaN or inf), or None."""
         x = self._real[block]
         finite = np.isfinite(x)
         if finite.all():
             return None
         k = int(np.argmin(finite))
-        node, comp, _ = coordinate_description(self.topology, k)
+        what = self.layout.variables[block.start + k].description
         value = "NaN" if np.isnan(x[k]) else ("+inf" if x[k] > 0 else "-inf")
-        return (f"input {label}[{k + 1}] ({what} node {node} {comp}) is {value} ({int((~finite).sum())} of "
+        return (f"input {label}[{k + 1}] ({what}) is {value} ({int((~finite).sum())} of "
                 f"{x.size} {label} inputs are NaN or inf): step at t = {current_time:.6g} s rejected, "
                 "state unchanged")
 

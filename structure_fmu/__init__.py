@@ -2,7 +2,8 @@
 joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
 
   solver.py          StructureSolver, the API of docs/solver_api.md (scene, parameters, inputs Q, state, outputs)
-  structure_slave.py the FMI slave over StructureSolver
+  interface.py       the unit's FMI interface, declared once: blocks, monitors, sensors, parameters
+  structure_slave.py the FMI slave over StructureSolver, registering and publishing that interface
   topology.py        StructureTopology: the shared topology (fmu_common) plus joints, sections, motions, masses,
                      loads, and the map E = T q + P p(t) to reduced coordinates
   section.py         beam cross-section properties from a plate or explicit stiffnesses

@@ -11,4 +11,5 @@
                      that needs)
 - ``import_trace``   what a unit imports when it runs: a script ``runtime`` runs while it builds
 - ``win64``          the Windows binaries and runtime of a standalone FMU (``--win64``)
+- ``interface_docs``  docs/fmu.md's variable tables, generated from the units' interface tables
 """

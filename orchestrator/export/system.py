@@ -135,7 +135,7 @@ def coupled_system(scene: dict, fmu_dir: Path) -> System:
     """
     from fmpy import read_model_description
 
-    from fmu_common.fmi_slave import fmi_name
+    from fmu_common.interface import fmi_name
     from orchestrator.run.units import scene_parameters
 
     components = []

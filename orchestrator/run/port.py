@@ -13,7 +13,10 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
+from aero_fmu.interface import AERO
 from fmu_common.fmi_slave import DIVERGED_CATEGORY
+from fmu_common.interface import INPUT, OUTPUT, Interface
+from structure_fmu.interface import STRUCTURE
 
 
 class UnitError(RuntimeError):
@@ -47,27 +50,32 @@ class UnitKind:
 
     fmu_file: str
     slave: tuple[str, str]            # (module, class) of the slave, for the direct backend
-    inputs: tuple[str, ...]           # indexed input blocks, each [1..n]
-    outputs: tuple[str, ...]          # indexed output blocks, each [1..n]
-    monitors: tuple[str, ...]         # scalar Real outputs read by monitors() (all required)
+    interface: Interface              # the unit's table: its blocks and the outputs monitors() reads, all required
     scene_sections: tuple[str, ...]   # scene sections an FMU must have been built from (else stale); the aero
                                       # unit sees the structure only through its topology, which the master
                                       # compares by topology_hash when the units connect
-    hinge_monitors: bool = False      # fold_angle_<hinge> and latch_time_<hinge> outputs, per hinge of the scene
-    sensor_monitors: bool = False     # <probe>_x.._vz, <gauge> and joint monitor outputs of the scene
-    extra_monitors: bool = False      # also every other scalar Real output (not a parameter)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """The input blocks, each [1..n], in the table's order (structure: Q; aero: e, de)."""
+        return tuple(b.name for b in self.interface.blocks if b.causality == INPUT)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The output blocks, each [1..n], in the table's order (structure: e, de; aero: Q)."""
+        return tuple(b.name for b in self.interface.blocks if b.causality == OUTPUT)
 
 
 KINDS = {
-    "structure": UnitKind("structure.fmu", ("structure_fmu.structure_slave", "StructureSlave"), ("Q",),
-                          ("e", "de"), ("energy", "kinetic_energy", "constraint_residual", "external_work"),
-                          ("structure", "probes", "strain_gauges"), hinge_monitors=True, sensor_monitors=True),
-    "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), ("e", "de"), ("Q",),
-                     ("CL", "lift", "wake_panels"), ("aero", "flow"), extra_monitors=True),
+    "structure": UnitKind("structure.fmu", ("structure_fmu.structure_slave", "StructureSlave"), STRUCTURE,
+                          ("structure", "probes", "strain_gauges")),
+    "aero": UnitKind("aero.fmu", ("aero_fmu.aero_slave", "AeroSlave"), AERO, ("aero", "flow")),
 }
 FMU_FILES = {kind: spec.fmu_file for kind, spec in KINDS.items()}
 ERROR_STATUS = 3  # fmi2Error: a call that logged a message at this status (or worse) failed
-INDEXED = re.compile(r"^(e|de|Q)\[(\d+)\]$")
+_BLOCKS = sorted({b.name for spec in KINDS.values() for b in spec.interface.blocks})
+INDEXED = re.compile(rf"^({'|'.join(map(re.escape, _BLOCKS))})\[(\d+)\]$")
+"""The name of a block entry, `e[3]`: (block, index)."""
 
 
 def warnings_and_errors(entries: list[LogEntry]) -> str:

@@ -12,18 +12,16 @@
                                   structure: set_inputs(Q)      generalized force, N and N m
                                   aero:      set_inputs(e, de)  the structure's coordinates and rates
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
-    unit.monitors()             structure: {"energy": J, "kinetic_energy": J, "constraint_residual": -,
-                                            "external_work": J,
-                                            "fold_angles_deg": {hinge: deg},
-                                            "latch_times": {hinge: s, for the hinges latched so far},
-                                            "probe_positions": {probe: (3,) m, global frame},
-                                            "probe_velocities": {probe: (3,) m/s, global frame},
-                                            "probe_accelerations": {probe: (3,) m/s2, global frame},
-                                            "strains": {gauge: surface strain, -},
-                                            "joints": {<joint>_point_mismatch: m, <joint>_axis_...: -}}
-                                (the structure unit's outputs <probe>_x.., <probe>_vx.., <gauge> of the
-                                scene's probes and strain gauges, and its joint monitors)
-                                aero: {"CL": -, "lift": N, "wake_panels": count, ...every scalar output}
+    unit.monitors()             every output row of the unit's table (structure_fmu.interface,
+                                aero_fmu.interface), under the row's key, in the row's units:
+                                  a row of one variable: its value ("energy": J, "CL": -, ...);
+                                  a row of one name per item: {item: value} ("fold_angles_deg": {hinge: deg},
+                                    "latch_times": {hinge: s, for the hinges latched so far}, "strains":
+                                    {gauge: -}, "joints": {<joint>_point_mismatch: m, <joint>_axis_...: -});
+                                  a row of k names per item: {item: (k,)} ("probe_positions": {probe: (3,) m,
+                                    global frame}, "probe_velocities", "probe_accelerations")
+                                the items of the scene (`scene_items`): its hinges, probes, strain gauges and
+                                joint monitors; the master computes none of them itself
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
     unit.terminate()            end the simulation and free the instance (idempotent, never raises)
@@ -41,9 +39,29 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.run.port import INDEXED, KINDS, Port, UnitError
-from structure_fmu.sensors import output_names as sensor_output_names
-from structure_fmu.structure_slave import LATCH_PENDING
+from fmu_common.interface import OUTPUT, fmi_name
+from orchestrator.run.port import KINDS, Port, UnitError, UnitKind
+from structure_fmu.interface import GAUGES, HINGES, JOINT_MONITORS, PROBES
+
+
+def scene_items(scene: dict) -> dict[str, list[str]]:
+    """{placeholder: the scene's names it stands for} of the per-item rows of the unit tables: its hinges,
+    probes, strain gauges and joint monitors, in the scene's order (the unit lays them out in its own; the master
+    reads them by name)."""
+    from orchestrator.scene.load import hinge_joints, joint_monitor_names
+
+    return {HINGES.placeholder: [j["name"] for j in hinge_joints(scene)],
+            PROBES.placeholder: [p["name"] for p in scene["probes"]],
+            GAUGES.placeholder: [g["name"] for g in scene["strain_gauges"]],
+            JOINT_MONITORS.placeholder: joint_monitor_names(scene)}
+
+
+def _block_size(name: str, vr: dict) -> int:
+    """n: the number of entries name[1], name[2], ... the unit declares."""
+    n = 0
+    while f"{name}[{n + 1}]" in vr:
+        n += 1
+    return n
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
@@ -97,52 +115,46 @@ def scene_parameters(kind: str, scene: dict) -> dict[str, float]:
 
 class Unit:
     """A structure or aero unit driven through a port (fmpy FMU or in-process slave); see the module
-    docstring."""
+    docstring. Its variables are found by name in what the port declares (the model description): the blocks
+    of its kind's table (`UnitKind.interface`; `spec` replaces KINDS[kind]'s), then every output row's variables
+    for the scene's items."""
 
-    def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure"):
-        from fmu_common.fmi_slave import fmi_name
-        from orchestrator.scene.load import hinge_joints, joint_monitor_names
-
+    def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure", spec: UnitKind | None = None):
         self._port = port
         self.kind = kind
-        self._spec = spec = KINDS[kind]
+        self._spec = spec = KINDS[kind] if spec is None else spec
         self.backend = port.backend
         vr = port.value_references()
-        idx = {(m.group(1), int(m.group(2))): v for name, v in vr.items() if (m := INDEXED.match(name))}
-        self.n = n = sum(1 for (block, _) in idx if block == spec.outputs[0])
-        try:
-            block_vr = {b: [idx[(b, i)] for i in range(1, n + 1)] for b in (*spec.outputs, *spec.inputs)}
-        except KeyError as exc:
-            raise UnitError(f"{port.label}: variable {exc.args[0][0]}[{exc.args[0][1]}] missing "
-                            f"(n = {n} from {spec.outputs[0]}[...])") from None
-        self.hinges = [j["name"] for j in hinge_joints(scene)] if spec.hinge_monitors else []
-        missing = [f"{kind}_{h}" for h in self.hinges for kind in ("fold_angle", "latch_time")
-                   if fmi_name(f"{kind}_{h}") not in vr]
+        blocks = spec.interface.blocks
+        self.n = n = _block_size(blocks[0].name, vr)
+        missing = [name for block in blocks for name in block.names(n) if name not in vr]
         if missing:
-            raise UnitError(f"{port.label}: no output {missing[0]}; the unit does not match the scene (rebuild "
-                            "the FMU)")
-        self.probes = [p["name"] for p in scene["probes"]] if spec.sensor_monitors else []
-        self.gauges = [g["name"] for g in scene["strain_gauges"]] if spec.sensor_monitors else []
-        self.joint_monitors = joint_monitor_names(scene) if spec.sensor_monitors else []
-        sensor_names = sensor_output_names(self.probes, self.gauges) + self.joint_monitors
-        absent = [m for m in (*spec.monitors, *sensor_names) if fmi_name(m) not in vr]
+            raise UnitError(f"{port.label}: variable {missing[0]} missing (n = {n} from {blocks[0].name}[...])")
+        items = scene_items(scene)
+        # (row, its items in the scene, names per item, where its values are among the monitors read)
+        self._monitor_rows, monitor_names = [], []
+        for row in spec.interface.outputs:
+            if row.items is not None and row.items.placeholder not in items:
+                raise UnitError(f"{port.label}: the master does not know what {row.items.placeholder} stands for "
+                                f"in a scene (output {row.names[0]})")
+            row_items = () if row.items is None else tuple(items[row.items.placeholder])
+            names = (list(row.names_of()) if row.items is None else
+                     [name for item in row_items for name in row.names_of(item)])
+            where = slice(len(monitor_names), len(monitor_names) + len(names))
+            self._monitor_rows.append((row, row_items, len(row.names), where))
+            monitor_names += names
+        absent = [name for name in monitor_names if name not in vr]
         if absent:
             raise UnitError(f"{port.label}: no output {absent[0]}; the unit does not match the scene (rebuild "
                             "the FMU)")
-        monitors = list(spec.monitors)
-        if spec.extra_monitors:
-            known = {v for b in block_vr.values() for v in b}
-            monitors += [name for name in port.scalar_outputs() if name not in monitors and vr[name] not in known]
-        self._monitor_names = monitors
-        output_vrs = [v for b in spec.outputs for v in block_vr[b]]
-        monitor_vrs = ([vr[fmi_name(f"fold_angle_{h}")] for h in self.hinges]
-                       + [vr[fmi_name(f"latch_time_{h}")] for h in self.hinges] + [vr[name] for name in monitors]
-                       + [vr[fmi_name(name)] for name in sensor_names])
+        output_vrs = [vr[name] for block in blocks if block.causality == OUTPUT for name in block.names(n)]
+        monitor_vrs = [vr[name] for name in monitor_names]
         # get_outputs reads the monitors in the same call and keeps both until the unit steps or is set (its
         # outputs change only then): one fmi2GetReal per unit and step, however often the master asks
         self._get_out = port.reader(output_vrs + monitor_vrs)
         self._n_outputs, self._values = len(output_vrs), None
-        self._set_in = port.writer([v for b in spec.inputs for v in block_vr[b]])
+        self._set_in = port.writer([vr[name] for block in blocks if block.causality != OUTPUT
+                                    for name in block.names(n)])
         self._get_mon = port.reader(monitor_vrs)
         self.topology_hash = port.get_string(vr["topology_hash"])
 
@@ -184,20 +196,18 @@ class Unit:
         self._port.do_step(float(t), float(h))
 
     def monitors(self) -> dict:
+        """The unit's outputs now, row by row of its table (module docstring)."""
         m = self._get_mon() if self._values is None else self._values[self._n_outputs:]
-        h = len(self.hinges)
-        angles, latch_times = m[:h], m[h:2 * h]          # the order of monitor_vrs in __init__
-        k, p = 2 * h + len(self._monitor_names), 3 * len(self.probes)      # p: values per kind of probe output
-        out = {name: float(v) for name, v in zip(self._monitor_names, m[2 * h:k])}
-        if self._spec.hinge_monitors:
-            out["fold_angles_deg"] = {name: float(a) for name, a in zip(self.hinges, angles)}
-            out["latch_times"] = {name: float(t) for name, t in zip(self.hinges, latch_times) if t != LATCH_PENDING}
-        if self._spec.sensor_monitors:
-            for j, kind in enumerate(("probe_positions", "probe_velocities", "probe_accelerations")):
-                out[kind] = dict(zip(self.probes, m[k + j * p:k + (j + 1) * p].reshape(-1, 3).copy()))
-            g = k + 3 * p + len(self.gauges)
-            out["strains"] = {name: float(v) for name, v in zip(self.gauges, m[k + 3 * p:g])}
-            out["joints"] = {name: float(v) for name, v in zip(self.joint_monitors, m[g:])}
+        out = {}
+        for row, items, width, where in self._monitor_rows:
+            values = m[where]
+            if row.items is None:
+                out[row.key] = float(values[0])
+            elif width == 1:
+                out[row.key] = {item: float(v) for item, v in zip(items, values)
+                                if row.pending is None or v != row.pending}
+            else:
+                out[row.key] = dict(zip(items, values.reshape(-1, width).copy()))
         return out
 
     def get_state(self):

@@ -1,10 +1,16 @@
 """The fixed columns of ``timeseries.csv`` (README, Outputs), declared where the scene is checked: a scene's
-own names (probes, strain gauges, joints) must not take them. ``orchestrator.run.timeseries`` records them."""
+own names (probes, strain gauges, joints) must not take them. ``orchestrator.run.timeseries`` records them.
+The units' columns are the outputs their interface tables mark as monitors (``structure_fmu.interface``,
+``aero_fmu.interface``)."""
 
-MONITOR_COLUMNS = ("energy", "kinetic_energy", "constraint_residual", "external_work")
-"""The scalar monitor columns, in ``timeseries.csv`` order, after the fold angles."""
+from aero_fmu.interface import AERO
+from structure_fmu.interface import STRUCTURE
 
-AERO_COLUMNS = ("CL", "lift")
+MONITOR_COLUMNS = tuple(row.key for row in STRUCTURE.outputs if row.monitor)
+"""The structure unit's scalar monitor columns (energy, J; kinetic energy, J; constraint residual, -; external
+work, J), in ``timeseries.csv`` order, after the fold angles."""
+
+AERO_COLUMNS = tuple(row.key for row in AERO.outputs if row.monitor)
 """The aero unit's columns (lift coefficient, -; lift, N), only for scenes with an aero unit."""
 
 COUPLING_COLUMNS = ("coupling_iterations", "coupling_residual")

@@ -15,7 +15,7 @@ from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
 from orchestrator.run.port import UnitError
 from orchestrator.run.units import make_unit
-from fmu_common.fmi_slave import fmi_name
+from fmu_common.interface import fmi_name
 from fmu_common.topology import Topology
 from repository import SCENES
 

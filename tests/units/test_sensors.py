@@ -20,7 +20,7 @@ from orchestrator.run.port import UnitError
 from orchestrator.run.units import make_unit
 from structure_fmu.solver import StructureSolver
 from fmu_common.errors import SceneError
-from fmu_common.fmi_slave import fmi_name
+from fmu_common.interface import fmi_name
 from fmu_common.shape_functions import shape_row
 from fmu_common.topology import Topology
 from repository import SCENES
