@@ -1,6 +1,6 @@
 """Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory), Otsuka et al. 2019, Sec. V.
 
-  solver.py         AeroSolver, the API of docs/aero_api.md (scene, parameters, inputs, state, outputs)
+  solver.py         AeroSolver, the API of docs/aero_api.md (spec, parameters, inputs, state, outputs)
   uvlm.py           unsteady vortex-lattice step: no penetration (Eq. 22), Kutta condition, unsteady
                     Bernoulli (Eq. 23), panel forces (Eq. 25); the flat-wake model and its closed form
   wake.py           shed ring wakes: shedding, convection (prescribed / free), truncation
@@ -14,6 +14,6 @@
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   aero_slave.py     the FMI slave over AeroSolver
 
-It imports only fmu_common (what both units share: topology, shape functions, errors, FMI plumbing, compiled
-kernels) and its own modules, never the structure unit.
+It imports only fmu_common (what both units share: the scene's specs, topology, shape functions, errors, FMI
+plumbing, compiled kernels) and its own modules, never the structure unit.
 """

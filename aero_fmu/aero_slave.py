@@ -25,7 +25,7 @@ Variables, value references laid out contiguously so that get/set are numpy fanc
 
 The start values of e are the scene's initial coordinates (Topology.initial_coordinates), of de zero; a
 host sets both from the structure unit before each step. Q is work-conjugate to e (Otsuka et al. 2019, Eq. 12).
-Parameters are AeroSolver.tunable_parameters(scene); the defaults of flow.direction_x/_y/_z are the
+Parameters are AeroSolver.tunable_parameters(spec); the defaults of flow.direction_x/_y/_z are the
 resolved scene's `flow.direction`, normalized.
 
 Errors, exactly as the structure slave (fmu_common/fmi_slave.py lists every refused call): after
@@ -50,6 +50,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variabi
 # resources/, which pythonfmu puts on sys.path, beside the embedded packages.
 from aero_fmu.solver import AeroSolver
 from fmu_common.fmi_slave import COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name, read_scene
+from fmu_common.specs import AeroUnitSpec
 
 REQUIRED_OUTPUTS = ("CL", "lift", "wake_panels")
 # unit and description of every scalar output of AeroSolver.outputs() (aero_fmu/loads.py); the unit refuses
@@ -84,8 +85,9 @@ class AeroSlave(SolverSlave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.scene = read_scene(self.resources, self.label)
+        self.spec = AeroUnitSpec.from_scene(self.scene)
         self.modelName = "aero"
-        tunables = AeroSolver.tunable_parameters(self.scene)
+        tunables = AeroSolver.tunable_parameters(self.spec)
         self._start(tunables)
         self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)

@@ -1,6 +1,6 @@
 """AeroSolver: the aero unit's solver API (docs/aero_api.md), a thin owner of one aero model and its state.
 
-Scene keys used (of the resolved scene, fmu_common.scene_schema): aero.model (strip | uvlm-flat |
+Built from the aero unit's spec (fmu_common.specs.AeroUnitSpec): aero.model (strip | uvlm-flat |
 uvlm-prescribed | uvlm-free), aero.chordwise_panels, aero.spanwise_panels, aero.wake_length (chords; inf
 allowed), aero.step (s, or None), aero.span_correction, flow.speed, flow.density, flow.direction; the structure
 table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters: flow.speed
@@ -24,6 +24,7 @@ import numpy as np
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
+from fmu_common.specs import AeroUnitSpec
 
 from .strip import StripTheory
 from .uvlm import UVLM
@@ -68,15 +69,15 @@ class AeroSolver:
 
     max_wake_rows (keyword, not a scene key): cap of shed wake rows (wake.MAX_WAKE_ROWS by default)."""
 
-    def __init__(self, scene: dict, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
-        self.topology = Topology.from_scene(scene)
-        aero = scene["aero"]
-        model = aero["model"]
+    def __init__(self, spec: AeroUnitSpec, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
+        self.topology = Topology.from_spec(spec.structure)
+        aero = spec.aero
+        model = aero.model
         if model == "none":
             raise SceneError("aero.model", model, "an aero model: \"none\" builds no aero unit")
-        self.step = aero["step"]
+        self.step = aero.step
         self.model_name = model
-        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
+        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
                 raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
@@ -95,21 +96,21 @@ class AeroSolver:
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
         if model == "strip":
-            self.model = StripTheory(self.topology, aero["spanwise_panels"], aero["span_correction"])
+            self.model = StripTheory(self.topology, aero.spanwise_panels, aero.span_correction)
         else:
-            self.model = UVLM(self.topology, aero["chordwise_panels"], aero["spanwise_panels"],
-                              wake=model.removeprefix("uvlm-"), wake_length=aero["wake_length"],
+            self.model = UVLM(self.topology, aero.chordwise_panels, aero.spanwise_panels,
+                              wake=model.removeprefix("uvlm-"), wake_length=aero.wake_length,
                               max_wake_rows=max_wake_rows)
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
 
     @staticmethod
-    def tunable_parameters(scene: dict) -> dict:
+    def tunable_parameters(spec: AeroUnitSpec) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run."""
-        flow = scene["flow"]
-        direction = np.asarray(flow["direction"], dtype=float)
-        out = {"flow.speed": (flow["speed"], "m/s", "free-stream speed"),
-               "flow.density": (flow["density"], "kg/m3", "air density")}
+        flow = spec.flow
+        direction = np.asarray(flow.direction, dtype=float)
+        out = {"flow.speed": (flow.speed, "m/s", "free-stream speed"),
+               "flow.density": (flow.density, "kg/m3", "air density")}
         for c, value in zip("xyz", direction / np.linalg.norm(direction)):
             out[f"flow.direction_{c}"] = (float(value), "1", f"free-stream direction, {c} component (normalized)")
         return out

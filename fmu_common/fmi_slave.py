@@ -158,7 +158,7 @@ class SolverSlave(Fmi2Slave):
         """Common construction: the tunables, a solver with the defaults, the bookkeeping of a run."""
         self.tunables = tunables
         self.defaults = {name: float(v[0]) for name, v in tunables.items()}
-        self._solver = self.solver_class(self.scene)
+        self._solver = self.solver_class(self.spec)
         self._solver_parameters = dict(self.defaults)
         self._t0 = 0.0                                  # FMI start time; solver time = t - t0
         self._phase = "instantiated"                    # one of PHASES
@@ -365,7 +365,7 @@ class SolverSlave(Fmi2Slave):
         if parameters == self._solver_parameters:
             return
         try:
-            self._solver = self.solver_class(self.scene, parameters=parameters)
+            self._solver = self.solver_class(self.spec, parameters=parameters)
             self._solver_parameters = parameters
             self._publish()
         except Exception as exc:  # noqa: BLE001
@@ -471,7 +471,7 @@ class SolverSlave(Fmi2Slave):
             return
         try:
             if state["solver_parameters"] != self._solver_parameters:
-                self._solver = self.solver_class(self.scene, parameters=state["solver_parameters"])
+                self._solver = self.solver_class(self.spec, parameters=state["solver_parameters"])
                 self._solver_parameters = dict(state["solver_parameters"])
             self._solver.set_state(state["solver"])
             self._real[:] = state["real"]

@@ -1,7 +1,7 @@
 """Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV), the strain-based beam with
 joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
 
-  solver.py          StructureSolver, the API of docs/solver_api.md (scene, parameters, inputs Q, state, outputs)
+  solver.py          StructureSolver, the API of docs/solver_api.md (spec, parameters, inputs Q, state, outputs)
   structure_slave.py the FMI slave over StructureSolver
   topology.py        StructureTopology: the shared topology (fmu_common) plus joints, sections, motions, masses,
                      loads, and the map E = T q + P p(t) to reduced coordinates
@@ -24,5 +24,6 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   modes.py           natural frequencies and modes linearized at rest
   sensors.py         probes and strain gauges
 
-Shared with the aero unit, in fmu_common: errors, the FMI slave plumbing, the topology, the shape functions.
+Shared with the aero unit, in fmu_common: the typed specs of the scene, errors, the FMI slave plumbing, the
+topology, the shape functions.
 """

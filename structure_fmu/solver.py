@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
+from fmu_common.specs import StructureUnitSpec
 
 from .integrators import RK4, GeneralizedAlpha, State, constrained_accelerations, project
 from .joint_monitors import joint_monitors, monitor_names
@@ -25,14 +26,14 @@ _DIVERGENCE_HINT = {
 
 
 class StructureSolver:
-    """The structural solver of one resolved scene (fmu_common.scene_schema.resolve_scene). See
-    docs/solver_api.md."""
+    """The structural solver of one scene, from the structure unit's spec (fmu_common.specs.StructureUnitSpec).
+    See docs/solver_api.md."""
 
-    def __init__(self, scene: dict, parameters: dict | None = None):
-        self.topology = StructureTopology.from_scene(scene)
-        self.sensors = Sensors.from_scene(scene, self.topology)
-        structure = scene["structure"]
-        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
+    def __init__(self, spec: StructureUnitSpec, parameters: dict | None = None):
+        self.topology = StructureTopology.from_spec(spec.structure)
+        self.sensors = Sensors.from_spec(spec, self.topology)
+        structure = spec.structure
+        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
                 raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
@@ -49,10 +50,10 @@ class StructureSolver:
                 raise SceneError(f"{h}.stiffness/damping", p, "K >= 0 and C >= 0")
         body_damping = {b: values[f"{b}.damping"] for b in self.topology.bodies}
         gravity = [values["gravity_x"], values["gravity_y"], values["gravity_z"]]
-        model = StrainBasedModel if structure["fidelity"] == "strain-based" else StructureModel
-        self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
+        model = StrainBasedModel if structure.fidelity == "strain-based" else StructureModel
+        self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure.damping_model)
         self.step_size = values["structure.step"]
-        self.integrator = RK4() if structure["integrator"] == "rk4" else GeneralizedAlpha(structure["rho_inf"])
+        self.integrator = RK4() if structure.integrator == "rk4" else GeneralizedAlpha(structure.rho_inf)
         q0 = self.model.initial_coordinates()
         n_q = len(q0)
         n_c = self.model.constraint_count
@@ -80,24 +81,23 @@ class StructureSolver:
         return project(model, 0.0, q0, model.rates_of(q0, dE, 0.0))[1]
 
     @staticmethod
-    def tunable_parameters(scene: dict) -> dict:
+    def tunable_parameters(spec: StructureUnitSpec) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run."""
-        structure = scene["structure"]
-        gravity = structure["gravity"]
-        out = {"structure.step": (structure["step"], "s", "internal time step"),
+        structure = spec.structure
+        gravity = structure.gravity
+        out = {"structure.step": (structure.step, "s", "internal time step"),
                "gravity_x": (float(gravity[0]), "m/s2", "gravity, x component"),
                "gravity_y": (float(gravity[1]), "m/s2", "gravity, y component"),
                "gravity_z": (float(gravity[2]), "m/s2", "gravity, z component")}
-        for body in structure["bodies"]:
-            out[f"{body['name']}.damping"] = (body["damping"], "1/s",
-                                              "mass-proportional damping alpha (of deformation, or of all motion: "
-                                              "structure.damping_model)")
-        for joint in structure["joints"]:
-            if joint["type"] == "revolute":
-                name = joint["name"]
-                out[f"{name}.stiffness"] = (joint["stiffness"], "N.m/rad", "actuator stiffness K")
-                out[f"{name}.damping"] = (joint["damping"], "N.m.s/rad", "actuator damping C")
-                out[f"{name}.torque"] = (joint["torque"], "N.m", "actuator constant torque T_const")
+        for body in structure.bodies:
+            out[f"{body.name}.damping"] = (body.damping, "1/s",
+                                           "mass-proportional damping alpha (of deformation, or of all motion: "
+                                           "structure.damping_model)")
+        for joint in structure.revolutes():
+            name, actuator = joint.name, joint.actuator
+            out[f"{name}.stiffness"] = (actuator.stiffness, "N.m/rad", "actuator stiffness K")
+            out[f"{name}.damping"] = (actuator.damping, "N.m.s/rad", "actuator damping C")
+            out[f"{name}.torque"] = (actuator.torque, "N.m", "actuator constant torque T_const")
         return out
 
     def _check_initial_constraints(self):

@@ -62,6 +62,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Variabi
 # Fmi2Slave subclass of this module. Absolute imports: inside the FMU this script sits at the top of
 # resources/, which pythonfmu puts on sys.path, beside the embedded packages.
 from fmu_common.fmi_slave import COORDINATE_UNITS, SolverSlave, coordinate_description, fmi_name, read_scene
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.solver import StructureSolver
 
 LATCH_PENDING = -1.0
@@ -78,8 +79,9 @@ class StructureSlave(SolverSlave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.scene = read_scene(self.resources, self.label)
+        self.spec = StructureUnitSpec.from_scene(self.scene)
         self.modelName = "structure"
-        self._start(StructureSolver.tunable_parameters(self.scene))
+        self._start(StructureSolver.tunable_parameters(self.spec))
         self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)
         n = self.n = int(self.topology.n_coordinates)

@@ -38,6 +38,7 @@ from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from orchestrator.build import native_binary, standalone as standalone_fmu, win64 as windows
 from orchestrator.build.sources import UNITS, BuildError, requirements, slave_script, source_digest, sources
+from orchestrator.scene.load import check_physics
 
 BUILD_INFO_RESOURCE = "build_info.json"
 
@@ -66,6 +67,7 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
                 c_library.start_compiling(source)
     for kind in kinds:  # fail before building anything
         _require(kind, scene)
+    check_physics(scene)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     built = [_build_unit(kind, scene, out_dir, standalone, win64) for kind in kinds]
@@ -148,7 +150,6 @@ def _build_info(kind: str, scene: dict, standalone: bool, win64: bool = False) -
 
 def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool, win64: bool = False) -> Path:
     fmu_name, module_name, packages = UNITS[kind]
-    _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
 
     script = slave_script(kind)
@@ -216,14 +217,4 @@ def _c_kernel(source: Path, folder: Path, dest: Path) -> None:
               "WINGSIM_KERNELS=numpy only.", file=sys.stderr)
 
 
-def _check_scene(kind: str, scene: dict) -> None:
-    """Fail before building, with a SceneError naming the key."""
-    if kind == "structure":
-        from structure_fmu.solver import StructureSolver
-        from structure_fmu.topology import StructureTopology
-        StructureTopology.from_scene(scene)
-        StructureSolver.tunable_parameters(scene)
-    elif kind == "aero":
-        from aero_fmu.solver import AeroSolver
-        AeroSolver(scene)
 

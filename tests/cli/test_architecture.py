@@ -3,6 +3,7 @@ the stages before them, the product never imports the study toolkit, and the two
 other or the master. Every import counts, also one inside a function (a lazy import is still a dependency).
 """
 import ast
+import re
 
 import pytest
 
@@ -107,3 +108,45 @@ def test_the_package_maps_name_every_module():
         children = sorted(m.rpartition(".")[2] for m in GRAPH if m.rpartition(".")[0] == package)
         missing = [c for c in children if f"``{c}``" not in text]
         assert not missing, f"{package}/__init__.py does not name {missing}"
+
+
+# The units read the scene through typed specs (fmu_common.specs, fmu_common.wing_spec), converted once
+# where a unit starts: a string key into a scene table, or a `scene` dict, is a read the specs should carry.
+SPEC_READERS = [*sorted((ROOT / "structure_fmu").rglob("*.py")), *sorted((ROOT / "aero_fmu").rglob("*.py")),
+                ROOT / "fmu_common" / "topology.py"]
+SCENE_TABLES = ("structure", "aero", "flow", "time", "coupling", "bodies", "joints", "masses", "loads", "motion",
+                "probes", "strain_gauges", "section", "type", "load", "scissors", "gravity", "fidelity")
+SCENE_READS = [re.compile(r"\bscene\s*\["), re.compile(r"\bscene\.get\("), re.compile(r":\s*dict\b.*\bscene\b"),
+               re.compile(r"\bscene\s*:\s*dict"),
+               re.compile(r"\[\s*['\"](" + "|".join(SCENE_TABLES) + r")['\"]\s*\]"),
+               re.compile(r"\b(spec|joint|body|table|structure|aero|flow|section|motion|probe|gauge|load|mass|chain)"
+                          r"\s*\[\s*['\"]")]
+SLAVE_EXPERIMENT = 'self.scene["time"]["stop"], self.scene["coupling"]["step"]'
+"""The one scene read the FMI slaves keep: their default experiment, read beside the spec from scene.json (the
+slaves are the boundary where the dict is read and converted)."""
+
+
+def _scene_reads(text: str, slave: bool = False) -> list[tuple[int, str]]:
+    """(line number, line) of each scene read in the source `text` (a slave's: but its default experiment)."""
+    found = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        code = line.split("#")[0]
+        if slave:
+            code = code.replace(SLAVE_EXPERIMENT, "")
+        if any(p.search(code) for p in SCENE_READS):
+            found.append((number, line.strip()))
+    return found
+
+
+def test_the_units_read_specs_not_the_scene_dict():
+    reads = [f"{path.relative_to(ROOT)}:{number}: {line}" for path in SPEC_READERS
+             for number, line in _scene_reads(path.read_text(encoding="utf-8"), path.name.endswith("_slave.py"))]
+    assert not reads, "\n".join(reads)
+
+
+def test_a_scene_read_is_found():
+    for line in ('k = scene["structure"]["bodies"]', 'x = joint["stiffness"]', 'def f(scene: dict): pass',
+                 'step = structure.get("motion")["frequency"] if x["fidelity"] else 0'):
+        assert _scene_reads(line), line
+    assert _scene_reads(SLAVE_EXPERIMENT) and not _scene_reads(SLAVE_EXPERIMENT, slave=True)
+    assert not _scene_reads('values["structure.step"]; parts["corner"]; spec.structure.step  # scene["x"]')
