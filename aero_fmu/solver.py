@@ -26,8 +26,7 @@ from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
 from fmu_common.specs import AeroUnitSpec
 
-from .strip import StripTheory
-from .uvlm import UVLM
+from .models import build_model
 from .wake import MAX_WAKE_ROWS
 
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
@@ -72,11 +71,9 @@ class AeroSolver:
     def __init__(self, spec: AeroUnitSpec, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
         self.topology = Topology.from_spec(spec.structure)
         aero = spec.aero
-        model = aero.model
-        if model == "none":
-            raise SceneError("aero.model", model, "an aero model: \"none\" builds no aero unit")
+        if not aero.model.builds_unit:
+            raise SceneError("aero.model", aero.model.name, "an aero model: \"none\" builds no aero unit")
         self.step = aero.step
-        self.model_name = model
         values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
@@ -95,12 +92,7 @@ class AeroSolver:
         self.direction = direction / norm
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
-        if model == "strip":
-            self.model = StripTheory(self.topology, aero.spanwise_panels, aero.span_correction)
-        else:
-            self.model = UVLM(self.topology, aero.chordwise_panels, aero.spanwise_panels,
-                              wake=model.removeprefix("uvlm-"), wake_length=aero.wake_length,
-                              max_wake_rows=max_wake_rows)
+        self.model = build_model(self.topology, aero, max_wake_rows)
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
 
@@ -180,17 +172,7 @@ class AeroSolver:
         "legs": uvlm-flat only (else None): (direction (3,), length (B,) m), the horseshoe legs leaving the
                  trailing corners rings[:, -1] along the unit free-stream direction, wake_length chords of
                  each body long (inf: semi-infinite), as `vlm.horseshoe_wake` builds them."""
-        state, model = self.state, self.model
-        out = {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
-        if self.model_name == "strip" or not state.started:
-            return out
-        lat = model.lattice
-        out["rings"] = state.corners.reshape(len(lat.body_names), lat.M + 1, lat.N + 1, 3).copy()
-        if state.wake is not None:
-            out["wake"], out["wake_gamma"] = state.wake.corners.copy(), state.wake.gamma.copy()
-        if model.wake_model == "flat":
-            out["legs"] = (self.direction.copy(), model.wake_length * lat.body_chords)
-        return out
+        return self.model.vortex_geometry(self.state, self.direction)
 
     def get_state(self) -> AeroState:
         """Complete state including the wake and the last inputs (for the multi-rate interpolation), arrays

@@ -22,11 +22,11 @@ from report import ROOT, process_setup
 
 from aero_fmu.solver import AeroSolver
 from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
-from fmu_common.scene_schema import AERO_MODELS
+from fmu_common.choices import AERO_MODELS
 from orchestrator.scene.load import load_scene, resolve_scene
 from structure_fmu.solver import StructureSolver
 
-MODELS = tuple(m for m in AERO_MODELS if m != "none")
+MODELS = tuple(name for name, model in AERO_MODELS.items() if model.builds_unit)
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
 
 

@@ -3,6 +3,8 @@
   errors.py           SceneError, InputError, SolverDiverged; unknown-key and input checks
   schema.py           the vocabulary of the scene schema: typed keys, tables, arrays of tables, variants
   scene_schema.py     every scene key declared once, and resolve_scene (docs/scenes.md is generated from it)
+  choices.py          the scene's named choices (fidelity, aero model, integrator): names and the traits both
+                      units and the master ask of them (elements per body, nodes anywhere, a shed wake, ...)
   scene_bounds.py     the size bounds of a scene and the rough memory estimate of a run
   scissors.py         chains of scissor-like elements: the scene shorthand expanded into bodies, pins, probes
   specs.py            what each unit reads of a resolved scene, as frozen typed specs (StructureUnitSpec,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .choices import AeroModel, aero_model
 from .schema import item_label
 from .wing_spec import StructureSpec, Vector
 
@@ -39,11 +40,12 @@ class FlowSpec:
 
 @dataclass(frozen=True)
 class AeroSpec:
-    """`aero`: the model (strip, uvlm-flat, uvlm-prescribed, uvlm-free; none builds no aero unit), M
-    chordwise_panels and N spanwise_panels per body, the wake truncation wake_length (chords; inf allowed), the
-    internal aero step (s; None: one per communication step) and the strip theory's span_correction."""
+    """`aero`: the model (its traits, fmu_common.choices: strip, uvlm-flat, uvlm-prescribed, uvlm-free; none
+    builds no aero unit; aero_fmu.models builds the others), M chordwise_panels and N spanwise_panels per body,
+    the wake truncation wake_length (chords; inf allowed), the internal aero step (s; None: one per
+    communication step) and the strip theory's span_correction."""
 
-    model: str
+    model: AeroModel
     chordwise_panels: int
     spanwise_panels: int
     wake_length: float
@@ -112,6 +114,6 @@ class AeroUnitSpec:
         flow, aero = scene["flow"], scene["aero"]
         return cls(TimeSpec(scene["time"]["stop"]), CouplingSpec(scene["coupling"]["step"]),
                    FlowSpec(flow["speed"], flow["density"], tuple(flow["direction"])),
-                   AeroSpec(aero["model"], aero["chordwise_panels"], aero["spanwise_panels"], aero["wake_length"],
-                            aero["step"], aero["span_correction"]),
+                   AeroSpec(aero_model(aero["model"]), aero["chordwise_panels"], aero["spanwise_panels"],
+                            aero["wake_length"], aero["step"], aero["span_correction"]),
                    StructureSpec.from_scene(scene))

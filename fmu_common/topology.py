@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .choices import Fidelity
 from .errors import SceneError
 from .shape_functions import hermite, shape_row
 from .wing_spec import BodySpec, JointSpec, ParentJointSpec, RevoluteSpec, StructureSpec, UniversalSpec
@@ -83,7 +84,7 @@ class Topology:
         self.element_body: list[str] = []
         self.joint_lines: list[JointLine] = []
         self.root_joints: dict[str, JointSpec] = {}      # body -> the joint that holds its root
-        self.fidelity = "flexible"
+        self.fidelity: Fidelity | None = None           # fmu_common.choices, from the spec
 
     # ------------------------------------------------------------------ construction
     @classmethod

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from .choices import Fidelity, fidelity
 from .scene_bounds import body_elements
 from .schema import item_label
 
@@ -302,11 +303,12 @@ def _ramp(table: dict) -> float | None:
 
 @dataclass(frozen=True)
 class StructureSpec:
-    """The resolved `structure` table and the `[load]` case: fidelity, elements_per_body, integrator, internal
-    step (s), rho_inf of generalized-alpha, damping_model, gravity (m/s^2, global), and the tables in the scene's
-    order (bodies as written: a hinge's parent need not come first)."""
+    """The resolved `structure` table and the `[load]` case: the fidelity (its traits, fmu_common.choices),
+    elements_per_body, the integrator's name (structure_fmu.integrators), internal step (s), rho_inf of
+    generalized-alpha, damping_model, gravity (m/s^2, global), and the tables in the scene's order (bodies as
+    written: a hinge's parent need not come first)."""
 
-    fidelity: str
+    fidelity: Fidelity
     elements_per_body: int
     integrator: str
     step: float
@@ -346,7 +348,7 @@ class StructureSpec:
         if case is not None:
             case = LoadCaseSpec("load", case["parameter"], _vector(case["direction"]), case["body"], case["span"],
                                 case["chord"], _ramp(case))
-        return cls(structure["fidelity"], structure["elements_per_body"], structure["integrator"],
+        return cls(fidelity(structure["fidelity"]), structure["elements_per_body"], structure["integrator"],
                    structure["step"], structure["rho_inf"], structure["damping_model"],
                    _vector(structure["gravity"]), tuple(bodies), tuple(joints), tuple(masses), tuple(loads), motion,
                    case)

@@ -10,7 +10,6 @@ import numpy as np
 import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
-from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.shape_functions import shape_row
 
 from . import element
@@ -21,7 +20,11 @@ from .joints import actuator_energy, actuator_terms
 
 
 class StructureModel:
-    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters."""
+    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters: the model of
+    the prescribed, rigid and flexible fidelities (structure_fmu.fidelities)."""
+
+    ancf_elastic = True
+    """Whether a deformable body carries the ANCF elastic force on E (Otsuka et al. 2019, Eqs. 7-11)."""
 
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         self.top = topology
@@ -34,8 +37,8 @@ class StructureModel:
         mu = np.array([s.mass_per_length for s in sections])
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
-        self.flexible = topology.fidelity == "flexible"      # the ANCF elastic force (strain-based: K q instead)
-        deformable = topology.fidelity in DEFORMABLE
+        deformable = topology.fidelity.deformable
+        self.flexible = deformable and self.ancf_elastic      # the ANCF elastic force (strain-based: K q instead)
         # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
         rotary = np.array([s.rotary_inertia for s in sections])

@@ -16,6 +16,7 @@ A slider keeps a node's r on a line or plane through its position at t = 0: fixe
 """
 import numpy as np
 
+from fmu_common.choices import fidelity_names
 from fmu_common.errors import SceneError
 from fmu_common.wing_spec import PinSpec, SliderSpec
 from fmu_common.vectors import perpendiculars
@@ -28,8 +29,6 @@ from .slots import RX, RY, R, eliminate
 GAP_TOLERANCE = 1e-9
 """m (a point) or - (a chord direction): how far the two sides of a pin may be apart at t = 0."""
 
-NODE_FIDELITIES = ("rigid", "flexible")
-"""The fidelities whose pins and sliders may hold any node (the strain-based fidelity: a root to the ground)."""
 
 
 def add_pins(top, joints) -> None:
@@ -39,12 +38,13 @@ def add_pins(top, joints) -> None:
     the fidelity cannot hold."""
     for spec in (j for j in joints if isinstance(j, PinSpec)):
         key = spec.key
-        if top.fidelity not in NODE_FIDELITIES:
+        if not top.fidelity.nodes_anywhere:
             if spec.holds_root():
                 continue       # the strain-based root joint (strain_model); prescribed bodies follow their law
             where, value = ("other", spec.other) if spec.other is not None else ("span", spec.span)
-            raise SceneError(f"{key}.{where}", value, f"a pin of a body's root to the ground in the {top.fidelity} "
-                                                      f"fidelity (pins anywhere: {' or '.join(NODE_FIDELITIES)})")
+            raise SceneError(f"{key}.{where}", value, f"a pin of a body's root to the ground in the "
+                                                      f"{top.fidelity.name} fidelity (pins anywhere: "
+                                                      f"{fidelity_names(lambda f: f.nodes_anywhere)})")
         a = top.node_at(f"{key}.span", spec.body, spec.span)
         b = None if spec.other is None else top.node_at(f"{key}.other_span", spec.other, spec.other_span)
         if a == b:
@@ -114,9 +114,9 @@ def add_sliders(top, joints) -> None:
     fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow)."""
     for spec in (j for j in joints if isinstance(j, SliderSpec)):
         key = spec.key
-        if top.fidelity not in NODE_FIDELITIES:
-            raise SceneError(f"{key}.type", "slider", f"a joint of the {' or '.join(NODE_FIDELITIES)} fidelity "
-                                                      f"(not {top.fidelity})")
+        if not top.fidelity.nodes_anywhere:
+            raise SceneError(f"{key}.type", "slider", f"a joint of the {fidelity_names(lambda f: f.nodes_anywhere)} "
+                                                      f"fidelity (not {top.fidelity.name})")
         node = top.node_at(f"{key}.span", spec.body, spec.span)
         if spec.line is not None:
             normals = perpendiculars(np.asarray(spec.line, float) / np.linalg.norm(spec.line))
@@ -126,7 +126,7 @@ def add_sliders(top, joints) -> None:
         if spec.other is None:
             top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
             continue
-        if spec.other == spec.body and top.fidelity == "rigid":
+        if spec.other == spec.body and not top.fidelity.deformable:
             raise SceneError(f"{key}.other", spec.other, "a body other than the sliding one (a rigid body's line "
                                                          "moves with its node)")
         base = top.node_at(f"{key}.other_span", spec.other, spec.other_span)

@@ -62,6 +62,8 @@ class _Root:
 class StrainBasedModel(StructureModel):
     """The StructureModel's inertia and forces on E, over the strain-based coordinates q (see the module)."""
 
+    ancf_elastic = False      # the elastic force is K q (Otsuka et al. 2022, Eq. 9)
+
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         super().__init__(topology, gravity, hinge_parameters, body_damping, damping_model)
         self._dropped = np.zeros(0, int)     # its own joint rows (_JointConstraints) are all independent

@@ -30,7 +30,7 @@ import numpy as np
 
 from fmu_common import topology
 from fmu_common.errors import SceneError
-from fmu_common.scene_bounds import DEFORMABLE
+from fmu_common.choices import fidelity_names
 from fmu_common.wing_spec import ParentJointSpec, StructureSpec
 from fmu_common.vectors import perpendiculars
 
@@ -120,11 +120,12 @@ class StructureTopology(topology.Topology):
         the key."""
         top = super().from_spec(structure)
         motion = structure.motion
-        if top.fidelity == "prescribed" and motion is None:
+        if top.fidelity.moved_by_law and motion is None:
             raise SceneError("structure.motion", None, "a table with the prescribed heave/pitch law")
-        if top.fidelity != "prescribed" and motion is not None:
-            raise SceneError("structure.motion", motion, "only with structure.fidelity = 'prescribed' (the "
-                                                         f"{top.fidelity} structure moves by its dynamics)")
+        if not top.fidelity.moved_by_law and motion is not None:
+            raise SceneError("structure.motion", motion, f"only with structure.fidelity = "
+                             f"'{fidelity_names(lambda f: f.moved_by_law)}' (the {top.fidelity.name} structure "
+                             "moves by its dynamics)")
         specs = {body.name: body for body in structure.bodies}
         for name, body in top.bodies.items():      # parents before children
             top._add_coordinates(body, specs[name], motion)
@@ -172,7 +173,7 @@ class StructureTopology(topology.Topology):
         kind = joint.kind if joint else None
         first_node = body.nodes[0]
         motion = None
-        if self.fidelity == "prescribed":
+        if self.fidelity.moved_by_law:
             motion = self._prescribed_motion(motion_spec, r0, x0, y0, body)
         elif kind == "clamp":
             motion = len(self.motions)
@@ -190,7 +191,7 @@ class StructureTopology(topology.Topology):
         self.slots += root
         n_el = len(body.elements)
         for i, node in enumerate(body.nodes[1:], start=1):
-            if self.fidelity in DEFORMABLE:   # strain-based too: its E has the same node slots
+            if self.fidelity.deformable:   # strain-based too: its E has the same node slots
                 r_i, x_i, y_i = self.node_initial[node]
                 self.slots += [self._new_free(r_i, position=True), self._new_free(x_i), self._new_free(y_i)]
             else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17), at any node
@@ -270,9 +271,9 @@ class StructureTopology(topology.Topology):
                 self.orthogonal_slots.append(tuple(slots))
 
         for body in self.bodies.values():
-            nodes = body.nodes if self.fidelity in DEFORMABLE else body.nodes[:1]
+            nodes = body.nodes if self.fidelity.deformable else body.nodes[:1]
             for node in nodes:
-                if self.fidelity == "rigid":
+                if not self.fidelity.deformable:     # |r_x| = 1 (Otsuka et al. 2019, Eq. 17); prescribed: no row
                     add("unit", [3 * node + RX])
                 add("unit", [3 * node + RY])
                 add("orthogonal", [3 * node + RX, 3 * node + RY])

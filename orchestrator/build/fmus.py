@@ -33,6 +33,7 @@ import zipfile
 from pathlib import Path
 
 from fmu_common import c_library
+from fmu_common.choices import aero_model
 from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
@@ -44,9 +45,9 @@ BUILD_INFO_RESOURCE = "build_info.json"
 
 # kind -> (FMU file name, slave module, packages embedded in resources/)
 def units_needed(scene: dict) -> list[str]:
-    """Unit kinds the scene needs: always the structure, the aero unit unless `aero.model` is "none"."""
-    model = scene["aero"]["model"]
-    return ["structure"] if model == "none" else ["structure", "aero"]
+    """Unit kinds the scene needs: always the structure, the aero unit when `aero.model` builds one (not "none",
+    `fmu_common.choices.AeroModel.builds_unit`)."""
+    return ["structure", "aero"] if aero_model(scene["aero"]["model"]).builds_unit else ["structure"]
 
 
 def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> list[Path]:

@@ -221,10 +221,12 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
     cols = 2 if n > 1 else 1
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(5.2 * cols, 4.2 * rows))
+    from fmu_common.choices import aero_model
+
     aero = scene["aero"]
     model = aero["model"]
-    mesh = (f"{aero['spanwise_panels']} strips per body" if model == "strip" else
-            f"M x N = {aero['chordwise_panels']} x {aero['spanwise_panels']} per body")
+    mesh = (f"M x N = {aero['chordwise_panels']} x {aero['spanwise_panels']} per body"
+            if aero_model(model).chordwise else f"{aero['spanwise_panels']} strips per body")
     title = f"{scene['name']}: wing and wake ({model}, {mesh})"
     if window is not None:
         axis, lo, hi = window

@@ -58,6 +58,7 @@ from orchestrator.run.progress import Progress
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
 from orchestrator.run.timeseries import TimeSeries
 from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS
+from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
 
@@ -139,8 +140,9 @@ def communication_times(stop: float, step: float) -> np.ndarray:
 
 
 def has_aero(scene: dict) -> bool:
-    """True when the scene couples an aero unit (``aero.model`` is not "none")."""
-    return scene["aero"]["model"] != "none"
+    """True when the scene couples an aero unit (``aero.model`` is not "none": it builds a unit,
+    ``fmu_common.choices.AeroModel``)."""
+    return aero_model(scene["aero"]["model"]).builds_unit
 
 
 def is_implicit(scene: dict) -> bool:

@@ -30,6 +30,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Iterable
 
+from fmu_common.choices import FIDELITIES, fidelity_names
 from fmu_common.errors import SceneError
 from fmu_common.scene_schema import PARENT_JOINTS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
@@ -90,8 +91,10 @@ def _agree(key: str, given: Any, derived: float, source: str) -> float:
 def _motion_table(raw: dict, key: str) -> dict:
     """The raw ``structure.motion`` table of a prescribed-fidelity scene, created if absent."""
     fidelity = _declared(raw, "structure.fidelity")
-    if fidelity != "prescribed":
-        raise SceneError(key, fidelity, "structure.fidelity = 'prescribed' (the shorthand sets a prescribed motion)")
+    known = FIDELITIES.get(fidelity) if isinstance(fidelity, str) else None    # not resolved yet: any value
+    if known is None or not known.moved_by_law:
+        raise SceneError(key, fidelity, f"structure.fidelity = '{fidelity_names(lambda f: f.moved_by_law)}' (the "
+                                        "shorthand sets a prescribed motion)")
     motion = raw["structure"].setdefault("motion", {})
     if not isinstance(motion, dict):
         raise SceneError("structure.motion", motion, "a table [structure.motion]")
