@@ -24,7 +24,7 @@ including the node's own unit-length and orthogonality rows), the same with a pa
   revolute, other axis   6             5                   4
 (a flexible node keeps the axial stretch |r_x| free: one more degree of freedom than the joint's own).
 """
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -123,7 +123,8 @@ class StructureTopology(topology.Topology):
         if top.fidelity.moved_by_law and motion is None:
             raise SceneError("structure.motion", None, "a table with the prescribed heave/pitch law")
         if not top.fidelity.moved_by_law and motion is not None:
-            raise SceneError("structure.motion", motion, f"only with structure.fidelity = "
+            given = {name: value for name, value in asdict(motion).items() if name != "key"}
+            raise SceneError("structure.motion", given, f"only with structure.fidelity = "
                              f"'{fidelity_names(lambda f: f.moved_by_law)}' (the {top.fidelity.name} structure "
                              "moves by its dynamics)")
         specs = {body.name: body for body in structure.bodies}

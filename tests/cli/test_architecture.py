@@ -116,8 +116,7 @@ SPEC_READERS = [*sorted((ROOT / "structure_fmu").rglob("*.py")), *sorted((ROOT /
                 ROOT / "fmu_common" / "topology.py"]
 SCENE_TABLES = ("structure", "aero", "flow", "time", "coupling", "bodies", "joints", "masses", "loads", "motion",
                 "probes", "strain_gauges", "section", "type", "load", "scissors", "gravity", "fidelity")
-SCENE_READS = [re.compile(r"\bscene\s*\["), re.compile(r"\bscene\.get\("), re.compile(r":\s*dict\b.*\bscene\b"),
-               re.compile(r"\bscene\s*:\s*dict"),
+SCENE_READS = [re.compile(r"\bscene\s*\["), re.compile(r"\bscene\.get\("), re.compile(r"\bscene\s*:\s*dict"),
                re.compile(r"\[\s*['\"](" + "|".join(SCENE_TABLES) + r")['\"]\s*\]"),
                re.compile(r"\b(spec|joint|body|table|structure|aero|flow|section|motion|probe|gauge|load|mass|chain)"
                           r"\s*\[\s*['\"]")]
