@@ -1,6 +1,8 @@
 """Aerodynamic FMI unit (UVLM with flat, prescribed or free wake; strip theory), Otsuka et al. 2019, Sec. V.
 
-  solver.py         AeroSolver, the API of docs/aero_api.md (scene, parameters, inputs, state, outputs)
+  solver.py         AeroSolver, the API of docs/aero_api.md (spec, parameters, inputs, state, outputs)
+  models.py         the registry of the aero models (aero.model -> strip theory or a UVLM with its wake model)
+                    and their contract AerodynamicModel
   uvlm.py           unsteady vortex-lattice step: no penetration (Eq. 22), Kutta condition, unsteady
                     Bernoulli (Eq. 23), panel forces (Eq. 25); the flat-wake model and its closed form
   wake.py           shed ring wakes: shedding, convection (prescribed / free), truncation
@@ -15,6 +17,6 @@
   interface.py      the unit's FMI interface, declared once: blocks, loads, parameters
   aero_slave.py     the FMI slave over AeroSolver, registering and publishing that interface
 
-It imports only fmu_common (what both units share: topology, shape functions, errors, FMI plumbing, compiled
-kernels) and its own modules, never the structure unit.
+It imports only fmu_common (what both units share: the scene's specs, topology, shape functions, errors, FMI
+plumbing, compiled kernels) and its own modules, never the structure unit.
 """

@@ -11,7 +11,7 @@ by its file name, and two FMUs in one process need distinct names (docs/fmu.md).
 Its variables are the rows of `aero_fmu.interface.AERO`, laid out, registered and published by
 `fmu_common.fmi_slave.SolverSlave`: the coupling blocks e, de (inputs, starting at the scene's initial
 coordinates and at 0) and Q (output, work-conjugate to e, Otsuka et al. 2019, Eq. 12), the scalar outputs of
-AeroSolver.outputs(), the tunable parameters (AeroSolver.tunable_parameters(scene)) and `topology_hash`, with
+AeroSolver.outputs(), the tunable parameters (AeroSolver.tunable_parameters(spec)) and `topology_hash`, with
 value references contiguous in that order. The generated table of docs/fmu.md ("Aero FMU") lists them with
 their units.
 
@@ -33,6 +33,7 @@ from fmu_common import dependencies  # noqa: F401
 from aero_fmu.interface import AERO
 from aero_fmu.solver import AeroSolver
 from fmu_common.fmi_slave import SolverSlave
+from fmu_common.specs import AeroUnitSpec
 
 
 class AeroSlave(SolverSlave):
@@ -41,4 +42,5 @@ class AeroSlave(SolverSlave):
     label = AERO.unit
     model_name = "aero"
     solver_class = AeroSolver
+    spec_class = AeroUnitSpec
     interface = AERO

@@ -1,6 +1,6 @@
 """AeroSolver: the aero unit's solver API (docs/aero_api.md), a thin owner of one aero model and its state.
 
-Scene keys used (of the resolved scene, fmu_common.scene_schema): aero.model (strip | uvlm-flat |
+Built from the aero unit's spec (fmu_common.specs.AeroUnitSpec): aero.model (strip | uvlm-flat |
 uvlm-prescribed | uvlm-free), aero.chordwise_panels, aero.spanwise_panels, aero.wake_length (chords; inf
 allowed), aero.step (s, or None), aero.span_correction, flow.speed, flow.density, flow.direction; the structure
 table builds the same `fmu_common.topology.Topology` as the structure unit. Tunable parameters: flow.speed
@@ -23,12 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
-from fmu_common.scene_schema import tunable_parameters
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
+from fmu_common.specs import AeroUnitSpec
 
-from .strip import StripTheory
-from .uvlm import UVLM
+from .models import build_model
 from .wake import MAX_WAKE_ROWS
 
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
@@ -70,15 +69,13 @@ class AeroSolver:
 
     max_wake_rows (keyword, not a scene key): cap of shed wake rows (wake.MAX_WAKE_ROWS by default)."""
 
-    def __init__(self, scene: dict, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
-        self.topology = Topology.from_scene(scene)
-        aero = scene["aero"]
-        model = aero["model"]
-        if model == "none":
-            raise SceneError("aero.model", model, "an aero model: \"none\" builds no aero unit")
-        self.step = aero["step"]
-        self.model_name = model
-        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
+    def __init__(self, spec: AeroUnitSpec, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
+        self.topology = Topology.from_spec(spec.structure)
+        aero = spec.aero
+        if not aero.model.builds_unit:
+            raise SceneError("aero.model", aero.model.name, "an aero model: \"none\" builds no aero unit")
+        self.step = aero.step
+        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
                 raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
@@ -96,20 +93,15 @@ class AeroSolver:
         self.direction = direction / norm
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
-        if model == "strip":
-            self.model = StripTheory(self.topology, aero["spanwise_panels"], aero["span_correction"])
-        else:
-            self.model = UVLM(self.topology, aero["chordwise_panels"], aero["spanwise_panels"],
-                              wake=model.removeprefix("uvlm-"), wake_length=aero["wake_length"],
-                              max_wake_rows=max_wake_rows)
+        self.model = build_model(self.topology, aero, max_wake_rows)
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
 
     @staticmethod
-    def tunable_parameters(scene: dict) -> dict:
+    def tunable_parameters(spec: AeroUnitSpec) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run: the
         tunable keys of the scene's `flow` table (`fmu_common.scene_schema.tunable_parameters`)."""
-        return tunable_parameters(scene, "flow")
+        return dict(spec.parameters)
 
     # ---------------------------------------------------------------- stepping
     @property
@@ -176,17 +168,7 @@ class AeroSolver:
         "legs": uvlm-flat only (else None): (direction (3,), length (B,) m), the horseshoe legs leaving the
                  trailing corners rings[:, -1] along the unit free-stream direction, wake_length chords of
                  each body long (inf: semi-infinite), as `vlm.horseshoe_wake` builds them."""
-        state, model = self.state, self.model
-        out = {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
-        if self.model_name == "strip" or not state.started:
-            return out
-        lat = model.lattice
-        out["rings"] = state.corners.reshape(len(lat.body_names), lat.M + 1, lat.N + 1, 3).copy()
-        if state.wake is not None:
-            out["wake"], out["wake_gamma"] = state.wake.corners.copy(), state.wake.gamma.copy()
-        if model.wake_model == "flat":
-            out["legs"] = (self.direction.copy(), model.wake_length * lat.body_chords)
-        return out
+        return self.model.vortex_geometry(self.state, self.direction)
 
     def get_state(self) -> AeroState:
         """Complete state including the wake and the last inputs (for the multi-rate interpolation), arrays

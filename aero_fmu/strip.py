@@ -78,6 +78,10 @@ class StripTheory:
     def initial_state(self) -> StripState:
         return StripState(0.0, False, zero_loads(self.lattice, self.topology.n_coordinates))
 
+    def vortex_geometry(self, state: StripState, direction) -> dict:
+        """No vortex system: every entry of `UVLM.vortex_geometry` None."""
+        return {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
+
     def advance(self, state, t_end, E, dE, U, density, direction) -> StripState:
         """Strip forces at t_end for E, dE (n_coordinates,), free stream U (3,) m/s, density kg/m^3, unit
         free-stream direction (3,). Memoryless: only the current E, dE matter."""

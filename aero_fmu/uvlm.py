@@ -28,8 +28,8 @@ delta-function impulse of a sudden start is not resolved by any step). A later c
 takes a step; a call with t_end == time repeats the last step for new E, dE (the wake keeps its rows,
 its head row follows the trailing edge, dGamma/dt uses the same earlier circulations and steps).
 
-Wake models (`wake` argument; aero.model = uvlm-<wake>):
-  "prescribed": shed rings convected with U;  "free": convected with U + w;  "flat": no shed vorticity.
+Wake models (`wake` argument, a WakeModel; aero.model uvlm-prescribed, uvlm-free, uvlm-flat, aero_fmu.models):
+  PRESCRIBED: shed rings convected with U;  FREE: convected with U + w;  FLAT: no shed vorticity.
 
 The flat wake (Otsuka et al. 2019, Sec. V) and its closed form. Each trailing-edge ring carries a horseshoe along the
 free-stream direction, L_w chords long (closed by a segment there) or semi-infinite. The bound
@@ -64,7 +64,18 @@ from .lattice import Lattice
 from .loads import Loads, resultants, zero_loads
 from .vlm import pressure_jump_forces, ring_segments
 
-WAKE_MODELS = ("flat", "prescribed", "free")
+@dataclass(frozen=True)
+class WakeModel:
+    """How a UVLM represents its wake: `shed`, a ring row shed at each step and convected (else horseshoe legs
+    from the trailing edge along U, flat, with the quasi-steady circulation); `free`, a shed wake's corners
+    convected with the local velocity U + w (else with U). aero.model uvlm-flat, uvlm-prescribed, uvlm-free
+    (aero_fmu.models)."""
+
+    shed: bool
+    free: bool
+
+
+FLAT, PRESCRIBED, FREE = WakeModel(shed=False, free=False), WakeModel(shed=True, free=False), WakeModel(True, True)
 
 
 @dataclass
@@ -102,21 +113,19 @@ def circulation_rate(gamma, history, steps):
 
 
 class UVLM:
-    """UVLM of a topology: M chordwise x N spanwise rings per body, wake model "flat", "prescribed" or
-    "free", truncated at wake_length chords (inf: never; flat: semi-infinite legs), at most max_wake_rows
+    """UVLM of a topology: M chordwise x N spanwise rings per body, the WakeModel `wake` (FLAT, PRESCRIBED or
+    FREE), truncated at wake_length chords (inf: never; flat: semi-infinite legs), at most max_wake_rows
     shed rows. The solver itself is stateless apart from the reusable factorization."""
 
-    def __init__(self, topology, chordwise, spanwise, wake="prescribed", wake_length=np.inf,
+    def __init__(self, topology, chordwise, spanwise, wake=PRESCRIBED, wake_length=np.inf,
                  max_wake_rows=wakes.MAX_WAKE_ROWS):
-        if wake not in WAKE_MODELS:
-            raise ValueError(f"wake model {wake!r}: one of {WAKE_MODELS}")
         self.topology = topology
         self.lattice = Lattice(topology, chordwise, spanwise)
         self.rings = ring_segments(self.lattice)
         self.wake_model = wake
         self.wake_length = float(wake_length)
         self.max_wake_rows = int(max_wake_rows)
-        self.system = BoundSystem(self.lattice, self.rings, flat_wake=wake == "flat", wake_length=wake_length)
+        self.system = BoundSystem(self.lattice, self.rings, flat_wake=not wake.shed, wake_length=wake_length)
         lat = self.lattice
         smallest = float(min(lat.panel_span.min(), lat.panel_chord.min()))
         self.convection_core = wakes.CONVECTION_CORE_FRACTION * smallest
@@ -143,7 +152,7 @@ class UVLM:
         else:
             history, steps = state.history, state.steps
         wake = None
-        if self.wake_model != "flat":
+        if self.wake_model.shed:
             head = geometry.corners[lat.trailing_corners]                        # (B, N + 1, 3)
             if not state.started:
                 wake = wakes.ShedWake.empty(head)
@@ -159,9 +168,25 @@ class UVLM:
         return UVLMState(float(t_end), True, gamma, tuple(np.array(g) for g in history),
                          tuple(float(h) for h in steps), geometry.corners, wake, loads)
 
+    def vortex_geometry(self, state: UVLMState, direction) -> dict:
+        """The vortex system of `state` for pictures (arrays copied; m, global frame): "rings" the bound ring
+        corners (B, M + 1, N + 1, 3), "wake", "wake_gamma" a shed wake's corners and circulations (m^2/s),
+        "legs" the flat wake's (unit `direction` (3,), length (B,) m); None where there is none (before the
+        first step: all)."""
+        out = {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
+        if not state.started:
+            return out
+        lat = self.lattice
+        out["rings"] = state.corners.reshape(len(lat.body_names), lat.M + 1, lat.N + 1, 3).copy()
+        if state.wake is not None:
+            out["wake"], out["wake_gamma"] = state.wake.corners.copy(), state.wake.gamma.copy()
+        if not self.wake_model.shed:
+            out["legs"] = (direction.copy(), self.wake_length * lat.body_chords)
+        return out
+
     def _displacement(self, state, U, dt):
         """Corner displacements over the step: U dt (prescribed) or (U + w) dt with w at t_{n-1} (free)."""
-        if self.wake_model == "prescribed":
+        if not self.wake_model.free:
             return U * dt
         points = state.wake.corners.reshape(-1, 3)
         # bound rings and wake share the convection core: one sum over the segments of both

@@ -21,11 +21,12 @@ import numpy as np
 from report import ROOT, process_setup
 
 from aero_fmu.solver import AeroSolver
-from fmu_common.scene_schema import AERO_MODELS
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
+from fmu_common.choices import AERO_MODELS
 from orchestrator.scene.load import load_scene, resolve_scene
 from structure_fmu.solver import StructureSolver
 
-MODELS = tuple(m for m in AERO_MODELS if m != "none")
+MODELS = tuple(name for name, model in AERO_MODELS.items() if model.builds_unit)
 SECTION = {"chord": 1.0, "thickness": 0.01, "density": 100.0, "youngs_modulus": 1e9, "torsional_rigidity": 1.0}
 
 
@@ -55,10 +56,10 @@ def per_step(aero, inputs, timed):
 def wing_inputs(scene, M, steps, deforming):
     dt = 1.0 / (M * 10.0)
     if deforming:
-        E0 = AeroSolver(scene).topology.initial_coordinates()
+        E0 = AeroSolver(AeroUnitSpec.from_scene(scene)).topology.initial_coordinates()
         wobble = 1e-3 * np.sin(np.arange(E0.size))
         return [(k * dt, E0 + k * wobble, np.zeros_like(E0)) for k in range(1, steps + 1)]
-    structure, out = StructureSolver(scene), []
+    structure, out = StructureSolver(StructureUnitSpec.from_scene(scene)), []
     for k in range(1, steps + 1):
         structure.advance(k * dt)
         out.append((k * dt, structure.e, structure.de))
@@ -74,7 +75,7 @@ def bound_scaling(meshes, timed):
         for model in MODELS:
             for deforming in (False, True):
                 scene = wing(model, M, N, 5.0, "flexible" if deforming else "prescribed")
-                aero = AeroSolver(scene)
+                aero = AeroSolver(AeroUnitSpec.from_scene(scene))
                 row.append(1e3 * per_step(aero, wing_inputs(scene, M, 5 * M + timed + 1, deforming), timed))
                 wake_panels = max(wake_panels, aero.outputs()["wake_panels"])
         print(f"{M:>3} x {N:<3} {M * N:>6} {wake_panels:>6} " + " ".join(f"{v:>22.3f}" for v in row))
@@ -88,14 +89,14 @@ def wake_scaling(lengths, timed):
         row = []
         for model in ("uvlm-prescribed", "uvlm-free"):
             scene = wing(model, M, N, length)
-            aero = AeroSolver(scene)
+            aero = AeroSolver(AeroUnitSpec.from_scene(scene))
             row.append(1e3 * per_step(aero, wing_inputs(scene, M, int(length * M) + timed + 1, False), timed))
         print(f"{length:>6.1f} {aero.outputs()['wake_panels']:>6} {row[0]:>16.3f} {row[1]:>10.3f}")
 
 
 def deployment(duration):
     scene = load_scene(ROOT / "scenes" / "deploy_rigid.toml", ["flow.speed=15"])
-    structure = StructureSolver(scene)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     step = scene["coupling"]["step"]
     inputs = []
     for k in range(1, round(duration / step) + 1):
@@ -108,7 +109,7 @@ def deployment(duration):
           f"fold angle {fold:.0f} deg at the end)")
     times = {}
     for model in MODELS:
-        solver = AeroSolver({**scene, "aero": {**aero, "model": model}})
+        solver = AeroSolver(AeroUnitSpec.from_scene({**scene, "aero": {**aero, "model": model}}))
         start = time.perf_counter()
         for t, e, de in inputs:
             solver.advance(t, e, de)

@@ -32,6 +32,8 @@ from peer_case import Measurement, PeerCase, Timer
 from report import ROOT
 
 from structure_fmu.topology import StructureTopology
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 
 SPIN_UP = ROOT / "scenes" / "spin_up.toml"
 ROTATING_BEAM = ROOT / "scenes" / "rotating_beam.toml"
@@ -63,7 +65,7 @@ def _spin_law(scene):
 
 def _body(scene):
     """(StructureBody, Section) of the scene's single body."""
-    body = next(iter(StructureTopology.from_scene(scene).bodies.values()))
+    body = next(iter(StructureTopology.from_spec(StructureSpec.from_scene(scene)).bodies.values()))
     return body, body.section
 
 
@@ -78,7 +80,7 @@ def _ours(scene, record):
     """Run the structure solver through `scene`, stopping at each coupling instant to record `record(solver)`;
     returns (Measurement without values, times, records)."""
     from structure_fmu.solver import StructureSolver
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     times, out = _sample_times(scene), []
     with Timer() as timer:
         for t in times:
@@ -91,7 +93,7 @@ def _ours_tip(scene):
     """The tip's position at the coupling instants, from its shape row built once (Exudyn's sensor, likewise, is
     set up before its timed run)."""
     body, _ = _body(scene)
-    topology = StructureTopology.from_scene(scene)
+    topology = StructureTopology.from_spec(StructureSpec.from_scene(scene))
     tip = topology.point_rows(body.name, body.length, body.axis_position)[0]
     return _ours(scene, lambda s: tip @ s.e.reshape(-1, 3))
 

@@ -98,15 +98,16 @@ def wingsim_scene(model, chordwise, spanwise, steps):
 def run_wingsim(model, chordwise, spanwise, steps):
     """One wingsim run from scratch: Measurement with values {"CL": last CL, "CL_history": [CL per step]}."""
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
     from structure_fmu.solver import StructureSolver
 
     scene = wingsim_scene(model, chordwise, spanwise, steps)
     dt = time_step(chordwise)
-    structure, inputs = StructureSolver(scene), []
+    structure, inputs = StructureSolver(StructureUnitSpec.from_scene(scene)), []
     for k in range(1, steps + 1):
         structure.advance(k * dt)
         inputs.append((k * dt, structure.e.copy(), structure.de.copy()))
-    aero = AeroSolver(scene)
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     history, per_step = [], []
     with Timer() as timer:
         for t, e, de in inputs:
@@ -212,12 +213,13 @@ def _warm_up(side, free):
 def steady_cl(chordwise, spanwise):
     """Steady CL of the wing from wingsim's uvlm-flat (one step: quasi-steady, no wake memory)."""
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
     from structure_fmu.solver import StructureSolver
 
     scene = wingsim_scene("uvlm-flat", chordwise, spanwise, 1)
-    structure = StructureSolver(scene)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     structure.advance(time_step(chordwise))
-    aero = AeroSolver(scene)
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     aero.advance(time_step(chordwise), structure.e, structure.de)
     return aero.outputs()["CL"]
 

@@ -3,9 +3,15 @@
   errors.py           SceneError, InputError, SolverDiverged; unknown-key and input checks
   schema.py           the vocabulary of the scene schema: typed keys, tables, arrays of tables, variants
   scene_schema.py     every scene key declared once, and resolve_scene (docs/scenes.md is generated from it)
+  choices.py          the scene's named choices (fidelity, aero model, integrator): names and the traits both
+                      units and the master ask of them (elements per body, nodes anywhere, a shed wake, ...)
   scene_bounds.py     the size bounds of a scene and the rough memory estimate of a run
   scissors.py         chains of scissor-like elements: the scene shorthand expanded into bodies, pins, probes
-  topology.py         the structural topology both units build from a scene: bodies, nodes, elements,
+  specs.py            what each unit reads of a resolved scene, as frozen typed specs (StructureUnitSpec,
+                      AeroUnitSpec: time, coupling, flow, aero, probes, strain gauges), converted once
+  wing_spec.py        the structure table as typed specs: bodies and sections, joints and their actuators,
+                      masses, loads, the [load] case, the prescribed motion
+  topology.py         the structural topology both units build from a structure spec: bodies, nodes, elements,
                       reference lines, chords, hinges, initial coordinates and the topology hash
   shape_functions.py  the ANCF element's shape functions (Otsuka et al. 2019, Eq. 2), with which the aero
                       unit maps panel points and forces to the exchanged coordinates (Eq. 12)

@@ -166,8 +166,9 @@ _VARIABILITY = {"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variab
 
 
 class SolverSlave(Fmi2Slave):
-    """Abstract slave over a solver. Subclasses set `label`, `model_name`, `solver_class` and `interface` (the
-    unit's table); construction reads the scene, builds the solver, lays the table out (`layout`: the value
+    """Abstract slave over a solver. Subclasses set `label`, `model_name`, `solver_class`, `spec_class` (the
+    unit's spec, fmu_common.specs) and `interface` (the unit's table); construction reads the scene, converts it
+    to the spec once, builds the solver, lays the table out (`layout`: the value
     buffer `_real`, the parameters' slice `sl_par`, the input blocks `do_step` checks and hands to the solver's
     `advance(t_end, *inputs)`) and registers every variable; `_publish` copies the solver's outputs into the
     buffer, row by row."""
@@ -175,6 +176,7 @@ class SolverSlave(Fmi2Slave):
     label = "unit"
     model_name = "unit"
     solver_class = None
+    spec_class = None
     log_categories = {**Fmi2Slave.log_categories,
                       DIVERGED_CATEGORY: "A step failed because the solver diverged (logged at fmi2Error)."}
 
@@ -191,9 +193,10 @@ class SolverSlave(Fmi2Slave):
         limit_blas_threads()   # the unit starts here, in whatever host: one BLAS thread (threads.py)
         super().__init__(**kwargs)
         self.scene = read_scene(self.resources, self.label)
+        self.spec = self.spec_class.from_scene(self.scene)   # the one read of the scene: the solver takes the spec
         self.modelName = self.model_name
-        self._solver = self.solver_class(self.scene)
-        self.layout = layout(self.interface, self._solver, self.scene)
+        self._solver = self.solver_class(self.spec)
+        self.layout = layout(self.interface, self._solver, self.spec)
         self.topology = self._solver.topology
         self.topology_hash = str(self.topology.topology_hash)
         self.n = int(self.topology.n_coordinates)
@@ -214,7 +217,7 @@ class SolverSlave(Fmi2Slave):
         _LIVE.setdefault(type(self), weakref.WeakSet()).add(self)
         for variable in self.layout.variables:
             self._register(variable)
-        stop, step = self.scene["time"]["stop"], self.scene["coupling"]["step"]
+        stop, step = self.spec.time.stop, self.spec.coupling.step
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=stop, step_size=step)
 
     @staticmethod
@@ -422,7 +425,7 @@ class SolverSlave(Fmi2Slave):
         if parameters == self._solver_parameters:
             return
         try:
-            self._solver = self.solver_class(self.scene, parameters=parameters)
+            self._solver = self.solver_class(self.spec, parameters=parameters)
             self._solver_parameters = parameters
             self._publish()
         except Exception as exc:  # noqa: BLE001
@@ -531,7 +534,7 @@ class SolverSlave(Fmi2Slave):
             return
         try:
             if state["solver_parameters"] != self._solver_parameters:
-                self._solver = self.solver_class(self.scene, parameters=state["solver_parameters"])
+                self._solver = self.solver_class(self.spec, parameters=state["solver_parameters"])
                 self._solver_parameters = dict(state["solver_parameters"])
             self._solver.set_state(state["solver"])
             self._real[:] = state["real"]

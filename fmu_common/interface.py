@@ -6,10 +6,10 @@ A table holds, in value-reference order:
   * `Block`s, the coupling blocks e, de, Q: `name[1..n]`, one Real per ANCF coordinate of the topology;
   * `Output`s, scalar Real outputs: one variable (`energy`), or one per item of the unit, named by a pattern
     (`fold_angle_<hinge>`, `<probe>_x`), each with the function that reads its values from the solver;
-  * the tunable parameters, as the solver's `tunable_parameters(scene)` declares them (`Parameters`);
+  * the tunable parameters, as the solver's `tunable_parameters(spec)` declares them (`Parameters`);
   * `topology_hash`, the String both units compare before they are connected.
 
-`layout(table, solver, scene)` gives every variable its value reference, contiguous from 0 in that order (the
+`layout(table, solver, spec)` gives every variable its value reference, contiguous from 0 in that order (the
 Reals are the slave's value buffer, so a host gets and sets a block in one call; the String comes last), and
 its start value: the solver's output at construction, an input's start, a parameter's default. The slaves
 register and publish from it (fmu_common.fmi_slave), the master reads the monitors by the tables' names
@@ -184,7 +184,7 @@ class Output:
 
 @dataclass(frozen=True)
 class Parameters:
-    """The tunable parameters: every scalar `solver.tunable_parameters(scene)` declares (name -> (default, unit,
+    """The tunable parameters: every scalar `solver.tunable_parameters(spec)` declares (name -> (default, unit,
     description)), in its order, causality parameter, variability fixed: a host may set them before
     initialization, and the unit builds its solver with them."""
 
@@ -265,8 +265,8 @@ class Layout:
         return found
 
 
-def layout(table: Interface, solver, scene: dict) -> Layout:
-    """The variables of `table` for `solver` (built from the resolved `scene`), with contiguous value
+def layout(table: Interface, solver, spec) -> Layout:
+    """The variables of `table` for `solver` (built from the unit's `spec`, fmu_common.specs), with contiguous value
     references from 0 in the table's order, and their start values: the solver's outputs now (a `Reading` at
     start time 0), the inputs' starts, the parameters' defaults. Raises ValueError naming the row whose
     values do not match its variables."""
@@ -312,7 +312,7 @@ def layout(table: Interface, solver, scene: dict) -> Layout:
         rows.append(laid)
 
     first = len(variables)
-    tunables = dict(solver.tunable_parameters(scene))
+    tunables = dict(solver.tunable_parameters(spec))
     for name, (default, unit, text) in tunables.items():
         add(fmi_name(name), PARAMETER, FIXED, EXACT, float(default), unit, text)
     rows.append(Laid(table.parameters, slice(first, len(variables))))

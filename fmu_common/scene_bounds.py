@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from .choices import aero_model, fidelity
 from .errors import SceneError
 
 MAX_ELEMENTS_PER_BODY = 100
@@ -71,23 +72,20 @@ def _ratio_check(key: str, value: float, numerator: float, numerator_key: str, l
 def wing_panels(scene: dict) -> int:
     """Bound panels of the whole wing: bodies x chordwise x spanwise (strips for strip theory); 0 without aero."""
     aero, bodies = scene["aero"], len(scene["structure"]["bodies"])
-    if aero["model"] == "none":
+    model = aero_model(aero["model"])
+    if not model.builds_unit:
         return 0
-    chordwise = 1 if aero["model"] == "strip" else aero["chordwise_panels"]
+    chordwise = aero["chordwise_panels"] if model.chordwise else 1
     return bodies * chordwise * aero["spanwise_panels"]
-
-
-DEFORMABLE = ("flexible", "strain-based")
-"""The fidelities whose bodies deform: structure.elements_per_body elements each, free nodes, damping of
-deformation (the others: one element per body, Otsuka et al. 2019, Sec. IV)."""
 
 
 def body_elements(structure: dict, body: dict) -> int:
     """Elements of the resolved `body` of the resolved `structure` table: its own `elements` if given, else
-    elements_per_body for a DEFORMABLE fidelity and one for a rigid or prescribed body."""
+    elements_per_body for a deformable fidelity (`fmu_common.choices.Fidelity`) and one for a rigid or
+    prescribed body (Otsuka et al. 2019, Sec. IV)."""
     if body.get("elements") is not None:
         return body["elements"]
-    return structure["elements_per_body"] if structure["fidelity"] in DEFORMABLE else 1
+    return structure["elements_per_body"] if fidelity(structure["fidelity"]).deformable else 1
 
 
 def structure_coordinates(scene: dict) -> int:
@@ -129,7 +127,7 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
         parts["aero influence matrices"] = ("aero.spanwise_panels", 12 * 8.0 * panels * panels)
         aero_steps = steps * aero_steps_per_communication(scene)
         parts["aero input record"] = ("time.stop", 8.0 * min(2.0 * n * aero_steps, AERO_INPUT_RECORD_VALUES))
-        if aero["model"] in ("uvlm-prescribed", "uvlm-free"):
+        if aero_model(aero["model"]).sheds_wake:
             rows = min(aero_steps, MAX_WAKE_ROWS) + 1
             corners = len(scene["structure"]["bodies"]) * rows * (aero["spanwise_panels"] + 1)
             parts["shed wake"] = ("aero.spanwise_panels", 8 * 4 * 8.0 * corners)
@@ -157,7 +155,7 @@ def check_sizes(scene: dict) -> None:
     coupling = scene["coupling"]
     _ratio_check("structure.step", scene["structure"]["step"], coupling["step"], "coupling.step",
                  MAX_STEPS_PER_COMMUNICATION, "internal structure steps per communication step")
-    if scene["aero"]["step"] is not None and scene["aero"]["model"] != "none":
+    if scene["aero"]["step"] is not None and aero_model(scene["aero"]["model"]).builds_unit:
         _ratio_check("aero.step", scene["aero"]["step"], coupling["step"], "coupling.step",
                      MAX_STEPS_PER_COMMUNICATION, "internal aero steps per communication step")
     steps = scene["time"]["stop"] / coupling["step"]

@@ -23,6 +23,7 @@ import copy
 
 import numpy as np
 
+from . import choices
 from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
@@ -33,15 +34,15 @@ from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, T
 
 ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
 ACCELERATIONS = ("aitken", "iqn-ils")
-AERO_MODELS = ("none", "strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free")
+AERO_MODELS = tuple(choices.AERO_MODELS)
 SPAN_CORRECTIONS = ("helmbold", "none")
-FIDELITIES = ("prescribed", "rigid", "flexible", "strain-based")
+FIDELITIES = tuple(choices.FIDELITIES)
 PARENT_JOINTS = ("revolute", "ball", "universal")
 PIN_AXES = ("chord", "normal", "free")
 SCISSOR_ENDS = ("free", "pin", "slide_across", "slide_along")
 MAX_SCISSORS = 50
 """The joint types that may join a parent body's tip to a child's root (the others hold a root to the ground)."""
-INTEGRATORS = ("rk4", "generalized-alpha")
+INTEGRATORS = choices.INTEGRATORS
 DAMPING_MODELS = ("deformation", "mass-proportional")
 
 PLATE = ("thickness", "density", "youngs_modulus")

@@ -20,8 +20,8 @@ import math
 
 import numpy as np
 
+from .choices import fidelity, fidelity_names
 from .errors import SceneError
-from .scene_bounds import DEFORMABLE
 from .schema import item_label
 
 ENDS = (("start_lower", "b", 0), ("start_upper", "a", 0), ("end_upper", "a", -1), ("end_lower", "b", -1))
@@ -33,7 +33,7 @@ def bar_elements(structure: dict, chain: dict) -> int:
     structure.elements_per_body rounded up to even for deformable ones (the mid-length pivot must be a node)."""
     if chain["elements_per_bar"] is not None:
         return chain["elements_per_bar"]
-    if structure["fidelity"] not in DEFORMABLE:
+    if not fidelity(structure["fidelity"]).deformable:
         return 2
     return 2 * math.ceil(structure["elements_per_body"] / 2)
 
@@ -92,9 +92,10 @@ def expand_scissors(scene: dict, resolve_item) -> None:
     structure = scene["structure"]
     for index, chain in enumerate(structure["scissors"]):
         key = f"structure.scissors.{item_label(index, chain)}"
-        if structure["fidelity"] not in ("rigid", "flexible"):
-            raise SceneError("structure.fidelity", structure["fidelity"], f"rigid or flexible with a scissor chain "
-                                                                          f"({key}: its pins hold nodes anywhere)")
+        if not fidelity(structure["fidelity"]).nodes_anywhere:
+            raise SceneError("structure.fidelity", structure["fidelity"],
+                             f"{fidelity_names(lambda f: f.nodes_anywhere)} with a scissor chain ({key}: its pins "
+                             "hold nodes anywhere)")
         generated = dict(zip(("bodies", "joints", "probes"), chain_tables(structure, chain)))
         arrays = {"bodies": structure["bodies"], "joints": structure["joints"], "probes": scene["probes"]}
         resolved = {section: [resolve_item(section, f"{key}.{section}.{item['name']}", item) for item in items]

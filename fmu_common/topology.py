@@ -17,11 +17,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .choices import Fidelity
 from .errors import SceneError
-from .scene_bounds import body_elements
-from .scene_schema import PARENT_JOINTS
-from .schema import item_label
 from .shape_functions import hermite, shape_row
+from .wing_spec import BodySpec, JointSpec, ParentJointSpec, RevoluteSpec, StructureSpec, UniversalSpec
 from .vectors import rotation_about
 
 @dataclass
@@ -84,62 +83,57 @@ class Topology:
         self.element_nodes: list[tuple[int, int]] = []
         self.element_body: list[str] = []
         self.joint_lines: list[JointLine] = []
-        self.root_joints: dict[str, tuple[str, dict]] = {}   # body -> (dotted key, table) of its root joint
-        self.fidelity = "flexible"
+        self.root_joints: dict[str, JointSpec] = {}      # body -> the joint that holds its root
+        self.fidelity: Fidelity | None = None           # fmu_common.choices, from the spec
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_scene(cls, scene: dict):
-        """The topology of the resolved scene's `structure` (fmu_common.scene_schema); raises SceneError naming
-        the key for a relation between tables the schema does not check (joints' bodies, joint tree)."""
+    def from_spec(cls, structure: StructureSpec):
+        """The topology of a scene's structure table (fmu_common.wing_spec); raises SceneError naming the key
+        for a relation between tables the schema does not check (joints' bodies, joint tree)."""
         top = cls()
-        structure = scene["structure"]
-        top.fidelity = structure["fidelity"]
-        specs = {spec["name"]: (body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
-        parent_of = top._parse_joints(structure["joints"], specs)
-        for name in _body_order(specs, parent_of):
-            top._add_body(name, specs[name], body_elements(structure, specs[name][1]))
+        top.fidelity = structure.fidelity
+        bodies = {body.name: body for body in structure.bodies}
+        parent_of = top._parse_joints(structure.joints, bodies)
+        for name in _body_order(bodies, parent_of):
+            top._add_body(bodies[name])
         return top
 
-    def _parse_joints(self, joints, specs) -> dict:
+    def _parse_joints(self, joints, bodies) -> dict:
         """Fill `root_joints`; return child body -> parent body of every joint that joins two bodies."""
         parent_of = {}
-        for i, spec in enumerate(joints):
-            key = f"structure.joints.{item_label(i, spec)}"
-            kind = spec["type"]
-            jointed = kind in PARENT_JOINTS
-            fields = ("parent", "child") if jointed else ("body", "other") if "other" in spec else ("body",)
-            for field_name in fields:
-                if spec[field_name] is not None and spec[field_name] not in specs:
-                    raise SceneError(f"{key}.{field_name}", spec[field_name], f"one of the bodies {sorted(specs)}")
-            if not holds_root(spec):    # a node shared or kept on a line: the structure unit's
+        for joint in joints:
+            for field_name, name in joint.body_references():
+                if name is not None and name not in bodies:
+                    raise SceneError(f"{joint.key}.{field_name}", name, f"one of the bodies {sorted(bodies)}")
+            if not joint.holds_root():    # a node shared or kept on a line: the structure unit's
                 continue
-            target = spec["child"] if jointed else spec["body"]
+            jointed = isinstance(joint, ParentJointSpec)
+            target = joint.child if jointed else joint.body
             if target in self.root_joints:
-                raise SceneError(key, target, "a body root can carry only one joint")
-            self.root_joints[target] = (key, spec)
+                raise SceneError(joint.key, target, "a body root can carry only one joint")
+            self.root_joints[target] = joint
             if jointed:
-                if spec["name"] in specs:     # <name>.damping would be the parameter of both
-                    raise SceneError(f"{key}.name", spec["name"], "a joint name that is not a body's: both name "
-                                     "parameters of the structure unit (<name>.damping)")
-                if spec["parent"] == spec["child"]:
-                    raise SceneError(f"{key}.child", spec["child"], "a body other than the parent")
-                if spec["parent"] is not None:
-                    parent_of[spec["child"]] = spec["parent"]
+                if joint.name in bodies:     # <name>.damping would be the parameter of both
+                    raise SceneError(f"{joint.key}.name", joint.name, "a joint name that is not a body's: both "
+                                     "name parameters of the structure unit (<name>.damping)")
+                if joint.parent == joint.child:
+                    raise SceneError(f"{joint.key}.child", joint.child, "a body other than the parent")
+                if joint.parent is not None:
+                    parent_of[joint.child] = joint.parent
         return parent_of
 
-    def _new_body(self, key: str, spec: dict, name: str, length: float) -> Body:
-        """The Body of the table `spec` at dotted key `key` (its section read for the chord line)."""
-        return Body(name, length, spec["section"]["chord"], spec["section"]["axis_position"])
+    def _new_body(self, spec: BodySpec) -> Body:
+        """The Body of `spec` (its section read for the chord line)."""
+        return Body(spec.name, spec.length, spec.section.chord, spec.section.axis_position)
 
-    def _add_body(self, name, key_spec, n_el):
-        key, spec = key_spec
-        length = spec["length"]
-        body = self._new_body(key, spec, name, length)
-        joint_key, joint = self.root_joints.get(name, (None, None))
+    def _add_body(self, spec: BodySpec):
+        name, key, length, n_el = spec.name, spec.key, spec.length, spec.elements
+        body = self._new_body(spec)
+        joint = self.root_joints.get(name)
         line = None
-        if joint is not None and joint["type"] in PARENT_JOINTS:
-            line = self._joint_line(joint_key, joint, spec)
+        if isinstance(joint, ParentJointSpec):
+            line = self._joint_line(joint, spec)
             self.joint_lines.append(line)
         if line is not None and line.parent is not None:
             tip = self.bodies[line.parent].nodes[-1]
@@ -147,20 +141,20 @@ class Topology:
             frame = line.child_frame(_frame(x_parent, y_parent))
             x0, y0 = frame[:, 0], frame[:, 1]
             for field_name in ("root", "span_axis"):
-                if spec[field_name] is not None:
-                    raise SceneError(f"{key}.{field_name}", spec[field_name],
+                if getattr(spec, field_name) is not None:
+                    raise SceneError(f"{key}.{field_name}", list(getattr(spec, field_name)),
                                      "not allowed: a jointed child starts at its parent's tip, in its parent's tip "
                                      "frame turned by the joint (orientation_deg, initial_angle_deg)")
-            given = spec["chord_axis"]
+            given = spec.chord_axis
             if given is not None and np.linalg.norm(_unit(given) - y0) > 1e-9:
-                raise SceneError(f"{key}.chord_axis", given, f"the chord axis the joint gives the child, "
+                raise SceneError(f"{key}.chord_axis", list(given), f"the chord axis the joint gives the child, "
                                  f"{[round(float(v), 12) for v in y0]}, or none")
         else:
-            r0 = np.array(spec["root"], dtype=float)
-            x0 = _unit(spec["span_axis"])
-            y0 = _unit(spec["chord_axis"])
+            r0 = np.array(spec.root, dtype=float)
+            x0 = _unit(spec.span_axis)
+            y0 = _unit(spec.chord_axis)
             if abs(x0 @ y0) > 1e-9:
-                raise SceneError(f"{key}.chord_axis", spec["chord_axis"], "a direction perpendicular to span_axis")
+                raise SceneError(f"{key}.chord_axis", list(spec.chord_axis), "a direction perpendicular to span_axis")
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
         first_node = len(self.node_names)
         for i in range(n_el + 1):
@@ -173,30 +167,30 @@ class Topology:
             self.element_body.append(name)
         self.bodies[name] = body
 
-    def _joint_line(self, key, spec, child_spec) -> JointLine:
-        """The JointLine of the joint table `spec` at dotted key `key`; SceneError naming the key for an
-        orientation with the ground or a universal joint whose axes are not perpendicular at t = 0."""
-        kind, parent = spec["type"], spec["parent"]
-        rotation = np.radians(np.asarray(spec["orientation_deg"], dtype=float))
+    def _joint_line(self, joint: ParentJointSpec, child: BodySpec) -> JointLine:
+        """The JointLine of `joint`; SceneError naming its key for an orientation with the ground or a universal
+        joint whose axes are not perpendicular at t = 0."""
+        key, kind, parent = joint.key, joint.kind, joint.parent
+        rotation = np.radians(np.asarray(joint.orientation_deg, dtype=float))
         if parent is None and np.any(rotation):
-            raise SceneError(f"{key}.orientation_deg", spec["orientation_deg"], "[0, 0, 0] with the ground: the "
+            raise SceneError(f"{key}.orientation_deg", list(joint.orientation_deg), "[0, 0, 0] with the ground: the "
                              "child's span_axis and chord_axis give its orientation")
         angle = np.linalg.norm(rotation)
         orientation = rotation_about(rotation / angle, angle) if angle > 0 else np.eye(3)
         axis = child_axis = np.zeros(3)
         initial = 0.0
-        if kind == "revolute":
-            axis, initial = _unit(spec["axis"]), np.radians(spec["initial_angle_deg"])
-        elif kind == "universal":
-            axis, child_axis = _unit(spec["parent_axis"]), _unit(spec["child_axis"])
+        if isinstance(joint, RevoluteSpec):
+            axis, initial = _unit(joint.axis), np.radians(joint.initial_angle_deg)
+        elif isinstance(joint, UniversalSpec):
+            axis, child_axis = _unit(joint.parent_axis), _unit(joint.child_axis)
         if parent is None:      # the ground: the child's own axes give its frame at t = 0
-            start = _frame(_unit(child_spec["span_axis"]), _unit(child_spec["chord_axis"]))
+            start = _frame(_unit(child.span_axis), _unit(child.chord_axis))
             turn = rotation_about(axis, initial) if kind == "revolute" else np.eye(3)
             orientation = turn.T @ start
         if kind == "universal" and abs(axis @ orientation @ child_axis) > 1e-9:
-            raise SceneError(f"{key}.child_axis", spec["child_axis"], "an axis perpendicular to parent_axis at "
+            raise SceneError(f"{key}.child_axis", list(joint.child_axis), "an axis perpendicular to parent_axis at "
                              f"t = 0 (their product is {float(axis @ orientation @ child_axis):.3g})")
-        return JointLine(spec["name"], kind, parent, spec["child"], axis, child_axis, orientation, initial)
+        return JointLine(joint.name, kind, parent, joint.child, axis, child_axis, orientation, initial)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -268,20 +262,6 @@ class Topology:
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def holds_root(joint: dict) -> bool:
-    """Whether the resolved `joint` holds its body's root (at most one per root): a clamp, a driven root, a
-    revolute, ball or universal joint, or a pin of the root node to the ground; not a slider, nor a pin
-    elsewhere or between two bodies."""
-    if joint["type"] == "slider":
-        return False
-    return joint["type"] != "pin" or (joint["other"] is None and joint["span"] == 0.0)
-
-
-def body_key(index: int, spec: dict) -> str:
-    """The dotted key of the body table `spec`, item `index` of structure.bodies."""
-    return f"structure.bodies.{item_label(index, spec)}"
-
-
 def _frame(span, chord) -> np.ndarray:
     """[span, chord, normal] (3, 3), columns, normal = span x chord."""
     return np.column_stack([span, chord, np.cross(span, chord)])
@@ -292,19 +272,19 @@ def _unit(vector) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _body_order(specs, parent_of):
+def _body_order(bodies, parent_of):
     """Body names, every parent before its children; SceneError for a closed loop of parent-child joints."""
     order, placed = [], set()
-    while len(order) < len(specs):
+    while len(order) < len(bodies):
         progress = False
-        for name in specs:
+        for name in bodies:
             parent = parent_of.get(name)
             if name not in placed and (parent is None or parent in placed):
                 order.append(name)
                 placed.add(name)
                 progress = True
         if not progress:
-            loop = sorted(set(specs) - placed)
+            loop = sorted(set(bodies) - placed)
             raise SceneError("structure.joints", loop, "revolute, ball and universal joints that form a tree (no "
                                                        "closed loop of parents and children: close a loop with a pin)")
     return order

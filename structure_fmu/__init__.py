@@ -1,7 +1,7 @@
 """Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV), the strain-based beam with
 joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
 
-  solver.py          StructureSolver, the API of docs/solver_api.md (scene, parameters, inputs Q, state, outputs)
+  solver.py          StructureSolver, the API of docs/solver_api.md (spec, parameters, inputs Q, state, outputs)
   interface.py       the unit's FMI interface, declared once: blocks, monitors, sensors, parameters
   structure_slave.py the FMI slave over StructureSolver, registering and publishing that interface
   topology.py        StructureTopology: the shared topology (fmu_common) plus joints, sections, motions, masses,
@@ -10,6 +10,8 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
   element_kernels.c  the elastic force and tangent in C (compiled and loaded by fmu_common.c_library)
   iteration_lu.py    the LU of generalized-alpha's iteration matrix, banded where its sparsity allows
+  fidelities.py      the registry of the structural fidelities (their model classes) and the model contract
+                     StructuralModel the integrators call
   model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4)
   slots.py           the exchanged coordinates as combinations of free and prescribed vectors; shared slots
   pins.py            pins at any node (shared points, rows closing a loop of rigid bodies) and sliders
@@ -21,9 +23,11 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   strain_model.py    the strain-based model (Otsuka et al. 2022, Eq. 9) over the ANCF model's inertia and forces
   motion.py          prescribed rigid motions: clamps, driven roots (Eq. 27), heave/pitch laws
   damping.py         damping of deformation
-  integrators.py     RK4 and generalized-alpha with projection on the constraints
+  integrators.py     RK4 and generalized-alpha with projection on the constraints; their registry and contract
+                     (Integrator)
   modes.py           natural frequencies and modes linearized at rest
   sensors.py         probes and strain gauges
 
-Shared with the aero unit, in fmu_common: errors, the FMI slave plumbing, the topology, the shape functions.
+Shared with the aero unit, in fmu_common: the typed specs of the scene, errors, the FMI slave plumbing, the
+topology, the shape functions.
 """

@@ -17,11 +17,12 @@ constraints (`constraint_*`) and generalized-alpha's iteration matrix (`iteratio
 """
 import math
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import numpy as np
 from scipy.linalg.lapack import dposv
 
-from fmu_common.errors import SolverDiverged
+from fmu_common.errors import SceneError, SolverDiverged
 
 from .iteration_lu import IterationLU
 
@@ -91,9 +92,16 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
 
 
 class RK4:
-    """Explicit RK4 with post-step constraint projection (Otsuka et al. 2019, Sec. VI)."""
+    """Explicit RK4 with post-step constraint projection (Otsuka et al. 2019, Sec. VI). It keeps nothing between
+    steps (`memory` None, `reset` does nothing)."""
 
     name = "rk4"
+    divergence_hint = ("reduce structure.step below the explicit stability limit, or use structure.integrator = "
+                       "\"generalized-alpha\"")
+    memory = None
+
+    def reset(self):
+        """Nothing to forget: every step starts from the state alone."""
 
     def initialize(self, model, state, Q):
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
@@ -135,6 +143,7 @@ class GeneralizedAlpha:
     """Generalized-alpha (Peng et al. 2019, Eqs. 23-25) for index-3 constrained systems (Arnold & Bruls)."""
 
     name = "generalized-alpha"
+    divergence_hint = "reduce structure.step, or lower structure.rho_inf to damp high frequencies"
 
     def __init__(self, rho_inf=0.8, tol=1e-9, max_iterations=30):
         r = float(rho_inf)
@@ -284,3 +293,33 @@ class GeneralizedAlpha:
                                    f"({predictor} predictor, last correction {size:.3g})")
         accel = a_known + (1 - af) / (1 - am) * ddq
         return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)
+
+
+class Integrator(Protocol):
+    """What StructureSolver asks of a time integrator: `initialize` the state's accelerations at its start
+    for the generalized force Q (n,), take one `step` of h (s) from a state to a new State, `reset` what it
+    carries between steps (a latch changes the forces), and that carried `memory` read and restored with the
+    solver's state, so that a rolled-back step repeats bit for bit; `divergence_hint` tells the user what to
+    change when a step diverges."""
+
+    name: str
+    divergence_hint: str
+    memory: object
+
+    def initialize(self, model, state: State, Q) -> State: ...
+
+    def step(self, model, state: State, h: float, Q) -> State: ...
+
+    def reset(self) -> None: ...
+
+
+INTEGRATORS = {"rk4": lambda structure: RK4(),
+               "generalized-alpha": lambda structure: GeneralizedAlpha(structure.rho_inf)}
+"""structure.integrator -> the Integrator built from the structure spec (fmu_common.wing_spec.StructureSpec)."""
+
+
+def integrator_for(structure) -> Integrator:
+    """The integrator the structure spec selects (structure.integrator, with its rho_inf)."""
+    if structure.integrator not in INTEGRATORS:
+        raise SceneError("structure.integrator", structure.integrator, f"one of {', '.join(map(repr, INTEGRATORS))}")
+    return INTEGRATORS[structure.integrator](structure)

@@ -138,6 +138,14 @@ def actuator_torque(hinge, theta, dtheta, latched):
     return spring + hinge.damping * dtheta + hinge.torque, stiffness
 
 
+def actuator_energy(hinge, theta, latched):
+    """The potential (J) of the actuator of `actuator_torque` at the fold angle theta (rad): 1/2 K theta^2 +
+    T_const theta, latched 1/2 latch_factor K (theta - stop)^2 + T_const theta (the damping C stores none)."""
+    if latched:
+        return 0.5 * hinge.latch_factor * hinge.stiffness * (theta - hinge.stop_angle) ** 2 + hinge.torque * theta
+    return 0.5 * hinge.stiffness * theta**2 + hinge.torque * theta
+
+
 def actuator_terms(hinges, E, dE, latched):
     """Per hinge, what the generalized actuator force on E is made of (Otsuka et al. 2019, Sec. II.C, virtual work
     -torque * delta theta: the force is -torque * grad on the coordinates idx):

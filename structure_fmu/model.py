@@ -10,18 +10,21 @@ import numpy as np
 import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
-from fmu_common.scene_bounds import DEFORMABLE
 from fmu_common.shape_functions import shape_row
 
 from . import element
 from .constraints import Constraints
 from .motion import Fixed
 from .damping import deformation_damping_force, deformation_damping_matrix
-from .joints import actuator_terms
+from .joints import actuator_energy, actuator_terms
 
 
 class StructureModel:
-    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters."""
+    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters: the model of
+    the prescribed, rigid and flexible fidelities (structure_fmu.fidelities)."""
+
+    ancf_elastic = True
+    """Whether a deformable body carries the ANCF elastic force on E (Otsuka et al. 2019, Eqs. 7-11)."""
 
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         self.top = topology
@@ -34,8 +37,8 @@ class StructureModel:
         mu = np.array([s.mass_per_length for s in sections])
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
-        self.flexible = topology.fidelity == "flexible"      # the ANCF elastic force (strain-based: K q instead)
-        deformable = topology.fidelity in DEFORMABLE
+        deformable = topology.fidelity.deformable
+        self.flexible = deformable and self.ancf_elastic      # the ANCF elastic force (strain-based: K q instead)
         # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
         rotary = np.array([s.rotary_inertia for s in sections])
@@ -126,8 +129,9 @@ class StructureModel:
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
-        if load["law"] == "cosine_ramp":   # Otsuka et al. 2019, Eq. (26)
-            ts = load["ramp_time"]
+        """The factor (-) on a PointLoad's force at time t (s): 1, or the cosine ramp up to its ramp_time."""
+        if load.ramp_time is not None:   # Otsuka et al. 2019, Eq. (26)
+            ts = load.ramp_time
             return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
         return 1.0
 
@@ -136,9 +140,9 @@ class StructureModel:
         dE is what the energy monitor's external work integrates."""
         F = np.array(Q, dtype=float)
         for load in self.loads:
-            k = load["element"]
-            s = shape_row(load["x"], load["y"], self.lengths[k])
-            F[self.dofs[k]] += np.kron(s, load["force"] * self.load_factor(load, t))
+            k = load.element
+            s = shape_row(load.x, load.y, self.lengths[k])
+            F[self.dofs[k]] += np.kron(s, load.force * self.load_factor(load, t))
         return F
 
     def force_E(self, E, dE, t, Q, latched):
@@ -295,11 +299,7 @@ class StructureModel:
         potential = -float(np.dot(self.gravity_E, E))
         spring = 0.0
         for h in self.hinges:
-            theta = angles[h.name]
-            if latched.get(h.name, False):
-                spring += 0.5 * h.latch_factor * h.stiffness * (theta - h.stop_angle) ** 2 + h.torque * theta
-            else:
-                spring += 0.5 * h.stiffness * theta**2 + h.torque * theta
+            spring += actuator_energy(h, angles[h.name], latched.get(h.name, False))
         return elastic + potential + spring
 
 

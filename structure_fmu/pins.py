@@ -16,9 +16,9 @@ A slider keeps a node's r on a line or plane through its position at t = 0: fixe
 """
 import numpy as np
 
+from fmu_common.choices import fidelity_names
 from fmu_common.errors import SceneError
-from fmu_common.schema import item_label
-from fmu_common.topology import holds_root
+from fmu_common.wing_spec import PinSpec, SliderSpec
 from fmu_common.vectors import perpendiculars
 
 from .constraints import AxisProduct, LinearRow
@@ -29,32 +29,27 @@ from .slots import RX, RY, R, eliminate
 GAP_TOLERANCE = 1e-9
 """m (a point) or - (a chord direction): how far the two sides of a pin may be apart at t = 0."""
 
-NODE_FIDELITIES = ("rigid", "flexible")
-"""The fidelities whose pins and sliders may hold any node (the strain-based fidelity: a root to the ground)."""
 
 
-def _joints(structure, kind):
-    """(dotted key, table) of each joint of type `kind`."""
-    return [(f"structure.joints.{item_label(i, spec)}", spec) for i, spec in enumerate(structure["joints"])
-            if spec["type"] == kind]
-
-
-def add_pins(top, structure) -> None:
-    """Share the points (and chords) of the scene's pins in the StructureTopology `top`, or add their rows;
+def add_pins(top, joints) -> None:
+    """Share the points (and chords) of the pins among `joints` (fmu_common.wing_spec) in the
+    StructureTopology `top`, or add their rows;
     SceneError naming the key for a pin on a point that is not a node, two sides apart at t = 0, or a pin
     the fidelity cannot hold."""
-    for key, spec in _joints(structure, "pin"):
-        if top.fidelity not in NODE_FIDELITIES:
-            if holds_root(spec):
+    for spec in (j for j in joints if isinstance(j, PinSpec)):
+        key = spec.key
+        if not top.fidelity.nodes_anywhere:
+            if spec.holds_root():
                 continue       # the strain-based root joint (strain_model); prescribed bodies follow their law
-            where, value = ("other", spec["other"]) if spec["other"] is not None else ("span", spec["span"])
-            raise SceneError(f"{key}.{where}", value, f"a pin of a body's root to the ground in the {top.fidelity} "
-                                                      f"fidelity (pins anywhere: {' or '.join(NODE_FIDELITIES)})")
-        a = top.node_at(f"{key}.span", spec["body"], spec["span"])
-        b = None if spec["other"] is None else top.node_at(f"{key}.other_span", spec["other"], spec["other_span"])
+            where, value = ("other", spec.other) if spec.other is not None else ("span", spec.span)
+            raise SceneError(f"{key}.{where}", value, f"a pin of a body's root to the ground in the "
+                                                      f"{top.fidelity.name} fidelity (pins anywhere: "
+                                                      f"{fidelity_names(lambda f: f.nodes_anywhere)})")
+        a = top.node_at(f"{key}.span", spec.body, spec.span)
+        b = None if spec.other is None else top.node_at(f"{key}.other_span", spec.other, spec.other_span)
         if a == b:
-            raise SceneError(f"{key}.other_span", spec["other_span"], "a node other than the pinned one")
-        _Pin(top, key, a, b).add(spec["axis"])
+            raise SceneError(f"{key}.other_span", spec.other_span, "a node other than the pinned one")
+        _Pin(top, key, a, b).add(spec.axis)
     top.compact_free()
 
 
@@ -114,28 +109,29 @@ class _Pin:
         top.linear_rows += [LinearRow(slots, coefficients, e, float(o)) for e, o in zip(np.eye(3), offset)]
 
 
-def add_sliders(top, structure) -> None:
+def add_sliders(top, joints) -> None:
     """Rows keeping each slider's node on its line (two rows, normals n perpendicular to it) or plane (one):
     fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow)."""
-    for key, spec in _joints(structure, "slider"):
-        if top.fidelity not in NODE_FIDELITIES:
-            raise SceneError(f"{key}.type", "slider", f"a joint of the {' or '.join(NODE_FIDELITIES)} fidelity "
-                                                      f"(not {top.fidelity})")
-        node = top.node_at(f"{key}.span", spec["body"], spec["span"])
-        if spec["line"] is not None:
-            normals = perpendiculars(np.asarray(spec["line"], float) / np.linalg.norm(spec["line"]))
+    for spec in (j for j in joints if isinstance(j, SliderSpec)):
+        key = spec.key
+        if not top.fidelity.nodes_anywhere:
+            raise SceneError(f"{key}.type", "slider", f"a joint of the {fidelity_names(lambda f: f.nodes_anywhere)} "
+                                                      f"fidelity (not {top.fidelity.name})")
+        node = top.node_at(f"{key}.span", spec.body, spec.span)
+        if spec.line is not None:
+            normals = perpendiculars(np.asarray(spec.line, float) / np.linalg.norm(spec.line))
         else:
-            normals = [np.asarray(spec["plane_normal"], float) / np.linalg.norm(spec["plane_normal"])]
+            normals = [np.asarray(spec.plane_normal, float) / np.linalg.norm(spec.plane_normal)]
         start = top.node_initial[node][0]
-        if spec["other"] is None:
+        if spec.other is None:
             top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
             continue
-        if spec["other"] == spec["body"] and top.fidelity == "rigid":
-            raise SceneError(f"{key}.other", spec["other"], "a body other than the sliding one (a rigid body's line "
-                                                           "moves with its node)")
-        base = top.node_at(f"{key}.other_span", spec["other"], spec["other_span"])
+        if spec.other == spec.body and not top.fidelity.deformable:
+            raise SceneError(f"{key}.other", spec.other, "a body other than the sliding one (a rigid body's line "
+                                                         "moves with its node)")
+        base = top.node_at(f"{key}.other_span", spec.other, spec.other_span)
         if base == node:
-            raise SceneError(f"{key}.other_span", spec["other_span"], "a node other than the sliding one")
+            raise SceneError(f"{key}.other_span", spec.other_span, "a node other than the sliding one")
         origin, x0, y0 = top.node_initial[base]
         frame = np.column_stack([x0, y0, np.cross(x0, y0)])
         offsets = [float((start - origin) @ frame @ n) for n in normals]

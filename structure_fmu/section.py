@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 from fmu_common.errors import SceneError
 from fmu_common.scene_schema import EXPLICIT, PLATE
+from fmu_common.wing_spec import SectionSpec
 
 
 @dataclass(frozen=True)
@@ -35,30 +36,31 @@ class Section:
         return (self.axial, self.flap, self.chordwise, self.torsion)
 
 
-def section_from_scene(key: str, table: dict) -> Section:
-    """Build a Section from a resolved scene section table (fmu_common.scene_schema.SECTION); `key` is its
-    dotted scene key for error messages.
+def section_from_spec(spec: SectionSpec) -> Section:
+    """Build a Section from a body's section table (fmu_common.wing_spec.SectionSpec); errors name its key.
 
     A rectangular plate (chord c, thickness h, density rho, Young's modulus E) gives EA = E c h,
     EI_yy = E c h^3 / 12, EI_zz = E h c^3 / 12, rho A = rho c h; explicit values override these.
     The mass is spread uniformly over the chord. SceneError if a derived property is not a finite number > 0
     (a product of finite values may overflow or underflow).
     """
-    chord, axis, h = table["chord"], table["axis_position"], table["thickness"]
+    chord, axis, h = spec.chord, spec.axis_position, spec.thickness
     derived = {}
     if h is not None:
-        E, rho = table["youngs_modulus"], table["density"]
+        E, rho = spec.youngs_modulus, spec.density
         derived = {"axial_stiffness": E * chord * h, "bending_stiffness_flap": E * chord * h**3 / 12,
                    "bending_stiffness_chord": E * h * chord**3 / 12, "mass_per_length": rho * chord * h}
-    values = {name: table[name] if table[name] is not None else derived[name] for name in EXPLICIT}
+    given = {name: getattr(spec, name) for name in EXPLICIT}
+    values = {name: value if value is not None else derived[name] for name, value in given.items()}
     for name, value in values.items():
         if not (math.isfinite(value) and value > 0):
-            raise SceneError(key, {k: table[k] for k in ("chord", *PLATE) if table[k] is not None},
-                             f"a section whose {name} (derived from the plate: {value:g}) is a finite number > 0")
+            plate = {k: getattr(spec, k) for k in ("chord", *PLATE) if getattr(spec, k) is not None}
+            raise SceneError(spec.key, plate, f"a section whose {name} (derived from the plate: {value:g}) is a "
+                                              "finite number > 0")
     mu = values["mass_per_length"]
     lead, trail = -axis * chord, (1.0 - axis) * chord
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
-                   chordwise=values["bending_stiffness_chord"], torsion=table["torsional_rigidity"],
+                   chordwise=values["bending_stiffness_chord"], torsion=spec.torsional_rigidity,
                    mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
-                   thickness=h, rotary_inertia=table["rotary_inertia"])
+                   thickness=h, rotary_inertia=spec.rotary_inertia)

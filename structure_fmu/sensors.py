@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fmu_common.specs import ProbeSpec, StrainGaugeSpec, StructureUnitSpec
+
 from .element import flap_curvature
 
 AXES = "xyz"
@@ -36,29 +38,25 @@ def output_names(probe_names: list[str], gauge_names: list[str]) -> list[str]:
 
 
 class Sensors:
-    """Probes and strain gauges of a resolved scene on its topology.
+    """Probes and strain gauges (fmu_common.specs.ProbeSpec, StrainGaugeSpec) on a topology."""
 
-    probes: [{"name", "body", "span" (m), "chord" (fraction of chord from the leading edge)}, ...];
-    gauges: [{"name", "body", "span" (m), "surface_distance" (m)}, ...] (the resolved scene's tables).
-    """
-
-    def __init__(self, probes: list[dict], gauges: list[dict], topology) -> None:
+    def __init__(self, probes: tuple[ProbeSpec, ...], gauges: tuple[StrainGaugeSpec, ...], topology) -> None:
         n_slots = 3 * topology.n_nodes
-        self._probes, self._gauges = [dict(p) for p in probes], [dict(g) for g in gauges]
-        self.probe_names = [p["name"] for p in probes]
-        self.gauge_names = [g["name"] for g in gauges]
-        self._probe_rows = np.array([topology.point_rows(p["body"], p["span"], p["chord"])[0] for p in probes]
+        self._probes, self._gauges = tuple(probes), tuple(gauges)
+        self.probe_names = [p.name for p in probes]
+        self.gauge_names = [g.name for g in gauges]
+        self._probe_rows = np.array([topology.point_rows(p.body, p.span, p.chord)[0] for p in probes]
                                     ).reshape(len(probes), n_slots)           # (n_probes, n_slots): r = S e
-        self._gauge_rows = np.array([topology.point_rows(g["body"], g["span"])[1:] for g in gauges]
+        self._gauge_rows = np.array([topology.point_rows(g.body, g.span)[1:] for g in gauges]
                                     ).reshape(len(gauges), 3, n_slots)        # r', r'', r_y at each gauge
-        self._surface_distance = np.array([g["surface_distance"] for g in gauges], dtype=float)   # m
+        self._surface_distance = np.array([g.surface_distance for g in gauges], dtype=float)   # m
         # the probes' rows, then the gauges' rows: what `outputs` reads from e, in one product
         self._position_rows = np.concatenate([self._probe_rows, self._gauge_rows.reshape(-1, n_slots)])
 
     @classmethod
-    def from_scene(cls, scene: dict, topology) -> "Sensors":
-        """The sensors of a resolved scene (its ``probes`` and ``strain_gauges``)."""
-        return cls(scene["probes"], scene["strain_gauges"], topology)
+    def from_spec(cls, spec: StructureUnitSpec, topology) -> "Sensors":
+        """The sensors of the structure unit's spec (its probes and strain gauges)."""
+        return cls(spec.probes, spec.strain_gauges, topology)
 
     def positions(self, e: np.ndarray) -> np.ndarray:
         """Probe global positions (n_probes, 3), m, from the coordinates e (n,)."""
@@ -82,7 +80,7 @@ class Sensors:
 
     def output_declarations(self) -> list[tuple[str, str, str]]:
         """(name, unit, description) of each output, in the order of ``outputs`` (`output_names`)."""
-        where = [f"probe {p['name']} (body {p['body']}, span {p['span']:g} m, chord fraction {p['chord']:g})"
+        where = [f"probe {p.name} (body {p.body}, span {p.span:g} m, chord fraction {p.chord:g})"
                  for p in self._probes]
         positions = [(name, "m", f"global {a} position of {w}")
                      for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[0], AXES)]
@@ -90,8 +88,8 @@ class Sensors:
                       for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[1], AXES)]
         accelerations = [(name, "m/s2", f"global {a} acceleration of {w}")
                          for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[2], AXES)]
-        strains = [(g["name"], "1", f"surface strain of strain gauge {g['name']} (body {g['body']}, span "
-                                    f"{g['span']:g} m, {g['surface_distance']:g} m from the reference line)")
+        strains = [(g.name, "1", f"surface strain of strain gauge {g.name} (body {g.body}, span {g.span:g} m, "
+                                 f"{g.surface_distance:g} m from the reference line)")
                    for g in self._gauges]
         return positions + velocities + accelerations + strains
 

@@ -9,31 +9,23 @@ from dataclasses import replace
 import numpy as np
 
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
-from fmu_common.scene_schema import tunable_parameters
+from fmu_common.specs import StructureUnitSpec
 
-from .integrators import RK4, GeneralizedAlpha, State, constrained_accelerations, project
+from .fidelities import model_class
+from .integrators import State, constrained_accelerations, integrator_for, project
 from .joint_monitors import joint_monitors, monitor_names
-from .model import StructureModel
-from .strain_model import StrainBasedModel
 from .sensors import Sensors
 from .topology import StructureTopology
 
-_DIVERGENCE_HINT = {
-    "rk4": "reduce structure.step below the explicit stability limit, or use structure.integrator = "
-           "\"generalized-alpha\"",
-    "generalized-alpha": "reduce structure.step, or lower structure.rho_inf to damp high frequencies",
-}
-
-
 class StructureSolver:
-    """The structural solver of one resolved scene (fmu_common.scene_schema.resolve_scene). See
-    docs/solver_api.md."""
+    """The structural solver of one scene, from the structure unit's spec (fmu_common.specs.StructureUnitSpec).
+    See docs/solver_api.md."""
 
-    def __init__(self, scene: dict, parameters: dict | None = None):
-        self.topology = StructureTopology.from_scene(scene)
-        self.sensors = Sensors.from_scene(scene, self.topology)
-        structure = scene["structure"]
-        values = {name: spec[0] for name, spec in self.tunable_parameters(scene).items()}
+    def __init__(self, spec: StructureUnitSpec, parameters: dict | None = None):
+        self.topology = StructureTopology.from_spec(spec.structure)
+        self.sensors = Sensors.from_spec(spec, self.topology)
+        structure = spec.structure
+        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
         for name, value in (parameters or {}).items():
             if name not in values:
                 raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
@@ -50,10 +42,10 @@ class StructureSolver:
                 raise SceneError(f"structure.joints.{h}.stiffness/damping", p, "K >= 0 and C >= 0")
         body_damping = {b: values[f"structure.bodies.{b}.damping"] for b in self.topology.bodies}
         gravity = [values[f"structure.gravity[{i}]"] for i in (1, 2, 3)]
-        model = StrainBasedModel if structure["fidelity"] == "strain-based" else StructureModel
-        self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure["damping_model"])
+        model = model_class(structure.fidelity)
+        self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure.damping_model)
         self.step_size = values["structure.step"]
-        self.integrator = RK4() if structure["integrator"] == "rk4" else GeneralizedAlpha(structure["rho_inf"])
+        self.integrator = integrator_for(structure)
         q0 = self.model.initial_coordinates()
         n_q = len(q0)
         n_c = self.model.constraint_count
@@ -81,10 +73,10 @@ class StructureSolver:
         return project(model, 0.0, q0, model.rates_of(q0, dE, 0.0))[1]
 
     @staticmethod
-    def tunable_parameters(scene: dict) -> dict:
+    def tunable_parameters(spec: StructureUnitSpec) -> dict:
         """name -> (default, unit, description) of the scalars a system tool may change before a run: the
         tunable keys of the scene's `structure` table (`fmu_common.scene_schema.tunable_parameters`)."""
-        return tunable_parameters(scene, "structure")
+        return dict(spec.parameters)
 
     def _check_initial_constraints(self):
         if self.model.constraint_count == 0:
@@ -124,7 +116,7 @@ class StructureSolver:
                 new = self.integrator.step(self.model, previous, h, Q)
             except np.linalg.LinAlgError as exc:
                 raise SolverDiverged(previous.t, f"singular system ({exc})",
-                                     _DIVERGENCE_HINT[self.integrator.name]) from None
+                                     self.integrator.divergence_hint) from None
             self._check(new)
             self._update_latches(previous, new)
             start = self._power(previous, Q) if power is None else power
@@ -133,7 +125,7 @@ class StructureSolver:
             self.state = new
 
     def _check(self, state):
-        hint = _DIVERGENCE_HINT[self.integrator.name]
+        hint = self.integrator.divergence_hint
         if not math.isfinite(state.q.sum() + state.dq.sum()):     # NaN or inf in any entry
             raise SolverDiverged(state.t, "the state became NaN/inf", hint)
         E, _, _, residual = self._evaluated(state)
@@ -161,8 +153,7 @@ class StructureSolver:
                 new.latched = {**new.latched, h.name: True}
                 fraction = a / (a - b) if a != b else 0.0
                 new.latch_times = {**new.latch_times, h.name: previous.t + fraction * (new.t - previous.t)}
-                if hasattr(self.integrator, "reset"):
-                    self.integrator.reset()
+                self.integrator.reset()
 
     # ---------------------------------------------------------------- outputs
     def _evaluated(self, state):
@@ -231,10 +222,9 @@ class StructureSolver:
     def get_state(self):
         """Complete internal state, deep-copied, with the integrator's `memory` (generalized-alpha's Newton matrix,
         by reference: it is replaced, never modified in place), so that a rolled-back step repeats bit for bit."""
-        return (self.state.copy(), self._initialized, getattr(self.integrator, "memory", None), self._last_Q.copy())
+        return (self.state.copy(), self._initialized, self.integrator.memory, self._last_Q.copy())
 
     def set_state(self, saved) -> None:
         state, initialized, memory, last_Q = saved
         self.state, self._initialized, self._last_Q = state.copy(), initialized, last_Q.copy()
-        if hasattr(self.integrator, "memory"):
-            self.integrator.memory = memory
+        self.integrator.memory = memory

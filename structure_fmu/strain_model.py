@@ -62,6 +62,8 @@ class _Root:
 class StrainBasedModel(StructureModel):
     """The StructureModel's inertia and forces on E, over the strain-based coordinates q (see the module)."""
 
+    ancf_elastic = False      # the elastic force is K q (Otsuka et al. 2022, Eq. 9)
+
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         super().__init__(topology, gravity, hinge_parameters, body_damping, damping_model)
         self._dropped = np.zeros(0, int)     # its own joint rows (_JointConstraints) are all independent
@@ -93,21 +95,21 @@ class StrainBasedModel(StructureModel):
 
     # ---------------------------------------------------------------- construction
     def _root(self, name, body, offset):
-        _, joint = self.top.root_joints.get(name, (None, None))
+        joint = self.top.root_joints.get(name)
         if joint is None:
             raise SceneError(f"structure.bodies.{name}", name, "a body held at its root by a joint: the "
                              f"strain-based fidelity supports {', '.join(SUPPORTED_ROOTS)} (a free body has none)")
-        kind = joint["type"]
+        kind = joint.kind
         start = np.column_stack([body.span_axis, body.chord_axis, np.cross(body.span_axis, body.chord_axis)])
         if kind == "clamp":
             return _Root("fixed", None, None, start, body.root, offset)
         if kind == "driven":   # law spin_up about the root's chord axis (Otsuka et al. 2019, Eq. 27)
             return _Root("driven", None, None, start, body.root, offset,
-                         SpinUp(body.chord_axis, body.root, joint["omega"], joint["ramp_time"]))
-        if kind == "pin" and joint["axis"] == "free":   # a ball joint to the ground
+                         SpinUp(body.chord_axis, body.root, joint.omega, joint.ramp_time))
+        if kind == "pin" and joint.axis == "free":   # a ball joint to the ground
             return _Root("ball", None, np.zeros(3), start, body.root, offset)
         if kind == "pin":      # a revolute joint to the ground about the root's chord or section normal
-            axis = body.chord_axis if joint["axis"] == "chord" else start[:, 2]
+            axis = body.chord_axis if joint.axis == "chord" else start[:, 2]
             return _Root("revolute", None, axis, start, body.root, offset)
         line = next(j for j in self.top.joint_lines if j.child == name)
         return _Root(kind, line.parent, line.axis, line.orientation, body.root, offset, child_axis=line.child_axis,

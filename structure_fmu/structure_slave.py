@@ -34,6 +34,7 @@ from fmu_common import dependencies  # noqa: F401
 # this module. Absolute imports: inside the FMU this script sits at the top of resources/, which pythonfmu puts
 # on sys.path, beside the embedded packages.
 from fmu_common.fmi_slave import SolverSlave
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.interface import STRUCTURE
 from structure_fmu.solver import StructureSolver
 
@@ -44,4 +45,5 @@ class StructureSlave(SolverSlave):
     label = STRUCTURE.unit
     model_name = "structure"
     solver_class = StructureSolver
+    spec_class = StructureUnitSpec
     interface = STRUCTURE

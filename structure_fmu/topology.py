@@ -24,14 +24,14 @@ including the node's own unit-length and orthogonality rows), the same with a pa
   revolute, other axis   6             5                   4
 (a flexible node keeps the axial stretch |r_x| free: one more degree of freedom than the joint's own).
 """
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from fmu_common import topology
 from fmu_common.errors import SceneError
-from fmu_common.scene_bounds import DEFORMABLE
-from fmu_common.scene_schema import PARENT_JOINTS
+from fmu_common.choices import fidelity_names
+from fmu_common.wing_spec import ParentJointSpec, StructureSpec
 from fmu_common.vectors import perpendiculars
 
 from .constraints import AxisProduct, LinearRow
@@ -39,7 +39,7 @@ from .joint_rows import SlidingRow
 from .joints import hinge_angle
 from .motion import Fixed, HeavePitch, SpinUp
 from .pins import add_pins, add_sliders
-from .section import Section, section_from_scene
+from .section import Section, section_from_spec
 from .slots import RX, RY, R, Slot, compact
 
 
@@ -50,6 +50,19 @@ class StructureBody(topology.Body):
 
     section: Section = None
     damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class PointLoad:
+    """A point force (3,) N, global frame, at the point (x, y) (m, along the span and the chord from the
+    reference line) of element `element`: constant, or ramped up over ramp_time (s) by Otsuka et al. 2019,
+    Eq. 26 (`structure_fmu.model.StructureModel.load_factor`)."""
+
+    element: int
+    x: float
+    y: float
+    force: np.ndarray
+    ramp_time: float | None
 
 
 CHORD_TOLERANCE = 1e-12
@@ -98,39 +111,40 @@ class StructureTopology(topology.Topology):
         self.axis_products: list[AxisProduct] = []                 # joint rows v_A(a) . v_B(b) = 0
         self.masses: list[tuple[int, float]] = []                  # (node, kg)
         self.angular_velocity: dict[str, np.ndarray] = {}          # initial rigid rotation rate, rad/s
-        self.loads: list[dict] = []
+        self.loads: list[PointLoad] = []
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_scene(cls, scene: dict) -> "StructureTopology":
-        """Build the topology of the resolved scene's `structure`; raises SceneError naming the key."""
-        top = super().from_scene(scene)
-        structure = scene["structure"]
-        motion_spec = structure.get("motion")        # an optional table: absent unless given
-        if top.fidelity == "prescribed" and motion_spec is None:
+    def from_spec(cls, structure: StructureSpec) -> "StructureTopology":
+        """Build the topology of a scene's structure table (fmu_common.wing_spec); raises SceneError naming
+        the key."""
+        top = super().from_spec(structure)
+        motion = structure.motion
+        if top.fidelity.moved_by_law and motion is None:
             raise SceneError("structure.motion", None, "a table with the prescribed heave/pitch law")
-        if top.fidelity != "prescribed" and motion_spec is not None:
-            raise SceneError("structure.motion", motion_spec, "only with structure.fidelity = 'prescribed' (the "
-                                                              f"{top.fidelity} structure moves by its dynamics)")
-        for key, spec in top._body_specs(structure):
-            top._add_coordinates(top.bodies[spec["name"]], key, spec, motion_spec)
-        add_pins(top, structure)
-        add_sliders(top, structure)
+        if not top.fidelity.moved_by_law and motion is not None:
+            given = {name: value for name, value in asdict(motion).items() if name != "key"}
+            raise SceneError("structure.motion", given, f"only with structure.fidelity = "
+                             f"'{fidelity_names(lambda f: f.moved_by_law)}' (the {top.fidelity.name} structure "
+                             "moves by its dynamics)")
+        specs = {body.name: body for body in structure.bodies}
+        for name, body in top.bodies.items():      # parents before children
+            top._add_coordinates(body, specs[name], motion)
+        add_pins(top, structure.joints)
+        add_sliders(top, structure.joints)
         top._add_constraints()
-        top._add_masses_and_loads(structure)
-        if "load" in scene:
-            top._add_load_case(scene["load"])
+        top._add_masses(structure.masses)
+        for load in structure.loads:
+            top._add_load(load.key, load.body, load.span, load.chord, np.array(load.force, dtype=float),
+                          load.ramp_time)
+        if structure.load_case is not None:
+            top._add_load_case(structure.load_case)
         return top
 
-    def _new_body(self, key, spec, name, length):
-        section = section_from_scene(f"{key}.section", spec["section"])
-        return StructureBody(name, length, section.chord, section.axis_position, section=section,
-                             damping=spec["damping"])
-
-    def _body_specs(self, structure):
-        """(dotted key, table) of every body, in the order of `bodies` (parents before children)."""
-        keyed = {spec["name"]: (topology.body_key(i, spec), spec) for i, spec in enumerate(structure["bodies"])}
-        return [keyed[name] for name in self.bodies]
+    def _new_body(self, spec):
+        section = section_from_spec(spec.section)
+        return StructureBody(spec.name, spec.length, section.chord, section.axis_position, section=section,
+                             damping=spec.damping)
 
     def _new_free(self, value, position=False):
         """A slot of a new free vector with initial `value` (3,); `position`: a point (m), else a gradient."""
@@ -150,35 +164,35 @@ class StructureTopology(topology.Topology):
         self.motions.append(Fixed())
         return self._new_prescribed(value, is_position, len(self.motions) - 1)
 
-    def _add_coordinates(self, body, key, spec, motion_spec):
+    def _add_coordinates(self, body, spec, motion_spec):
         """The slots of the body's nodes: its root joint decides whether the root is free, shared or
         prescribed; the other nodes are free (flexible) or follow the root (rigid, prescribed)."""
         r0, x0, y0 = body.root, body.span_axis, body.chord_axis
-        if spec["angular_velocity"] is not None:
-            self.angular_velocity[body.name] = np.array(spec["angular_velocity"], dtype=float)
-        joint_key, joint = self.root_joints.get(body.name, (None, None))
-        kind = joint["type"] if joint else None
+        if spec.angular_velocity is not None:
+            self.angular_velocity[body.name] = np.array(spec.angular_velocity, dtype=float)
+        joint = self.root_joints.get(body.name)
+        kind = joint.kind if joint else None
         first_node = body.nodes[0]
         motion = None
-        if self.fidelity == "prescribed":
+        if self.fidelity.moved_by_law:
             motion = self._prescribed_motion(motion_spec, r0, x0, y0, body)
         elif kind == "clamp":
             motion = len(self.motions)
             self.motions.append(Fixed())
         elif kind == "driven":
             motion = len(self.motions)       # law "spin_up", the only one (Otsuka et al. 2019, Eq. 27)
-            self.motions.append(SpinUp(y0, r0, joint["omega"], joint["ramp_time"]))
+            self.motions.append(SpinUp(y0, r0, joint.omega, joint.ramp_time))
         if motion is not None:
             root = [self._new_prescribed(r0, True, motion), self._new_prescribed(x0, False, motion),
                     self._new_prescribed(y0, False, motion)]
-        elif kind in PARENT_JOINTS:
+        elif isinstance(joint, ParentJointSpec):
             root = self._add_joint(joint, first_node, r0, x0, y0)
         else:   # free, or pinned (pins.py shares its point afterwards)
             root = [self._new_free(r0, position=True), self._new_free(x0), self._new_free(y0)]
         self.slots += root
         n_el = len(body.elements)
         for i, node in enumerate(body.nodes[1:], start=1):
-            if self.fidelity in DEFORMABLE:   # strain-based too: its E has the same node slots
+            if self.fidelity.deformable:   # strain-based too: its E has the same node slots
                 r_i, x_i, y_i = self.node_initial[node]
                 self.slots += [self._new_free(r_i, position=True), self._new_free(x_i), self._new_free(y_i)]
             else:   # rigid or prescribed: linear rows of Otsuka et al. 2019, Eq. (17), at any node
@@ -187,24 +201,24 @@ class StructureTopology(topology.Topology):
     def _prescribed_motion(self, spec, r0, x0, y0, body):
         """The HeavePitch law of `structure.motion` for `body` (its own section normal and reference line where
         the table leaves heave_axis and pitch_axis_position out)."""
-        heave_axis = np.cross(x0, y0) if spec["heave_axis"] is None else np.asarray(spec["heave_axis"], float)
-        pivot_fraction = body.axis_position if spec["pitch_axis_position"] is None else spec["pitch_axis_position"]
+        heave_axis = np.cross(x0, y0) if spec.heave_axis is None else np.asarray(spec.heave_axis, float)
+        pivot_fraction = body.axis_position if spec.pitch_axis_position is None else spec.pitch_axis_position
         pivot = r0 + y0 * body.chord_offset(pivot_fraction)
         # the static angle of attack is applied to the initial geometry by the caller's chord_axis;
         # alpha_deg adds a constant nose-up pitch (rotation about -x0 lifts the leading edge toward +n)
-        alpha = np.radians(spec["alpha_deg"])
-        amplitude, phase = np.radians(spec["pitch_amplitude_deg"]), np.radians(spec["phase_deg"])
-        frequency = spec["frequency"]
+        alpha = np.radians(spec.alpha_deg)
+        amplitude, phase = np.radians(spec.pitch_amplitude_deg), np.radians(spec.phase_deg)
+        frequency = spec.frequency
         if alpha != 0.0:     # the schema refuses alpha_deg with an oscillating pitch or a heave
             amplitude, frequency, phase = alpha, 0.0, np.pi / 2
-        self.motions.append(HeavePitch(heave_axis / np.linalg.norm(heave_axis), -x0, pivot, spec["heave_amplitude"],
+        self.motions.append(HeavePitch(heave_axis / np.linalg.norm(heave_axis), -x0, pivot, spec.heave_amplitude,
                                        amplitude, frequency, phase))
         return len(self.motions) - 1
 
     def _add_joint(self, spec, root_node, r0, x0, y0):
         """The root slots [r, r_x, r_y] of a child on a ball, universal or revolute joint (`JointLine`), with its
         axis-product rows and, for a revolute, its Hinge."""
-        line = next(j for j in self.joint_lines if j.child == spec["child"])
+        line = next(j for j in self.joint_lines if j.child == spec.child)
         if line.parent is None:          # the ground: the root point (and a chord axis) stay where they start
             tip_x = None
             point = self.new_fixed(r0, True)
@@ -227,8 +241,9 @@ class StructureTopology(topology.Topology):
         return root
 
     def _add_hinge(self, spec, line, parent_slot, child_slot, shared_chord):
-        stop = None if spec["stop_angle_deg"] is None else np.radians(spec["stop_angle_deg"])
-        stiffness, damping, torque, latch = (spec[k] for k in ("stiffness", "damping", "torque", "latch_factor"))
+        actuator = spec.actuator
+        stop = None if actuator.stop_angle_deg is None else np.radians(actuator.stop_angle_deg)
+        stiffness, damping, torque, latch = actuator.stiffness, actuator.damping, actuator.torque, actuator.latch_factor
         reference = perpendiculars(line.axis)[0]
         if shared_chord and parent_slot is not None and np.array_equal(line.orientation, np.eye(3)):
             # the chord-axis hinge: the angle between the gradients r_x about the shared r_y (joints.py)
@@ -257,9 +272,9 @@ class StructureTopology(topology.Topology):
                 self.orthogonal_slots.append(tuple(slots))
 
         for body in self.bodies.values():
-            nodes = body.nodes if self.fidelity in DEFORMABLE else body.nodes[:1]
+            nodes = body.nodes if self.fidelity.deformable else body.nodes[:1]
             for node in nodes:
-                if self.fidelity == "rigid":
+                if not self.fidelity.deformable:     # |r_x| = 1 (Otsuka et al. 2019, Eq. 17); prescribed: no row
                     add("unit", [3 * node + RX])
                 add("unit", [3 * node + RY])
                 add("orthogonal", [3 * node + RX, 3 * node + RY])
@@ -279,21 +294,21 @@ class StructureTopology(topology.Topology):
             raise SceneError(key, span, f"a node position of body '{body_name}' (m from its root): {allowed}")
         return body.nodes[index]
 
-    def _add_masses_and_loads(self, structure, key=None):
-        for i, spec in enumerate(structure["masses"]):
-            item = f"structure.masses.{i}"
-            self._check_body(f"{item}.body", spec["body"])
-            self.masses.append((self.node_at(f"{item}.span", spec["body"], spec["span"]), spec["mass"]))
-        for i, spec in enumerate(structure["loads"]):
-            item = key or f"structure.loads.{i}"
-            body = self.bodies[self._check_body(f"{item}.body", spec["body"])]
-            if spec["span"] > body.length:
-                raise SceneError(f"{item}.span", spec["span"], f"0 <= span <= {body.length:g} (m, the length of body "
-                                                               f"'{body.name}')")
-            index, x, y = self.locate(spec["body"], spec["span"], spec["chord"])
-            ramp = spec["ramp_time"] if spec["law"] == "cosine_ramp" else None
-            self.loads.append({"element": index, "x": x, "y": y, "law": spec["law"], "ramp_time": ramp,
-                               "force": np.array(spec["force"], dtype=float)})
+    def _add_masses(self, masses):
+        for spec in masses:
+            self._check_body(f"{spec.key}.body", spec.body)
+            self.masses.append((self.node_at(f"{spec.key}.span", spec.body, spec.span), spec.mass))
+
+    def _add_load(self, key, body_name, span, chord, force, ramp_time):
+        """A point load `force` (3,) N at `span` (m) and `chord` (fraction) of body `body_name`, constant (ramp_time
+        None) or with the cosine ramp of ramp_time (s); SceneError naming `key` for an unknown body or a span
+        beyond its length."""
+        body = self.bodies[self._check_body(f"{key}.body", body_name)]
+        if span > body.length:
+            raise SceneError(f"{key}.span", span, f"0 <= span <= {body.length:g} (m, the length of body "
+                                                  f"'{body.name}')")
+        index, x, y = self.locate(body_name, span, chord)
+        self.loads.append(PointLoad(index, x, y, force, ramp_time))
 
     def _check_body(self, key, name):
         """`name` if it is a body's, else SceneError naming `key`."""
@@ -304,11 +319,11 @@ class StructureTopology(topology.Topology):
     def _add_load_case(self, spec):
         """`[load]`: a point load given by the non-dimensional parameter P L^2 / (EI_yy) of its body (the
         resolved scene names the body, span and chord)."""
-        body = self.bodies[self._check_body("load.body", spec["body"])]
-        direction = np.asarray(spec["direction"], dtype=float)
-        magnitude = spec["parameter"] * body.section.flap / body.length**2
-        load = {**spec, "force": list(magnitude * direction / np.linalg.norm(direction))}
-        self._add_masses_and_loads({"masses": [], "loads": [load]}, key="load")
+        body = self.bodies[self._check_body("load.body", spec.body)]
+        direction = np.asarray(spec.direction, dtype=float)
+        magnitude = spec.parameter * body.section.flap / body.length**2
+        force = np.array(list(magnitude * direction / np.linalg.norm(direction)), dtype=float)
+        self._add_load(spec.key, spec.body, spec.span, spec.chord, force, spec.ramp_time)
 
     # ------------------------------------------------------------------ queries
     @property

@@ -35,20 +35,22 @@ import zipfile
 from pathlib import Path
 
 from fmu_common import c_library
+from fmu_common.choices import aero_model
 from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from fmu_common.scene_schema import without_tunables
 from orchestrator.build import native_binary, standalone as standalone_fmu, win64 as windows
 from orchestrator.build.sources import UNITS, BuildError, requirements, slave_script, source_digest, sources
+from orchestrator.scene.load import check_physics
 
 BUILD_INFO_RESOURCE = "build_info.json"
 
 # kind -> (FMU file name, slave module, packages embedded in resources/)
 def units_needed(scene: dict) -> list[str]:
-    """Unit kinds the scene needs: always the structure, the aero unit unless `aero.model` is "none"."""
-    model = scene["aero"]["model"]
-    return ["structure"] if model == "none" else ["structure", "aero"]
+    """Unit kinds the scene needs: always the structure, the aero unit when `aero.model` builds one (not "none",
+    `fmu_common.choices.AeroModel.builds_unit`)."""
+    return ["structure", "aero"] if aero_model(scene["aero"]["model"]).builds_unit else ["structure"]
 
 
 def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> list[Path]:
@@ -69,6 +71,7 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
                 c_library.start_compiling(source)
     for kind in kinds:  # fail before building anything
         _require(kind, scene)
+    check_physics(scene)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     built = [_build_unit(kind, scene, out_dir, standalone, win64) for kind in kinds]
@@ -170,7 +173,6 @@ def _build_info(kind: str, scene: dict, standalone: bool, win64: bool = False) -
 
 def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool, win64: bool = False) -> Path:
     fmu_name, module_name, packages = UNITS[kind]
-    _check_scene(kind, scene)
     from pythonfmu import FmuBuilder
 
     script = slave_script(kind)
@@ -238,14 +240,4 @@ def _c_kernel(source: Path, folder: Path, dest: Path) -> None:
               "WINGSIM_KERNELS=numpy only.", file=sys.stderr)
 
 
-def _check_scene(kind: str, scene: dict) -> None:
-    """Fail before building, with a SceneError naming the key."""
-    if kind == "structure":
-        from structure_fmu.solver import StructureSolver
-        from structure_fmu.topology import StructureTopology
-        StructureTopology.from_scene(scene)
-        StructureSolver.tunable_parameters(scene)
-    elif kind == "aero":
-        from aero_fmu.solver import AeroSolver
-        AeroSolver(scene)
 

@@ -18,7 +18,7 @@ import re
 import sys
 from pathlib import Path
 
-from fmu_common.interface import COORDINATE_UNITS, DISCRETE, INPUT, QUANTITIES, Block, Interface, Output, layout
+from fmu_common.interface import COORDINATE_UNITS, DISCRETE, INPUT, QUANTITIES, Block, Interface, Output, fmi_name
 from orchestrator.scene.load import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -86,17 +86,17 @@ def _output_row(output: Output) -> tuple[str, str, str, str]:
     return ", ".join(f"`{n}`" for n in output.names), causality, unit, output.doc or output.description
 
 
-def _parameters_row(table: Interface, example: dict, solver_class) -> tuple[str, str, str, str]:
-    variables = layout(table, solver_class(example), example).variables
-    parameters = [v for v in variables if v.causality == "parameter"]
-    named = ", ".join(f"`{v.name}` ({v.unit})" for v in parameters)
+def _parameters_row(table: Interface, example: dict, slave_class) -> tuple[str, str, str, str]:
+    spec = slave_class.spec_class.from_scene(example)
+    parameters = slave_class.solver_class.tunable_parameters(spec)
+    named = ", ".join(f"`{fmi_name(name)}` ({unit})" for name, (_, unit, _) in parameters.items())
     return ("the tunable parameters", "parameter, fixed", "as each declares",
             f"{table.parameters.doc}; for {EXAMPLE.relative_to(ROOT)}: {named}")
 
 
-def variables_table(table: Interface, solver_class, example: dict | None = None) -> str:
+def variables_table(table: Interface, slave_class, example: dict | None = None) -> str:
     """The generated text of `table`'s variables: what the symbols count, then one row per row of the table,
-    the tunable parameters those `solver_class.tunable_parameters` declares for `example` (default EXAMPLE)."""
+    the tunable parameters those the slave's solver declares for `example` (default EXAMPLE)."""
     example = load_scene(EXAMPLE) if example is None else example
     symbols = {"n": COORDINATES}
     rows, first = [], Count()
@@ -113,7 +113,7 @@ def variables_table(table: Interface, solver_class, example: dict | None = None)
         rows.append((_references(first, count), *_output_row(output)))
         first += count
     symbols["K"] = "K: the tunable parameters"
-    rows.append((_references(first, Count({"K": 1})), *_parameters_row(table, example, solver_class)))
+    rows.append((_references(first, Count({"K": 1})), *_parameters_row(table, example, slave_class)))
     first += Count({"K": 1})
     rows.append((str(first), "`topology_hash`", "output, constant (String)", "-",
                  f"hash of the structural topology; must equal the {table.partner}'s"))
@@ -124,12 +124,11 @@ def variables_table(table: Interface, solver_class, example: dict | None = None)
 
 
 def _units():
-    """(name in the markers, interface table, solver class) of each unit, from the slave classes the FMUs carry."""
+    """(name in the markers, interface table, slave class) of each unit: the slave classes the FMUs carry."""
     from aero_fmu.aero_slave import AeroSlave
     from structure_fmu.structure_slave import StructureSlave
 
-    return [("structure", StructureSlave.interface, StructureSlave.solver_class),
-            ("aero", AeroSlave.interface, AeroSlave.solver_class)]
+    return [("structure", StructureSlave.interface, StructureSlave), ("aero", AeroSlave.interface, AeroSlave)]
 
 
 def _markers(name: str) -> tuple[str, str]:
@@ -140,12 +139,12 @@ def _markers(name: str) -> tuple[str, str]:
 def generate(text: str) -> str:
     """`text` (docs/fmu.md) with the text between each unit's markers generated anew."""
     example = load_scene(EXAMPLE)
-    for name, table, solver_class in _units():
+    for name, table, slave_class in _units():
         begin, end = _markers(name)
         found = list(re.finditer(re.escape(begin) + r"\n.*?" + re.escape(end), text, re.DOTALL))
         if len(found) != 1:
             raise ValueError(f"{OUTPUT} needs the markers {begin!r} and {end!r} once, around the {name} table")
-        generated = f"{begin}\n{variables_table(table, solver_class, example)}{end}"
+        generated = f"{begin}\n{variables_table(table, slave_class, example)}{end}"
         text = text[:found[0].start()] + generated + text[found[0].end():]
     return text
 

@@ -50,6 +50,7 @@ def _simulate(path: Path, kind: str) -> list[str]:
     from orchestrator.build.fmus import embedded_scene
     from orchestrator.run.port import FMU_FILES, UnitError
     from orchestrator.run.units import make_unit
+    from fmu_common.wing_spec import StructureSpec
     from fmu_common.topology import Topology
 
     scene = embedded_scene(path)
@@ -61,7 +62,7 @@ def _simulate(path: Path, kind: str) -> list[str]:
         except UnitError as err:
             return [f"instantiation failed: {err}"]
         try:
-            e0 = Topology.from_scene(scene).initial_coordinates()
+            e0 = Topology.from_spec(StructureSpec.from_scene(scene)).initial_coordinates()
             for k in range(STEPS):
                 if kind == "structure":
                     unit.set_inputs(np.zeros(unit.n))

@@ -4,7 +4,7 @@ the structure unit's exchanged coordinates E the master recorded (``RunResult.st
 Each element's reference line is the cubic Hermite curve between its nodes A and B,
 r(x) = N_1 r^A + N_2 r_x^A + N_3 r^B + N_4 r_x^B (Otsuka et al. 2019, Eq. 2 at y = 0;
 ``fmu_common.shape_functions.hermite``), sampled at ``POINTS_PER_ELEMENT`` intervals; nodes and elements come
-from ``fmu_common.topology.Topology.from_scene``.
+from ``fmu_common.topology.Topology.from_spec``.
 
 The figure: the instants t = 0 and ``INSTANTS`` - 1 more evenly spread up to the last recorded time (the end
 of the run, or where it stopped), each the nearest recorded sample, overlaid and coloured by time (a
@@ -126,9 +126,10 @@ def mechanism_figure(result, topology=None):
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
+    from fmu_common.wing_spec import StructureSpec
     from fmu_common.topology import Topology
 
-    topology = topology or Topology.from_scene(result.scene)
+    topology = topology or Topology.from_spec(StructureSpec.from_scene(result.scene))
     record = result.structure_coordinates
     chosen = instant_indices(record.t)
     times = [record.t[i] for i in chosen]

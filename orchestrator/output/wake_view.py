@@ -1,7 +1,7 @@
 """3D picture of the wing and its wake at a few instants (``wake_3d.png``), by replaying the aero unit.
 
 The wake lives inside the aero unit (FMU), which publishes only Q and scalar loads. After the run we
-therefore replay the aero solver in-process: ``aero_fmu.solver.AeroSolver(scene)`` with the unit's default
+therefore replay the aero solver in-process: ``aero_fmu.solver.AeroSolver`` of the scene with the unit's default
 tunable parameters (those ``run_scene`` runs with), advanced with the e, de the aero unit was given at each
 of its steps (``RunResult.aero_inputs``, recorded by the master) and the same step end times
 (t + h, as ``AeroSlave.do_step`` computes them). With explicit coupling the aero unit's state depends
@@ -60,8 +60,10 @@ class Snapshot:
 def aero_parameters(scene: dict) -> dict:
     """The tunable parameters the aero unit starts with (``AeroSlave``: their defaults)."""
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
 
-    return {name: float(spec[0]) for name, spec in AeroSolver.tunable_parameters(scene).items()}
+    return {name: float(default[0]) for name, default in
+            AeroSolver.tunable_parameters(AeroUnitSpec.from_scene(scene)).items()}
 
 
 def replay(scene: dict, inputs, at_steps, budget_s: float | None = None):
@@ -73,8 +75,9 @@ def replay(scene: dict, inputs, at_steps, budget_s: float | None = None):
     the last replayed step. Raises whatever the solver raises (the run had succeeded with the same calls).
     """
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
 
-    solver = AeroSolver(scene, parameters=aero_parameters(scene))
+    solver = AeroSolver(AeroUnitSpec.from_scene(scene), parameters=aero_parameters(scene))
     wanted = sorted({int(k) for k in at_steps if 0 <= int(k) < len(inputs)})
     keep = set(wanted)
     snapshots: list[Snapshot] = []
@@ -218,10 +221,12 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
     cols = 2 if n > 1 else 1
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(5.2 * cols, 4.2 * rows))
+    from fmu_common.choices import aero_model
+
     aero = scene["aero"]
     model = aero["model"]
-    mesh = (f"{aero['spanwise_panels']} strips per body" if model == "strip" else
-            f"M x N = {aero['chordwise_panels']} x {aero['spanwise_panels']} per body")
+    mesh = (f"M x N = {aero['chordwise_panels']} x {aero['spanwise_panels']} per body"
+            if aero_model(model).chordwise else f"{aero['spanwise_panels']} strips per body")
     title = f"{scene['name']}: wing and wake ({model}, {mesh})"
     if window is not None:
         axis, lo, hi = window

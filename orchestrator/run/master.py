@@ -58,6 +58,7 @@ from orchestrator.run.progress import Progress
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
 from orchestrator.run.timeseries import TimeSeries
 from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS
+from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
 
@@ -139,8 +140,9 @@ def communication_times(stop: float, step: float) -> np.ndarray:
 
 
 def has_aero(scene: dict) -> bool:
-    """True when the scene couples an aero unit (``aero.model`` is not "none")."""
-    return scene["aero"]["model"] != "none"
+    """True when the scene couples an aero unit (``aero.model`` is not "none": it builds a unit,
+    ``fmu_common.choices.AeroModel``)."""
+    return aero_model(scene["aero"]["model"]).builds_unit
 
 
 def is_implicit(scene: dict) -> bool:
@@ -221,17 +223,18 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     unit, returns its status.
 
     ``units`` (default ``orchestrator.run.units``) provides ``make_unit`` and ``UnitError``;
-    ``topology`` (default ``Topology.from_scene(scene)``) gives the number of coordinates the structure unit
-    must have (``n_coordinates``).
+    ``topology`` (default the scene's ``fmu_common.topology.Topology``) gives the number of coordinates the
+    structure unit must have (``n_coordinates``).
     Both are parameters so that the loop can be tested without the physics.
     """
     start = _time.perf_counter()
     if units is None:
         units = importlib.import_module("orchestrator.run.units")  # lazy: loads fmpy and the slaves
     if topology is None:
-        from fmu_common.topology import Topology  # lazy: numpy only when needed
+        from fmu_common.wing_spec import StructureSpec  # lazy: numpy only when needed
+        from fmu_common.topology import Topology
 
-        topology = Topology.from_scene(scene)
+        topology = Topology.from_spec(StructureSpec.from_scene(scene))
     series = new_series(scene)
     stop = scene["time"]["stop"]
     status, message, reached, stepping, latch_times = "ok", "", 0.0, None, {}

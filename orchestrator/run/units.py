@@ -110,7 +110,8 @@ def scene_parameters(kind: str, scene: dict) -> dict[str, float]:
         slave_class = getattr(importlib.import_module(spec.slave[0]), spec.slave[1])
     except ImportError as exc:
         raise UnitError(f"the {kind} unit cannot be loaded: {spec.slave[0]} does not import ({exc})") from exc
-    return {name: float(v[0]) for name, v in slave_class.solver_class.tunable_parameters(scene).items()}
+    spec = slave_class.spec_class.from_scene(scene)
+    return {name: float(v[0]) for name, v in slave_class.solver_class.tunable_parameters(spec).items()}
 
 
 class Unit:

@@ -30,6 +30,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Iterable
 
+from fmu_common.choices import FIDELITIES, fidelity_names
 from fmu_common.errors import SceneError
 from fmu_common.scene_schema import PARENT_JOINTS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
@@ -90,8 +91,10 @@ def _agree(key: str, given: Any, derived: float, source: str) -> float:
 def _motion_table(raw: dict, key: str) -> dict:
     """The raw ``structure.motion`` table of a prescribed-fidelity scene, created if absent."""
     fidelity = _declared(raw, "structure.fidelity")
-    if fidelity != "prescribed":
-        raise SceneError(key, fidelity, "structure.fidelity = 'prescribed' (the shorthand sets a prescribed motion)")
+    known = FIDELITIES.get(fidelity) if isinstance(fidelity, str) else None    # not resolved yet: any value
+    if known is None or not known.moved_by_law:
+        raise SceneError(key, fidelity, f"structure.fidelity = '{fidelity_names(lambda f: f.moved_by_law)}' (the "
+                                        "shorthand sets a prescribed motion)")
     motion = raw["structure"].setdefault("motion", {})
     if not isinstance(motion, dict):
         raise SceneError("structure.motion", motion, "a table [structure.motion]")
@@ -216,29 +219,30 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> dict:
 
 
 def check_physics(scene: dict) -> None:
-    """SceneError unless the units can be built from the resolved scene: the structural topology and,
-    for an aero scene, the aero solver."""
-    from structure_fmu.topology import StructureTopology  # lazy: the physics packages are only needed here
+    """SceneError unless the units can be built from the resolved scene: the structural topology, which the
+    aero unit builds too (`StructureTopology` extends it), and the names of the structure unit's outputs. No
+    solver is built: what an aero solver checks beyond the topology (its model and flow) the schema has
+    checked."""
+    from fmu_common.specs import StructureUnitSpec  # lazy: the physics packages are only needed here
+    from structure_fmu.topology import StructureTopology
 
-    StructureTopology.from_scene(scene)
-    _check_sensor_outputs(scene)
-    if scene["aero"]["model"] != "none":
-        from aero_fmu.solver import AeroSolver
-
-        AeroSolver(scene)
+    spec = StructureUnitSpec.from_scene(scene)
+    StructureTopology.from_spec(spec.structure)
+    _check_sensor_outputs(scene, spec)
 
 
-def _check_sensor_outputs(scene: dict) -> None:
+def _check_sensor_outputs(scene: dict, spec) -> None:
     """SceneError naming the probe or strain gauge one of whose outputs of the structure unit (``<probe>_x``
     .. ``<probe>_vz``, ``<gauge>``) takes the name of another of its variables or of a timeseries.csv column.
-    Run after the topology check: the parameter names come from the bodies and joints."""
+    Run after the topology check: the parameter names come from the bodies and joints (`spec`, the structure
+    unit's `fmu_common.specs.StructureUnitSpec`)."""
     from structure_fmu.sensors import probe_output_names
     from structure_fmu.solver import StructureSolver
 
     hinges = [j["name"] for j in hinge_joints(scene)]
     owner = {name: "an output of the structure unit" for name in ("topology_hash", *MONITOR_COLUMNS)}
     owner.update({f"{kind}_{h}": f"an output of hinge {h}" for h in hinges for kind in ("fold_angle", "latch_time")})
-    owner.update({name: "a parameter of the structure unit" for name in StructureSolver.tunable_parameters(scene)})
+    owner.update({name: "a parameter of the structure unit" for name in StructureSolver.tunable_parameters(spec)})
     owner.update({name: "a column of timeseries.csv" for name in ("time", *AERO_COLUMNS, *COUPLING_COLUMNS)})
     sensors = [("probes", "probe", p["name"], sum(probe_output_names(p["name"]), [])) for p in scene["probes"]]
     sensors += [("strain_gauges", "strain gauge", g["name"], [g["name"]]) for g in scene["strain_gauges"]]

@@ -111,18 +111,20 @@ def modal_growth(modes: dict, mu_scale: float, lag: int, step: float, steps: int
 def tip_load_scale(scene: dict, body: str) -> tuple[float, float]:
     """(P in N, delta_s in m) of the scene's load case on ``body``: P = load.parameter EI_yy / L^2 and its
     linear static tip deflection delta_s = P L^3 / (3 EI_yy) of a clamped beam."""
+    from fmu_common.wing_spec import StructureSpec
     from structure_fmu.topology import StructureTopology
 
-    wing = StructureTopology.from_scene(scene).bodies[body]
+    wing = StructureTopology.from_spec(StructureSpec.from_scene(scene)).bodies[body]
     P = scene["load"]["parameter"] * wing.section.flap / wing.length ** 2
     return P, P * wing.length ** 3 / (3 * wing.section.flap)
 
 
 def _rest_coordinates(scene: dict):
     """(structure solver, its model, the gradient-deficient coordinates E0 at rest) of a scene."""
+    from fmu_common.specs import StructureUnitSpec
     from structure_fmu.solver import StructureSolver
 
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     q = solver.state.q
     E0, _, _ = solver.model.coordinates(q, np.zeros_like(q), 0.0)
     return solver, solver.model, E0
@@ -144,14 +146,15 @@ def lattice_added_mass(scene: dict, body: str) -> tuple[float, float, dict]:
     from scipy.linalg import eigvals
 
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
     from structure_fmu.modes import natural_modes
 
     solver, model, E0 = _rest_coordinates(scene)
     B = model.velocity_map(solver.state.q, solver.state.t)      # dE/dq: T (ANCF) or the strain-based map
     h, scale = 1e-3, 1e-3
-    columns = []
+    columns, spec = [], AeroUnitSpec.from_scene(scene)
     for j in range(B.shape[1]):
-        aero = AeroSolver(scene, {"flow.speed": 0.0, "flow.density": 1.0})
+        aero = AeroSolver(spec, {"flow.speed": 0.0, "flow.density": 1.0})
         for k in range(3):
             aero.advance(k * h, E0, k * h * scale * B[:, j])
         columns.append(-aero.Q / scale)
@@ -170,10 +173,11 @@ def lift_slope(scene: dict, alpha: float = 0.01, speed: float = 10.0) -> float:
     """dCL/dalpha (1/rad) of the scene's lattice at rest: |CL| / alpha of the first (steady) aero step at a
     small incidence ``alpha`` (rad) in the x-y plane, at ``speed`` (m/s)."""
     from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
 
     _, _, E0 = _rest_coordinates(scene)
-    aero = AeroSolver(scene, {"flow.speed": speed, "flow.direction[1]": math.cos(alpha),
-                              "flow.direction[2]": math.sin(alpha), "flow.direction[3]": 0.0})
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene), {"flow.speed": speed, "flow.direction[1]": math.cos(alpha),
+                                                      "flow.direction[2]": math.sin(alpha), "flow.direction[3]": 0.0})
     aero.advance(0.0, E0, np.zeros_like(E0))
     return abs(aero.outputs()["CL"]) / alpha
 
@@ -204,9 +208,10 @@ def frequency_range(scene: dict) -> tuple[float, float]:
     """(omega_1, omega_max) rad/s: the lowest and highest natural frequencies of the scene's structure
     linearized at rest (``structure_fmu.modes``)."""
     from structure_fmu.modes import natural_frequencies
+    from fmu_common.specs import StructureUnitSpec
     from structure_fmu.solver import StructureSolver
 
-    omega = natural_frequencies(StructureSolver(scene), count=None)
+    omega = natural_frequencies(StructureSolver(StructureUnitSpec.from_scene(scene)), count=None)
     return float(omega[0]), float(omega.max())
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from fmu_common import scene_bounds
 from fmu_common.topology import Topology
+from fmu_common.wing_spec import StructureSpec
 from orchestrator import cli
 from orchestrator.output import mechanism_view
 from orchestrator.run.master import StructureCoordinates, run_scene
@@ -73,7 +74,7 @@ def test_the_memory_estimate_counts_the_record(limit, monkeypatch):
     monkeypatch.setattr(scene_bounds, "AERO_INPUT_RECORD_VALUES", limit)
     scene = load_scene(SCENES / "deploy_flexible.toml", ["time.stop=1.0"])
     estimate = scene_bounds.memory_estimate(scene)["structure coordinate record"][1]
-    n = Topology.from_scene(scene).n_coordinates
+    n = Topology.from_spec(StructureSpec.from_scene(scene)).n_coordinates
     record = StructureCoordinates.for_run(scene_bounds.communication_steps(scene), n, limit)
     for k in range(scene_bounds.communication_steps(scene)):
         record.append(1e-3 * k, np.zeros(n))
@@ -86,7 +87,7 @@ def test_the_memory_estimate_counts_the_record(limit, monkeypatch):
 
 def test_reference_lines_pass_through_the_recorded_nodes(fallen):
     scene, result = fallen
-    topology = Topology.from_scene(scene)
+    topology = Topology.from_spec(StructureSpec.from_scene(scene))
     e = result.structure_coordinates.e[-1]
     lines = mechanism_view.reference_lines(topology, e, points_per_element=8)
     nodes = e.reshape(-1, 9)[:, :3]
@@ -99,7 +100,7 @@ def test_reference_lines_are_the_cubic_through_the_nodes():
     """Nodes on the cubic r(s) = root + s span + c s^3 normal, with its slope as r_x: the Hermite curve of each
     element is that cubic (it reproduces cubics exactly)."""
     scene = load_scene(SCENES / "rotating_beam.toml")
-    topology = Topology.from_scene(scene)
+    topology = Topology.from_spec(StructureSpec.from_scene(scene))
     (name, body), = topology.bodies.items()
     normal, c = np.cross(body.span_axis, body.chord_axis), 0.3
     s = np.linspace(0.0, body.length, len(body.nodes))
@@ -113,7 +114,7 @@ def test_reference_lines_are_the_cubic_through_the_nodes():
 
 def test_the_nodes_where_bodies_meet_are_the_joints_nodes(fallen):
     scene, result = fallen
-    topology = Topology.from_scene(scene)
+    topology = Topology.from_spec(StructureSpec.from_scene(scene))
     found = mechanism_view.joint_nodes(topology, result.structure_coordinates.e, 1e-9)
     # the ball joint PQ joins A's tip and B's root; O joins A to the ground, not to a body
     assert [topology.node_names[k] for k in found] == ["A.2", "B.0"]

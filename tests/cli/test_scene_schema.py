@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError
+from fmu_common.wing_spec import StructureSpec
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES, MAX_MEMORY_BYTES, memory_estimate
 from fmu_common.scene_schema import ACCELERATIONS, SCENE
@@ -292,7 +293,7 @@ def test_a_jointed_child_takes_its_frame_from_its_parent():
     del raw["structure"]["bodies"][1]["chord_axis"]
     outer = resolve_scene(raw, "x")["structure"]["bodies"][1]
     assert outer["chord_axis"] is None and outer["root"] is None and outer["span_axis"] is None
-    chord = lambda scene: Topology.from_scene(scene).bodies["outer"].chord_axis
+    chord = lambda scene: Topology.from_spec(StructureSpec.from_scene(scene)).bodies["outer"].chord_axis
     assert chord(resolve_scene(raw, "x")) == pytest.approx([1.0, 0.0, 0.0], abs=1e-15)
     raw["structure"]["bodies"][0]["chord_axis"] = [0.0, 1.0, 0.0]
     assert chord(resolve_scene(raw, "x")) == pytest.approx([0.0, 1.0, 0.0], abs=1e-15)
@@ -300,7 +301,7 @@ def test_a_jointed_child_takes_its_frame_from_its_parent():
     # chord axis by theta_0: sin(theta_0) span + cos(theta_0) normal of the parent
     raw["structure"]["joints"][1]["orientation_deg"] = [90.0, 0.0, 0.0]
     scene = resolve_scene(raw, "x")
-    inner = Topology.from_scene(scene).bodies["inner"]
+    inner = Topology.from_spec(StructureSpec.from_scene(scene)).bodies["inner"]
     theta = np.radians(scene["structure"]["joints"][1]["initial_angle_deg"])
     normal = np.cross(inner.span_axis, inner.chord_axis)
     assert chord(scene) == pytest.approx(np.sin(theta) * inner.span_axis + np.cos(theta) * normal, abs=1e-15)

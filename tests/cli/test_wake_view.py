@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from aero_fmu.solver import AeroSolver
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from orchestrator import cli
 from orchestrator.run import units as real_units
 from orchestrator.output import wake_view
@@ -76,8 +77,8 @@ def test_replayed_wake_is_bit_identical_to_the_units_wake_and_a_directly_driven_
     assert np.array_equal([s.outputs["CL"] for s in snapshots], result.series.CL[1:])
 
     # 2. an AeroSolver driven directly with the structure's e, de (the prescribed heave), no master
-    structure = StructureSolver(scene)
-    direct = AeroSolver(scene, parameters=wake_view.aero_parameters(scene))
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
+    direct = AeroSolver(AeroUnitSpec.from_scene(scene), parameters=wake_view.aero_parameters(scene))
     times = communication_times(1.2, 0.1)            # k h, the last one 1.2: the master's time grid
     e, de = structure.e.copy(), structure.de.copy()
     for t0, t1 in zip(times[:-1], times[1:]):

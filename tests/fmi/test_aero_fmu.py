@@ -20,6 +20,7 @@ from orchestrator.scene.load import load_scene
 from orchestrator.run.port import UnitError
 from orchestrator.run.units import make_unit
 from fmu_common.topology import Topology
+from fmu_common.wing_spec import StructureSpec
 from repository import SCENES
 from subprocesses import simulate_in_fresh_python, wingsim
 
@@ -88,7 +89,7 @@ def test_aero_fmu_builds_validates_and_declares_its_variables(scene, fmu_dir):
     assert not fmus_up_to_date({**scene, "aero": {**scene["aero"], "chordwise_panels": 3}}, fmu_dir)
     md = read_model_description(str(fmu))
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
-    topology = Topology.from_scene(scene)
+    topology = Topology.from_spec(StructureSpec.from_scene(scene))
     n = topology.n_coordinates
     v = {x.name: x for x in md.modelVariables}
     for k, (name, causality) in enumerate([("e", "input"), ("de", "input"), ("Q", "output")]):
@@ -251,7 +252,7 @@ def test_units_of_different_topology_are_refused_before_the_run(scene, fmu_dir, 
     result = run_scene(scene, backend="fmu", fmu_dir=fmu_dir, units=fake)
     assert result.status == "error" and len(result.series) == 0 and result.simulated_time_s == 0.0
     assert "topolog" in result.message and "rebuild both FMUs from one scene" in result.message
-    assert Topology.from_scene(scene).topology_hash in result.message
+    assert Topology.from_spec(StructureSpec.from_scene(scene)).topology_hash in result.message
 
 
 def test_check_connection_compares_hash_and_size():

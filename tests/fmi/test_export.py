@@ -28,6 +28,7 @@ from lxml import etree
 
 from fmi_hosts import UnitSpec, assert_clean, assert_replayed_by_fmpy, check, fmpy_run, run_c_host
 from fmu_common.topology import Topology
+from fmu_common.wing_spec import StructureSpec
 from orchestrator.build import native_binary
 from orchestrator.cli import fmu_dir, main
 from orchestrator.run.master import run_scene
@@ -113,11 +114,12 @@ def test_the_ssd_validates_against_the_ssp_schema(coupled):
     from fmpy.ssp.ssd import find_components, get_connections, read_ssd
     ssd = read_ssd(str(coupled["ssp"]))
     assert [c.name for c in find_components(ssd.system)] == ["structure", "aero"]
-    assert len(get_connections(ssd.system)) == 3 * Topology.from_scene(load_scene(SCENE)).n_coordinates
+    n = Topology.from_spec(StructureSpec.from_scene(load_scene(SCENE))).n_coordinates
+    assert len(get_connections(ssd.system)) == 3 * n
 
 
 def test_every_coupling_connection_and_nothing_else(coupled):
-    n = Topology.from_scene(load_scene(SCENE)).n_coordinates
+    n = Topology.from_spec(StructureSpec.from_scene(load_scene(SCENE))).n_coordinates
     expected = {("structure", f"{b}[{k}]", "aero", f"{b}[{k}]") for b in ("e", "de") for k in range(1, n + 1)}
     expected |= {("aero", f"Q[{k}]", "structure", f"Q[{k}]") for k in range(1, n + 1)}
     connections = [(c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))

@@ -26,6 +26,8 @@ from orchestrator.build import native_binary
 from orchestrator.scene.load import load_scene
 from orchestrator.run.port import FMU_FILES, KINDS
 from fmu_common.fmi_slave import SCENE_RESOURCE
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 from structure_fmu.solver import StructureSolver
 from fmu_common.topology import Topology
 from repository import SCENES
@@ -258,14 +260,14 @@ def initialize(unit, t0=0.0):
 
 def set_inputs(unit, kind, scene):
     """Structure: a constant Q; aero: the scene's initial coordinates and a small heave rate."""
-    n = Topology.from_scene(scene).n_coordinates
+    n = Topology.from_spec(StructureSpec.from_scene(scene)).n_coordinates
     if kind == "structure":
         vrs, values = [unit.vr[f"Q[{k}]"] for k in range(1, n + 1)], np.full(n, 0.01)
     else:
         de = np.zeros(n)
         de[2::9] = 0.1  # every node's r_z rate, m/s
         vrs = [unit.vr[f"{b}[{k}]"] for b in ("e", "de") for k in range(1, n + 1)]
-        values = np.concatenate([Topology.from_scene(scene).initial_coordinates(), de])
+        values = np.concatenate([Topology.from_spec(StructureSpec.from_scene(scene)).initial_coordinates(), de])
     unit.set_real(vrs, values)
     accepted(unit)
 
@@ -303,7 +305,7 @@ def test_get_and_set_of_the_wrong_type_are_refused(make, scene, backend, kind):
     unit.set_string([e1], ["x"])
     refused(unit, "(Real e[1]) is not a String variable")
     # the one String: read, unchanged by the refused set; the unit then runs as usual
-    assert unit.get_string([hv]) == [Topology.from_scene(scene).topology_hash]
+    assert unit.get_string([hv]) == [Topology.from_spec(StructureSpec.from_scene(scene)).topology_hash]
     accepted(unit)
     initialize(unit)
     set_inputs(unit, kind, scene)
@@ -337,7 +339,8 @@ def test_refused_calls_leave_the_unit_exactly_as_it_was(make, scene, backend, ki
         call()
         refused(unit, words, "the unit is initialized")
     if kind == "structure":
-        name, default = "structure.step", StructureSolver.tunable_parameters(scene)["structure.step"][0]
+        tunables = StructureSolver.tunable_parameters(StructureUnitSpec.from_scene(scene))
+        name, default = "structure.step", tunables["structure.step"][0]
     else:
         name, default = "flow.speed", float(scene["flow"]["speed"])
     unit.set_real([unit.vr[name]], [default + 1.0])

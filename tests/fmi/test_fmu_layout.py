@@ -16,6 +16,7 @@ from orchestrator.scene.load import load_scene
 from orchestrator.run.port import UnitError
 from orchestrator.run.units import make_unit
 from fmu_common.interface import fmi_name
+from fmu_common.wing_spec import StructureSpec
 from fmu_common.topology import Topology
 from repository import SCENES
 
@@ -60,7 +61,7 @@ def _tampered(built, tmp_path, attribute, **edits):
     """A folder with the aero FMU as built and a structure FMU whose fold angle and energy have their
     `attribute` swapped; (folder, fold angle name, its value reference, energy's value reference)."""
     scene, folder = built
-    fold = fmi_name(f"fold_angle_{Topology.from_scene(scene).hinge_names[0]}")
+    fold = fmi_name(f"fold_angle_{Topology.from_spec(StructureSpec.from_scene(scene)).hinge_names[0]}")
     vr = {v.name: v.valueReference for v in read_model_description(str(folder / "structure.fmu")).modelVariables}
     out = tmp_path / "tampered"
     out.mkdir()

@@ -10,6 +10,8 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from fmu_common.fmi_slave import DIVERGED_CATEGORY
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 from fmu_common.topology import Topology
 from orchestrator.build.fmus import embedded_scene, fmus_up_to_date
 from orchestrator.scene.load import joint_monitor_names, load_scene
@@ -73,7 +75,7 @@ def test_build_embeds_scene_and_package_and_validates(scene, fmu_dir):
 
 
 def test_variables_match_topology(scene, fmu_dir):
-    topology = Topology.from_scene(scene)
+    topology = Topology.from_spec(StructureSpec.from_scene(scene))
     n = topology.n_coordinates
     md = read_model_description(str(fmu_dir / "structure.fmu"))
     v = {x.name: x for x in md.modelVariables}
@@ -102,13 +104,13 @@ def test_variables_match_topology(scene, fmu_dir):
     latch = [v[f"latch_time_{x}"] for x in topology.hinge_names]
     assert [x.valueReference for x in latch] == list(range(3 * n + h + 4, 3 * n + 2 * h + 4))
     assert {(x.unit, x.causality, x.variability, float(x.start)) for x in latch} == {("s", "output", "discrete", -1.0)}
-    tunables = StructureSolver.tunable_parameters(scene)
+    tunables = StructureSolver.tunable_parameters(StructureUnitSpec.from_scene(scene))
     sensors = 9 * len(scene["probes"]) + len(scene["strain_gauges"])
     joints = [v[name].valueReference for name in joint_monitor_names(scene)]
     assert joints == list(range(3 * n + 2 * h + 4 + sensors, 3 * n + 2 * h + 4 + sensors + len(joints)))
     first = 3 * n + 2 * h + 4 + sensors + len(joints)
     assert [v[name].valueReference for name in tunables] == list(range(first, first + len(tunables)))
-    for name, (default, unit, _) in StructureSolver.tunable_parameters(scene).items():
+    for name, (default, unit, _) in StructureSolver.tunable_parameters(StructureUnitSpec.from_scene(scene)).items():
         p = v[name]
         assert (p.causality, p.variability, p.unit) == ("parameter", "fixed", unit)
         assert float(p.start) == pytest.approx(default, rel=1e-15)
@@ -186,7 +188,7 @@ def test_the_divergence_log_category_is_declared(fmu_dir):
 
 @pytest.mark.parametrize("backend", ["fmu", "direct"])
 def test_refused_parameter_is_reported(scene, fmu_dir, backend):
-    hinge = Topology.from_scene(scene).hinge_names[0]
+    hinge = Topology.from_spec(StructureSpec.from_scene(scene)).hinge_names[0]
     with pytest.raises(UnitError, match=f"structure.joints.{hinge}.stiffness"):
         make_unit("structure", scene, backend, fmu_dir, parameters={f"structure.joints.{hinge}.stiffness": -1.0})
 
@@ -209,9 +211,9 @@ def test_rollback_reproduces_a_step_exactly_through_fmpy(units):
 
 
 def test_parameters_are_applied_in_both_backends(scene, units):
-    hinge = Topology.from_scene(scene).hinge_names[0]
+    hinge = Topology.from_spec(StructureSpec.from_scene(scene)).hinge_names[0]
     name = f"structure.joints.{hinge}.torque"
-    value = 3.0 * StructureSolver.tunable_parameters(scene)[name][0] + 0.05
+    value = 3.0 * StructureSolver.tunable_parameters(StructureUnitSpec.from_scene(scene))[name][0] + 0.05
     ref = run(units("direct"), 20)[0]
     e_f = run(units("fmu", parameters={name: value}), 20)[0]
     e_d = run(units("direct", parameters={name: value}), 20)[0]

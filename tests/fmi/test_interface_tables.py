@@ -15,6 +15,7 @@ from aero_fmu.interface import AERO
 from aero_fmu.solver import AeroSolver
 from fmu_common.interface import Block, Interface, Items, Output, Parameters, Reading, layout
 from fmu_common.scene_schema import resolve_scene
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from orchestrator.run.direct_port import DirectPort
 from orchestrator.run.port import KINDS, UnitError
 from orchestrator.run.units import Unit, make_unit, scene_items
@@ -26,6 +27,13 @@ from structure_fmu.solver import StructureSolver
 from structure_fmu.structure_slave import StructureSlave
 
 SOLVERS = {"structure": StructureSolver, "aero": AeroSolver}
+SPECS = {"structure": StructureUnitSpec, "aero": AeroUnitSpec}
+
+
+def structure_layout(table, scene):
+    """`table` laid out for the structure solver of `scene`."""
+    spec = StructureUnitSpec.from_scene(scene)
+    return layout(table, StructureSolver(spec), spec)
 
 
 # --- the tables against the FMUs built from them ------------------------------------------------------------
@@ -45,7 +53,7 @@ def test_a_built_fmu_declares_exactly_the_variables_of_its_table(name, built_fmu
     scene = load_scene(SCENES / f"{name}.toml")
     folder = built_fmus(name)
     for kind in ("structure", "aero"):
-        expected = layout(KINDS[kind].interface, SOLVERS[kind](scene), scene).variables
+        expected = layout(KINDS[kind].interface, SOLVERS[kind](spec := SPECS[kind].from_scene(scene)), spec).variables
         declared = _declared(folder / f"{kind}.fmu")
         assert [v[0] for v in declared] == [v.name for v in expected], kind
         for got, want in zip(declared, expected):
@@ -59,15 +67,16 @@ def test_a_built_fmu_declares_exactly_the_variables_of_its_table(name, built_fmu
 @pytest.mark.parametrize("model", ["uvlm-flat", "uvlm-prescribed", "strip"])
 def test_the_aero_table_declares_every_output_the_solver_gives_and_no_other(model):
     scene = load_scene(SCENES / "deploy_rigid.toml", [f"aero.model={model}"])
-    produced = AeroSolver(scene).outputs()
+    produced = AeroSolver(AeroUnitSpec.from_scene(scene)).outputs()
     assert {n for row in AERO.outputs for n in row.names} == set(produced)
     assert "CM" not in produced      # the aero slave once declared a unit for it: nothing produces it
 
 
 def test_the_sensor_rows_carry_the_units_the_solver_declares():
     scene = load_scene(SCENES / "deploy_flexible.toml")
-    solver = StructureSolver(scene)
-    units = {v.name: v.unit for v in layout(STRUCTURE, solver, scene).variables}
+    solver_spec = StructureUnitSpec.from_scene(scene)
+    solver = StructureSolver(solver_spec)
+    units = {v.name: v.unit for v in layout(STRUCTURE, solver, solver_spec).variables}
     declared = solver.sensors.output_declarations()
     assert declared and {name: units[name] for name, _, _ in declared} == {n: u for n, u, _ in declared}
 
@@ -75,7 +84,7 @@ def test_the_sensor_rows_carry_the_units_the_solver_declares():
 def test_the_master_and_the_unit_name_the_same_items_for_every_shipped_scene():
     for path in sorted(SCENES.glob("*.toml")):
         scene = load_scene(path)
-        solver = StructureSolver(scene)
+        solver = StructureSolver(StructureUnitSpec.from_scene(scene))
         master = scene_items(scene)
         for row in STRUCTURE.outputs:
             if row.items is not None:
@@ -90,7 +99,8 @@ def test_the_timeseries_columns_are_the_tables_monitors():
 # --- what the slave publishes and the master reads, against the solver API called directly -------------------
 
 def _stepped(solver_class, scene, steps, h, *inputs):
-    solver = solver_class(scene)
+    spec_class = SPECS[next(kind for kind, cls in SOLVERS.items() if cls is solver_class)]
+    solver = solver_class(spec_class.from_scene(scene))
     for k in range(steps):
         solver.advance(k * h + h, *inputs)     # the end of step k as the unit computes it: t + h
     return solver
@@ -127,7 +137,7 @@ def test_the_structure_unit_reports_what_its_solver_computes():
 def test_the_aero_unit_reports_what_its_solver_computes():
     scene = load_scene(SCENES / "heaving_wing.toml")
     h, steps = scene["coupling"]["step"], 3
-    e0 = AeroSolver(scene).topology.initial_coordinates()
+    e0 = AeroSolver(AeroUnitSpec.from_scene(scene)).topology.initial_coordinates()
     de0 = np.zeros_like(e0)
     unit = make_unit("aero", scene, "direct", None)
     try:
@@ -146,8 +156,8 @@ def test_the_aero_unit_reports_what_its_solver_computes():
 
 def test_a_non_finite_input_is_named_by_its_node_and_component():
     scene = load_scene(SCENES / "heaving_wing.toml")
-    e = AeroSolver(scene).topology.initial_coordinates()
-    first_node = AeroSolver(scene).topology.node_names[0]
+    e = AeroSolver(AeroUnitSpec.from_scene(scene)).topology.initial_coordinates()
+    first_node = AeroSolver(AeroUnitSpec.from_scene(scene)).topology.node_names[0]
     e[4] = np.nan                         # coordinate 5 of a node: r_x, its y component (per node r, r_x, r_y)
     unit = make_unit("aero", scene, "direct", None)
     try:
@@ -160,7 +170,7 @@ def test_a_non_finite_input_is_named_by_its_node_and_component():
 
 def test_a_latch_time_is_pending_until_the_hinge_latches_and_the_master_leaves_it_out():
     scene = load_scene(SCENES / "deploy_rigid.toml", ["aero.model=none"])
-    latch = [v for v in layout(STRUCTURE, StructureSolver(scene), scene).variables if v.name.startswith("latch_time_")]
+    latch = [v for v in structure_layout(STRUCTURE, scene).variables if v.name.startswith("latch_time_")]
     assert latch and {(v.start, v.variability) for v in latch} == {(LATCH_PENDING, "discrete")}
     unit = make_unit("structure", scene, "direct", None)
     try:
@@ -182,8 +192,9 @@ def test_universal_and_revolute_joint_monitors_have_their_units_and_values():
     scene = resolve_scene({"time": {"stop": 0.01}, "coupling": {"step": 1e-3}, "structure": {
         "fidelity": "rigid", "integrator": "rk4", "step": 1e-4, "gravity": [0.0, -9.8, 0.0], "bodies": bodies,
         "joints": joints}}, "joints")
-    solver = StructureSolver(scene)
-    variables = {v.name: v for v in layout(STRUCTURE, solver, scene).variables}
+    solver_spec = StructureUnitSpec.from_scene(scene)
+    solver = StructureSolver(solver_spec)
+    variables = {v.name: v for v in layout(STRUCTURE, solver, solver_spec).variables}
     assert [(variables[n].unit, variables[n].description) for n in solver.joint_monitor_names()] == [
         ("m", "distance between the parent's tip and the child's root"),
         ("1", "axis condition of the joint, 0 while it holds"),
@@ -236,7 +247,7 @@ def test_an_output_added_to_the_table_is_registered_published_and_read_by_the_ma
     try:
         slave = unit._port._slave
         registered = {v.name: v for v in slave.vars.values()}
-        plain = layout(STRUCTURE, StructureSolver(scene), scene)
+        plain = structure_layout(STRUCTURE, scene)
         first_parameter = plain.where(Parameters).start
         var = registered["solver_time"]
         assert (var.value_reference, var.unit, var.causality.name) == (first_parameter, "s", "output")
@@ -256,7 +267,7 @@ def test_an_output_added_to_the_table_is_registered_published_and_read_by_the_ma
 def test_an_output_added_to_the_table_is_in_the_generated_docs():
     from orchestrator.build.interface_docs import variables_table
 
-    text = variables_table(EXTENDED, StructureSolver)
+    text = variables_table(EXTENDED, StructureSlave)
     assert "| `solver_time` | output | s | time of the structure solver since the start |" in text
     assert text.index("`external_work`") < text.index("`solver_time`") < text.index("| the tunable parameters |")
 
@@ -267,7 +278,7 @@ def test_a_row_whose_values_do_not_match_its_variables_is_refused_naming_it():
     scene = load_scene(SCENES / "deploy_rigid.toml", ["aero.model=none"])
     two = Output("pair", "1", "two values for one variable", lambda reading, _: [1.0, 2.0])
     with pytest.raises(ValueError, match="output pair has 2 values for its 1 variables"):
-        layout(STRUCTURE.extended(two), StructureSolver(scene), scene)
+        structure_layout(STRUCTURE.extended(two), scene)
 
 
 def test_rows_that_cannot_be_laid_out_are_refused_when_declared():

@@ -86,7 +86,8 @@ def test_two_builds_from_different_sources_run_side_by_side(standalone_fmus, tmp
     expected = {}
     for name, path in (("this", CODE_ROOT), ("other", copy)):
         code = ("from orchestrator.scene.load import load_scene; from fmu_common.topology import Topology; "
-                f"print(Topology.from_scene(load_scene({str(scene)!r})).topology_hash)")
+                "from fmu_common.wing_spec import StructureSpec; "
+                f"print(Topology.from_spec(StructureSpec.from_scene(load_scene({str(scene)!r}))).topology_hash)")
         out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(path)},
                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert out.returncode == 0, out.stderr

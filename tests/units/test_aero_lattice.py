@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from aero_fmu.lattice import Lattice
+from fmu_common.wing_spec import StructureSpec
 from fmu_common.vectors import rotation_about
 from fmu_common.scene_schema import resolve_scene
 from fmu_common.topology import Topology
@@ -41,7 +42,7 @@ def test_undeformed_lattice_points_are_analytic():
     their ends (3 elements per body); the outer body is folded by 30 degrees about the hinge's chord axis.
     """
     M, N = 3, 7
-    top = Topology.from_scene(folded_scene())
+    top = Topology.from_spec(StructureSpec.from_scene(folded_scene()))
     lat = Lattice(top, M, N)
     E = top.initial_coordinates()
     geo = lat.geometry(E)
@@ -79,7 +80,7 @@ def test_matrices_are_the_element_shape_functions_on_any_E():
     the same product, Sx @ X is dr/dx (central difference of a cubic: error h^2 r'''/6) and Sy @ X is
     dr/dy = r_y(x) (exact: r is linear in y)."""
     M, N = 2, 5
-    top = Topology.from_scene(folded_scene())
+    top = Topology.from_spec(StructureSpec.from_scene(folded_scene()))
     lat = Lattice(top, M, N)
     E = top.initial_coordinates() + 0.2 * RNG.standard_normal(top.n_coordinates)
     geo = lat.geometry(E)
@@ -108,7 +109,7 @@ def test_matrices_are_the_element_shape_functions_on_any_E():
 def test_generalized_force_is_virtual_work():
     """Q = sum S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12): Q . dE = sum_panels a . dr_a for any virtual
     displacement dE, and for a rigid translation dE (dr = d on r slots, 0 on gradients) Q . dE = (sum a) . d."""
-    top = Topology.from_scene(folded_scene())
+    top = Topology.from_spec(StructureSpec.from_scene(folded_scene()))
     lat = Lattice(top, 3, 4)
     forces = RNG.standard_normal((lat.n_panels, 3))
     Q = lat.generalized_force(forces)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from aero_fmu.solver import AeroSolver
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from orchestrator.scene.overrides import parse_value
 from orchestrator.scene.load import load_scene, resolve_scene
 from fmu_common.errors import SceneError
@@ -33,7 +34,7 @@ def small_wing(model, step=None, wake_length=3.0, pitch_deg=3.0):
 
 def structure_inputs(scene, times):
     """[(t, e, de)] of the prescribed structure at the given times (s)."""
-    structure, out = StructureSolver(scene), []
+    structure, out = StructureSolver(StructureUnitSpec.from_scene(scene)), []
     for t in times:
         structure.advance(t)
         out.append((t, structure.e, structure.de))
@@ -42,7 +43,7 @@ def structure_inputs(scene, times):
 
 def driven(scene, inputs):
     """An AeroSolver of the scene advanced through inputs [(t, e, de)]."""
-    aero = AeroSolver(scene)
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     for t, e, de in inputs:
         aero.advance(t, e, de)
     return aero
@@ -133,7 +134,7 @@ def heave_run(M, H, step, k=0.25, periods=3):
     scene["aero"]["step"] = step
     T = 2 * np.pi / omega
     inputs = structure_inputs(scene, H * np.arange(1, int(np.ceil(periods * T / H)) + 1))
-    aero, CL = AeroSolver(scene), []
+    aero, CL = AeroSolver(AeroUnitSpec.from_scene(scene)), []
     for t, e, de in inputs:
         aero.advance(t, e, de)
         CL.append(aero.outputs()["CL"])
@@ -182,7 +183,7 @@ def test_state_restores_the_previous_inputs_bit_for_bit():
     aero = driven(scene, inputs[:3])
     saved = aero.get_state()
     aero.advance(*inputs[3])
-    first = AeroSolver(scene)
+    first = AeroSolver(AeroUnitSpec.from_scene(scene))
     first.set_state(aero.get_state())
     aero.advance(*inputs[4])
     assert not np.array_equal(aero.Q, first.Q)
@@ -218,6 +219,6 @@ def test_bad_aero_step_is_refused_naming_the_key(value):
 
 def test_good_aero_step_loads_and_defaults_to_absent():
     scene = load_scene(SCENES / "heaving_wing.toml", ["aero.step=0.05"])
-    assert scene["aero"]["step"] == 0.05 and AeroSolver(scene).step == 0.05
+    assert scene["aero"]["step"] == 0.05 and AeroSolver(AeroUnitSpec.from_scene(scene)).step == 0.05
     scene = load_scene(SCENES / "heaving_wing.toml")
-    assert scene["aero"].get("step") is None and AeroSolver(scene).step is None
+    assert scene["aero"].get("step") is None and AeroSolver(AeroUnitSpec.from_scene(scene)).step is None

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from aero_fmu.solver import AeroSolver
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.errors import SceneError
 from fmu_common.scene_schema import resolve_scene
@@ -30,7 +31,9 @@ def scene(motion, span=3.0, N=6, speed=V, correction="none"):
 
 def history(motion, times, **options):
     """(CL, lift, drag, aero) at the given times, the strip model fed by the prescribed structure."""
-    structure, aero = StructureSolver(scene(motion, **options)), AeroSolver(scene(motion, **options))
+    resolved = scene(motion, **options)
+    structure = StructureSolver(StructureUnitSpec.from_scene(resolved))
+    aero = AeroSolver(AeroUnitSpec.from_scene(resolved))
     out = []
     for t in times:
         structure.advance(t)
@@ -92,7 +95,8 @@ def test_agrees_with_the_vortex_lattice_on_a_very_slender_wing():
     N = 100, flat horseshoes) give the same C_L within 1% (the VLM's finite-span loss is ~0.3%)."""
     alpha = 3.0
     (CL, _, _), _ = history({"alpha_deg": alpha, "pitch_axis_position": 0.25}, [0.1], span=800.0, N=20)
-    structure = StructureSolver(scene({"alpha_deg": alpha, "pitch_axis_position": 0.25}, span=800.0))
+    resolved = scene({"alpha_deg": alpha, "pitch_axis_position": 0.25}, span=800.0)
+    structure = StructureSolver(StructureUnitSpec.from_scene(resolved))
     vlm = SteadyVLM(structure.topology, 4, 100).solve(structure.e, np.array([V, 0, 0]), RHO)
     assert CL[0] == pytest.approx(vlm.CL, rel=0.01)
 
@@ -122,7 +126,7 @@ def test_helmbold_span_correction(aspect):
     factor = {4.0: 4 / (2 + np.sqrt(20)), 8.0: 8 / (2 + np.sqrt(68))}[aspect]
     a = np.radians(alpha)
     assert CL[0] == pytest.approx(2 * np.pi * factor * np.sin(a) * np.cos(a), rel=1e-9)
-    structure = StructureSolver(scene(motion, span=aspect * chord))
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene(motion, span=aspect * chord)))
     vlm = SteadyVLM(structure.topology, 4, 32).solve(structure.e, np.array([V, 0, 0]), RHO)
     assert 1.0 < CL[0] / vlm.CL < 1.08
 

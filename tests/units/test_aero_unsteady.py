@@ -17,6 +17,7 @@ from scipy.integrate import quad
 
 from aero_fmu import wake as wakes
 from aero_fmu.solver import AeroSolver
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.errors import InputError, SceneError, SolverDiverged
 from fmu_common.scene_schema import resolve_scene
@@ -45,7 +46,8 @@ def jones(s):
 # ---------------------------------------------------------------------------------------------- runs
 def run(scene, dt, steps, **solver_options):
     """(times, CL, aero solver): the aero solver fed by the prescribed structure at t_k = k dt, k = 1..steps."""
-    structure, aero = StructureSolver(scene), AeroSolver(scene, **solver_options)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene), **solver_options)
     times, CL = np.arange(1, steps + 1) * dt, []
     for t in times:
         structure.advance(t)
@@ -88,7 +90,7 @@ def wagner_errors(model, M=10, N=4, s_max=20.0):
     scene = wing_scene(model, {"alpha_deg": 5.0, "pitch_axis_position": 0.25}, M=M, N=N, wake_length=20.0)
     dt = 1.0 / M
     times, CL, aero = run(scene, dt, int(round(s_max / (2 * dt))) + 1)
-    structure = StructureSolver(scene)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     steady = SteadyVLM(aero.topology, M, N).solve(structure.e, np.array([1.0, 0, 0]), RHO).CL
     s = 2 * (times - times[0])
     out = {}
@@ -178,7 +180,7 @@ def test_shed_wake_steady_limit_is_the_steady_vlm():
     scene = wing_scene("uvlm-prescribed", {"alpha_deg": 5.0, "pitch_axis_position": 0.25}, span=4.0, M=M, N=N,
                        wake_length=20.0)
     _, CL, aero = run(scene, 1.0 / M, 20 * M + 20)
-    E = StructureSolver(scene).e
+    E = StructureSolver(StructureUnitSpec.from_scene(scene)).e
     steady = SteadyVLM(aero.topology, M, N, wake_length=20.0).solve(E, np.array([1.0, 0, 0]), RHO)
     assert aero.outputs()["wake_panels"] == 20 * M * N
     assert CL[-1] == pytest.approx(steady.CL, rel=1e-3)
@@ -227,8 +229,8 @@ def test_generalized_force_is_consistent_with_the_panel_force_resultants(model):
     the panel forces about the origin: Otsuka et al. 2019, Eq. (12) to 1e-10 (relative)."""
     scene = folded_scene(model)
     rng = np.random.default_rng(3)
-    aero = AeroSolver(scene, parameters={"flow.direction[1]": 1.0, "flow.direction[2]": 0.2,
-                                             "flow.direction[3]": 0.3})
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene),
+                      parameters={"flow.direction[1]": 1.0, "flow.direction[2]": 0.2, "flow.direction[3]": 0.3})
     E0 = aero.topology.initial_coordinates()
     shape = 0.02 * rng.standard_normal(E0.size)
     rate = 0.5 * rng.standard_normal(E0.size)
@@ -256,12 +258,12 @@ def test_state_save_restore_and_repeating_a_step():
     restoring the state before that step and taking it with those inputs."""
     scene = wing_scene("uvlm-free", {"heave_amplitude": 0.1, "pitch_amplitude_deg": 3.0, "frequency": 0.7},
                        span=6.0, M=3, N=4, wake_length=3.0)
-    structure = StructureSolver(scene)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     inputs = []
     for step in range(1, 9):
         structure.advance(0.2 * step)
         inputs.append((0.2 * step, structure.e, structure.de))
-    aero = AeroSolver(scene)
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     for t, e, de in inputs[:-1]:
         aero.advance(t, e, de)
     saved = aero.get_state()
@@ -273,7 +275,7 @@ def test_state_save_restore_and_repeating_a_step():
     repeated = aero.Q
     assert not np.array_equal(first[0], repeated)
     aero.set_state(aero.get_state())
-    other = AeroSolver(scene)
+    other = AeroSolver(AeroUnitSpec.from_scene(scene))
     for t_, e_, de_ in inputs[:-1]:
         other.advance(t_, e_, de_)
     replay = other.get_state()
@@ -297,7 +299,7 @@ def test_influence_matrix_is_reused_while_the_wing_moves_rigidly():
         assert aero.model.system.builds == expected, model
     _, _, aero = run(wing_scene("uvlm-flat", {"heave_amplitude": 0.1, "frequency": 2.0}, span=4.0, M=3, N=4), 0.05, 10)
     assert aero.model.system.builds == 1
-    aero = AeroSolver(folded_scene("uvlm-prescribed"))
+    aero = AeroSolver(AeroUnitSpec.from_scene(folded_scene("uvlm-prescribed")))
     E0 = aero.topology.initial_coordinates()
     for step in range(1, 4):
         aero.advance(0.1 * step, E0 + 1e-3 * step * np.sin(np.arange(E0.size)), np.zeros_like(E0))
@@ -348,10 +350,11 @@ def test_panels_of_aspect_ratio_100(M, N, span):
     scene = wing_scene("uvlm-prescribed", {"alpha_deg": 2.0, "pitch_axis_position": 0.25}, span=span, M=M, N=N,
                        wake_length=3.0)
     _, CL, aero = run(scene, 1.0 / M, 3 * M + 40)
-    steady = SteadyVLM(aero.topology, M, N, wake_length=3.0).solve(StructureSolver(scene).e, np.array([1.0, 0, 0]), RHO)
+    e0 = StructureSolver(StructureUnitSpec.from_scene(scene)).e
+    steady = SteadyVLM(aero.topology, M, N, wake_length=3.0).solve(e0, np.array([1.0, 0, 0]), RHO)
     assert np.all(np.isfinite(CL)) and CL[-1] == pytest.approx(steady.CL, rel=2e-3)
     if N == 10:
-        infinite = SteadyVLM(aero.topology, M, N).solve(StructureSolver(scene).e, np.array([1.0, 0, 0]), RHO)
+        infinite = SteadyVLM(aero.topology, M, N).solve(e0, np.array([1.0, 0, 0]), RHO)
         assert infinite.CL / np.radians(2.0) == pytest.approx(2 * np.pi, rel=0.01)
 
 
@@ -379,7 +382,8 @@ def test_collocation_point_close_to_a_wake_vortex(model):
     panel dimension, wake.WAKE_CORE_FRACTION) bounds the induced velocity by Gamma / (4 pi delta)."""
     peaks, closest = [], []
     for gap in (0.0, 0.3):
-        structure, aero = StructureSolver(tandem_scene(model, gap)), AeroSolver(tandem_scene(model, gap))
+        structure = StructureSolver(StructureUnitSpec.from_scene(tandem_scene(model, gap)))
+        aero = AeroSolver(AeroUnitSpec.from_scene(tandem_scene(model, gap)))
         peak, near = 0.0, np.inf
         with np.errstate(all="raise"):
             for step in range(1, 80):
@@ -418,13 +422,13 @@ def test_requests_that_make_no_sense_are_refused_clearly():
         with pytest.raises(SceneError, match=f"aero.{key}"):
             resolve_scene(bad, "bad")
     with pytest.raises(SceneError, match="aero.model"):
-        AeroSolver(dict(scene, aero=dict(scene["aero"], model="none")))
+        AeroSolver(AeroUnitSpec.from_scene(dict(scene, aero=dict(scene["aero"], model="none"))))
     for parameters, match in (({"flow.speed": -1.0}, "flow.speed"), ({"flow.density": float("nan")}, "flow.density"),
                               ({"flow.direction[1]": 0.0}, "flow.direction"),
                               ({"structure.gravity[3]": 1.0}, r"structure\.gravity\[3\]")):
         with pytest.raises(SceneError, match=match):
-            AeroSolver(scene, parameters=parameters)
-    structure, aero = StructureSolver(scene), AeroSolver(scene)
+            AeroSolver(AeroUnitSpec.from_scene(scene), parameters=parameters)
+    structure, aero = StructureSolver(StructureUnitSpec.from_scene(scene)), AeroSolver(AeroUnitSpec.from_scene(scene))
     e, de = structure.e, structure.de
     aero.advance(0.1, e, de)
     before = aero.get_state()

@@ -17,6 +17,9 @@ import pytest
 
 from aero_fmu import biot_savart
 from aero_fmu.lattice import Lattice
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
+from fmu_common.specs import AeroUnitSpec
 from aero_fmu.vlm import SteadyVLM, bound_segments, ring_segments, steady_lift
 from fmu_common.scene_schema import resolve_scene
 from fmu_common.vectors import rotation_about
@@ -42,7 +45,7 @@ def wing_scene(aspect_ratio, alpha_deg=0.0, chord=1.0, fidelity="prescribed", el
 
 def wing_at(aspect_ratio, alpha_deg, chord=1.0):
     """(topology, E) of the prescribed wing at t = 0 (the pitch law holds alpha from the start)."""
-    solver = StructureSolver(wing_scene(aspect_ratio, alpha_deg, chord))
+    solver = StructureSolver(StructureUnitSpec.from_scene(wing_scene(aspect_ratio, alpha_deg, chord)))
     return solver.topology, solver.e
 
 
@@ -89,7 +92,7 @@ def test_rotating_the_wing_or_the_flow_gives_the_same_solution():
     CL0, gamma0, _ = steady_lift(top0, E0, 4, 12, U_rotated, RHO)
     assert CL0 == pytest.approx(CL, rel=1e-10)
     np.testing.assert_allclose(gamma0, gamma, rtol=1e-10, atol=1e-12 * np.abs(gamma).max())
-    flexible = Topology.from_scene(wing_scene(4, fidelity="flexible", elements=4))
+    flexible = Topology.from_spec(StructureSpec.from_scene(wing_scene(4, fidelity="flexible", elements=4)))
     CL4, gamma4, _ = steady_lift(flexible, flexible.initial_coordinates(), 4, 12, U_rotated, RHO)
     assert CL4 == pytest.approx(CL0, rel=1e-12)
     np.testing.assert_allclose(gamma4, gamma0, rtol=1e-10, atol=1e-12 * np.abs(gamma).max())
@@ -126,7 +129,7 @@ def test_single_ring_far_field_is_a_dipole():
     O((h/R)^2). Our ring (1 x 1 lattice, side h = 0.1 m) circulates (i, j) -> (i+1, j) -> ..., so e = -n:
     checked at R = 100 h in several directions to 1e-3."""
     h = 0.1
-    top = Topology.from_scene(wing_scene(1, chord=h))
+    top = Topology.from_spec(StructureSpec.from_scene(wing_scene(1, chord=h)))
     lattice = Lattice(top, 1, 1)
     geometry = lattice.geometry(top.initial_coordinates())
     ring = bound_segments(ring_segments(lattice), geometry.corners)
@@ -168,9 +171,9 @@ def test_scene_wake_length_inf_is_the_semi_infinite_flat_wake():
 
     scene = load_scene(SCENES / "steady_wing.toml", overrides=["aero.wake_length=inf"])
     assert scene["aero"]["wake_length"] == np.inf
-    structure = StructureSolver(scene)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     e, de = structure.e, structure.de
-    aero = AeroSolver(scene)
+    aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     for t in (0.0, 0.01, 0.02):
         aero.advance(t, e, de)
     CL_inf, _, _ = steady_lift(aero.topology, e, 4, 16, aero.U, aero.density)

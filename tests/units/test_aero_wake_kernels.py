@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from aero_fmu.biot_savart import segment_velocity
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from aero_fmu.solver import AeroSolver
 from flat_wing import wing_scene
 from structure_fmu.solver import StructureSolver
@@ -16,7 +17,7 @@ def free_wake_run(steps, M=3, N=6):
     """(AeroSolver after `steps` steps of dt = c / (M V), C_L history) of a pitching and heaving wing of span 4 c
     with the free wake."""
     scene = wing_scene("uvlm-free", MOTION, span=4.0, M=M, N=N)
-    structure, aero = StructureSolver(scene), AeroSolver(scene)
+    structure, aero = StructureSolver(StructureUnitSpec.from_scene(scene)), AeroSolver(AeroUnitSpec.from_scene(scene))
     dt, history = 1.0 / M, []
     for k in range(1, steps + 1):
         structure.advance(k * dt)

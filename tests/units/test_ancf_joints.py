@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError
+from fmu_common.specs import StructureUnitSpec
 from fmu_common.scene_schema import resolve_scene
 from structure_fmu.joint_monitors import joint_monitors
 from structure_fmu.joints import hinge_angle_gradient
@@ -88,7 +89,7 @@ def relative_angle(solver):
 @pytest.mark.parametrize("joint", list(JOINTS))
 def test_joints_hold_while_the_bodies_swing(joint, fidelity, ground, integrator):
     step = 1e-4 if integrator == "rk4" else 1e-3
-    solver = StructureSolver(scene(joint, fidelity, ground, integrator, step))
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene(joint, fidelity, ground, integrator, step)))
     solver.advance(0.03)
     monitors = solver.monitors()
     assert monitors["kinetic_energy"] > 1e-4          # J: it moved (on the ground's chord axis by its actuator)
@@ -121,7 +122,8 @@ def test_energy_of_the_released_double_pendulum_is_conserved(joint, fidelity):
     changes = SKEWED if joint == "skewed" else {}
     if fidelity == "flexible" and joint in ("revolute", "chord", "skewed"):
         changes = {**changes, "stiffness": 0.0, "torque": 0.0}
-    solver = StructureSolver(scene("revolute" if joint == "skewed" else joint, fidelity, **changes))
+    resolved = scene("revolute" if joint == "skewed" else joint, fidelity, **changes)
+    solver = StructureSolver(StructureUnitSpec.from_scene(resolved))
     start = solver.monitors()["energy"]
     drift, kinetic = 0.0, 0.0
     for k in range(1, 7):
@@ -139,7 +141,8 @@ def test_fold_angle_about_a_skewed_axis_is_the_relative_rotation_of_the_frames(f
     """In the flexible fidelity the axis is exact when it lies in the span-normal plane of both bodies: the
     parent's axis and the child's orientation are chosen so."""
     changes = SKEWED if fidelity == "rigid" and not ground else {}
-    solver = StructureSolver(scene("revolute", fidelity, ground, "generalized-alpha", 2e-3, **changes))
+    resolved = scene("revolute", fidelity, ground, "generalized-alpha", 2e-3, **changes)
+    solver = StructureSolver(StructureUnitSpec.from_scene(resolved))
     assert solver.fold_angles_deg()["j"] == pytest.approx(40.0, abs=1e-12)
     angles = []
     for k in range(1, 6):
@@ -159,13 +162,13 @@ def test_chord_revolute_by_a_shared_chord_equals_the_axis_product_rows(ground, f
     mid = section(axis_position=0.5)
     # B turned half a turn about its span: its chord and normal reversed, the same physical body
     turned = {"span_axis": [1, 0, 0.3], "chord_axis": [0, -1, 0]} if ground else {"orientation_deg": [180, 0, 0]}
-    shared = StructureSolver(scene("chord", fidelity, ground, body_section=mid))
+    shared = StructureSolver(StructureUnitSpec.from_scene(scene("chord", fidelity, ground, body_section=mid)))
     flipped_scene = scene("chord", fidelity, ground, body_section=mid)
     if ground:
         flipped_scene["structure"]["bodies"][0].update(turned)
     else:
         flipped_scene["structure"]["joints"][1].update(turned)
-    flipped = StructureSolver(flipped_scene)
+    flipped = StructureSolver(StructureUnitSpec.from_scene(flipped_scene))
     # the turned body's free r_y adds three coordinates, its unit length and the two axis rows three constraints
     assert shared.model.constraints.count + 3 == flipped.model.constraints.count
     assert len(shared.state.q) + 3 == len(flipped.state.q)
@@ -183,16 +186,16 @@ def test_each_joint_leaves_its_degrees_of_freedom(joint):
     """A rigid body on a joint to the ground: free coordinates minus constraints = the joint's rotations
     (ball 3, universal 2, revolute 1); a flexible body of two elements adds its deformation: the stretch of the
     root r_x and the free nodes' 9 coordinates minus their two internal constraints, 7 per node."""
-    rigid = StructureSolver(scene(joint, "rigid", ground=True))
+    rigid = StructureSolver(StructureUnitSpec.from_scene(scene(joint, "rigid", ground=True)))
     assert len(rigid.state.q) - rigid.model.constraints.count == DOF[joint]
-    flexible = StructureSolver(scene(joint, "flexible", ground=True))
+    flexible = StructureSolver(StructureUnitSpec.from_scene(scene(joint, "flexible", ground=True)))
     assert len(flexible.state.q) - flexible.model.constraints.count == DOF[joint] + 1 + 2 * 7
 
 
 def test_universal_on_a_rigid_child_is_not_over_constrained():
     """The rank check of StructureSolver refuses dependent constraint rows; the universal joint's row and
     the rigid child's unit-length and orthogonality rows are independent."""
-    solver = StructureSolver(scene("universal", "rigid"))
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene("universal", "rigid")))
     E = solver.e
     G = solver.model.constraints.jacobian(E)
     assert np.linalg.matrix_rank(G) == G.shape[0] == 7
@@ -200,7 +203,7 @@ def test_universal_on_a_rigid_child_is_not_over_constrained():
 
 def test_universal_with_axes_not_perpendicular_names_the_child_axis():
     with pytest.raises(SceneError) as err:
-        StructureSolver(scene("universal", "rigid", child_axis=[0, 1, 1]))
+        StructureSolver(StructureUnitSpec.from_scene(scene("universal", "rigid", child_axis=[0, 1, 1])))
     assert err.value.key == "structure.joints.j.child_axis"
 
 
@@ -210,7 +213,7 @@ def test_axis_rows_derivatives_match_finite_differences(case):
     manifold, against central differences of the residual (quartic: the differences are exact to round-off
     and s^2 terms)."""
     ground = case.startswith("ground")
-    model = StructureSolver(scene(case.removeprefix("ground_"), "flexible", ground)).model
+    model = StructureSolver(StructureUnitSpec.from_scene(scene(case.removeprefix("ground_"), "flexible", ground))).model
     cons = model.constraints
     axes = cons.axes
     assert axes.count == (1 if case.endswith("universal") else 2)
@@ -255,9 +258,9 @@ def test_fold_angle_gradient_matches_finite_differences(case):
     """The gradient of the skewed-axis fold angle (the actuator's generalized force is -torque times it) on its
     distinct E indices, also where r_y is shared by the two nodes (a chord axis with an orientation about it)."""
     if case == "shared_chord":
-        solver = StructureSolver(scene("chord", "flexible", orientation_deg=[0, 25, 0]))
+        solver = StructureSolver(StructureUnitSpec.from_scene(scene("chord", "flexible", orientation_deg=[0, 25, 0])))
     else:
-        solver = StructureSolver(scene("revolute", "flexible", ground=case == "ground"))
+        solver = StructureSolver(StructureUnitSpec.from_scene(scene("revolute", "flexible", ground=case == "ground")))
     hinge = solver.topology.hinges[0]
     assert hinge.axis_slot is None
     rng = np.random.default_rng(5)
@@ -285,7 +288,7 @@ def test_monitors_measure_a_displaced_joint():
     c, s = np.cos(phi), np.sin(phi)
     turn = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
     for joint, name, expected in (("universal", "j_axis_product", -s), ("chord", "j_axis_error", 2 * np.sin(phi / 2))):
-        top = StructureSolver(scene(joint, "rigid")).topology
+        top = StructureSolver(StructureUnitSpec.from_scene(scene(joint, "rigid"))).topology
         e = top.initial_coordinates().reshape(-1, 3, 3)
         root = top.bodies["B"].nodes[0]
         e[root, 0] += d

@@ -5,6 +5,7 @@ import pytest
 
 from orchestrator.scene.load import load_scene
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 from repository import SCENES
 
 
@@ -12,7 +13,7 @@ from repository import SCENES
 def test_jacobian_rate_and_velocity_term_match_finite_differences(scene):
     # rotating_beam has fixed-plane rows and a prescribed (moving) root; deploy_* have unit and
     # orthogonality rows only
-    model = StructureSolver(load_scene(SCENES / f"{scene}.toml")).model
+    model = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml"))).model
     cons = model.constraints
     rng = np.random.default_rng(7)
     q0 = model.T.T @ model.top.initial_coordinates()

@@ -5,6 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from structure_fmu.damping import deformation_damping_force, deformation_damping_matrix
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.element import mass_matrix
 from fmu_common.scene_schema import resolve_scene
 from structure_fmu.solver import StructureSolver
@@ -67,14 +68,14 @@ def test_spinning_free_plate_keeps_or_loses_its_spin_as_the_damping_model_says(m
     every mass element, so the angular momentum decays as exp(-alpha t) and so does the spin; deformation
     damping leaves the rigid spin alone (Otsuka et al. 2019, Sec. IV)."""
     omega0, alpha = 2.0, 1.5
-    solver = StructureSolver(resolve_scene({"time": {"stop": 1.0}, "structure": {
+    solver = StructureSolver(StructureUnitSpec.from_scene(resolve_scene({"time": {"stop": 1.0}, "structure": {
         "fidelity": "flexible", "elements_per_body": 2, "integrator": "generalized-alpha", "step": 1e-3,
         "damping_model": model,
         "bodies": [{"name": "plate", "length": 0.6, "span_axis": [1, 0, 0], "chord_axis": [0, 1, 0],
                     "angular_velocity": [0.0, 0.0, omega0], "damping": alpha,
                     "section": {"chord": 0.1, "thickness": 0.01, "density": 2700.0, "youngs_modulus": 70e9,
                                 "torsional_rigidity": 50.0}}],
-        "joints": []}}, "spinning_plate"))
+        "joints": []}}, "spinning_plate")))
     solver.advance(1.0)
     spin = np.linalg.norm(solver.de[3:6])            # |d r_x / dt| of the root node, r_x a unit vector
     expected = omega0 * np.exp(-alpha * 1.0) if model == "mass-proportional" else omega0

@@ -7,6 +7,7 @@ import pytest
 from orchestrator.scene.load import read_scene_file, resolve_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 
 FORCE = np.array([0.0, 0.0, -1000.0])       # N, the scene's tip force
 
@@ -23,7 +24,7 @@ def undamped_cantilever(fidelity):
 
 @pytest.mark.parametrize("fidelity", ["flexible", "strain-based"])
 def test_work_of_a_constant_force_and_the_energy_balance(fidelity):
-    solver = StructureSolver(undamped_cantilever(fidelity))
+    solver = StructureSolver(StructureUnitSpec.from_scene(undamped_cantilever(fidelity)))
     tip0 = solver.sensors.positions(solver.e)[0]
     start = solver.monitors()["energy"]
     for t in (0.05, 0.1, 0.2):

@@ -8,6 +8,7 @@ from repository import SCENES
 from orchestrator.scene.load import load_scene
 from structure_fmu import integrators
 from structure_fmu.iteration_lu import IterationLU
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.solver import StructureSolver
 
 
@@ -50,7 +51,7 @@ def test_a_singular_matrix_is_refused():
 def test_the_pattern_holds_every_entry_and_the_banded_solve_is_the_dense_one(scene, stop):
     """Along a short run (states with strain, rates and multipliers), every nonzero entry of the iteration
     matrix lies in the model's pattern, and the banded factorization solves as numpy's dense one."""
-    solver = StructureSolver(load_scene(SCENES / f"{scene}.toml", [f"time.stop={stop}"]))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", [f"time.stop={stop}"])))
     model, rng = solver.model, np.random.default_rng(0)
     lu = IterationLU(len(solver.state.q), model.constraint_count, model.iteration_pattern())
     assert lu.banded
@@ -71,7 +72,8 @@ def test_the_pattern_holds_every_entry_and_the_banded_solve_is_the_dense_one(sce
 def test_the_reduced_tangent_is_the_product_with_T(scene):
     """The three routes of T^T X T (a gather; a gather summed where slots share a coordinate; the sparse product
     of a rigid body's combined slots) against the dense product."""
-    model = StructureSolver(load_scene(SCENES / f"{scene}.toml", ["time.stop=0.001"])).model
+    resolved = load_scene(SCENES / f"{scene}.toml", ["time.stop=0.001"])
+    model = StructureSolver(StructureUnitSpec.from_scene(resolved)).model
     X = np.random.default_rng(1).standard_normal((model.n, model.n))
     exact = model.T.T @ X @ model.T
     assert np.abs(model._reduction.congruence(X) - exact).max() <= 1e-13 * np.abs(exact).max()
@@ -82,7 +84,7 @@ def test_ending_newton_on_the_estimated_error_keeps_the_solution_within_the_tole
     with every step iterated until the plain correction test passes: the same to well inside the Newton
     tolerance, for fewer iterations."""
     def run():                                    # in communication steps, as the FMU steps it
-        solver = StructureSolver(load_scene(SCENES / "spin_up.toml", ["time.stop=6.0"]))
+        solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "spin_up.toml", ["time.stop=6.0"])))
         for k in range(600):
             solver.advance(0.01 * (k + 1))
         return solver.e, solver.integrator.newton_iterations

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.optimize import root
 
 from aero_fmu.solver import AeroSolver
+from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from orchestrator.scene.load import load_scene
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
@@ -23,7 +24,7 @@ SCENE = SCENES / "deploy_flexible.toml"
 def coupled_until(scene, stop):
     """Structure and aero solvers stepped in-process with Gauss-Seidel coupling to `stop` (s): (structure,
     the aero generalized force Q held over the next step)."""
-    structure, aero = StructureSolver(scene), AeroSolver(scene)
+    structure, aero = StructureSolver(StructureUnitSpec.from_scene(scene)), AeroSolver(AeroUnitSpec.from_scene(scene))
     h = scene["coupling"]["step"]
     aero.advance(0.0, structure.e, structure.de)
     for k in range(round(stop / h)):

@@ -14,6 +14,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from fmu_common.errors import SceneError
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 from orchestrator.scene.load import resolve_scene
 from structure_fmu.solver import StructureSolver
 from structure_fmu.topology import StructureTopology
@@ -71,7 +73,7 @@ def test_a_parallelogram_four_bar_swings_as_its_one_dof_model(fidelity, integrat
     pendulum equation over 0.5 s (RK4 to 1e-8 m; generalized-alpha at rho_inf = 1 is second order: 2e-6 m at
     1e-4 s; the stiff flexible bars add their static deflection)."""
     scene = four_bar(fidelity, integrator)
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     times = np.linspace(0.0, 0.5, 6)
     tip = []
     for t in times:
@@ -87,13 +89,13 @@ def test_a_rigid_loop_keeps_one_closing_row_out_and_a_flexible_one_none():
     """Rigid: 3 bodies x (r, r_x) free = 18 coordinates; the ground pins fix two points and the first coupler pin
     moves the coupler's point, so the second closes the loop with three rows of which the out-of-plane one
     repeats the others; 18 - 17 independent rows = 1 degree of freedom. Flexible: every pin is shared."""
-    rigid = StructureSolver(four_bar("rigid")).model
+    rigid = StructureSolver(StructureUnitSpec.from_scene(four_bar("rigid"))).model
     assert rigid.T.shape[1] - rigid.constraint_count == 1
     assert rigid.constraints.count - rigid.constraint_count == 1
     top = rigid.top
     assert [shared(top, a, b) for _, a, b in pin_nodes(top, four_bar())] == [True, False]
     flexible_scene = four_bar("flexible", "generalized-alpha")
-    flexible = StructureSolver(flexible_scene).model
+    flexible = StructureSolver(StructureUnitSpec.from_scene(flexible_scene)).model
     assert flexible.constraints.count == flexible.constraint_count
     assert all(shared(flexible.top, a, b) for _, a, b in pin_nodes(flexible.top, flexible_scene))
 
@@ -103,7 +105,7 @@ def test_shared_pivots_coincide_to_round_off_through_a_run():
     chain deploys (the rows of the rigid chain's closing pins hold to the projection's 1e-9)."""
     for fidelity, closing in (("flexible", 1e-12), ("rigid", 1e-9)):
         scene = scissor_chain(fidelity)
-        solver = StructureSolver(scene)
+        solver = StructureSolver(StructureUnitSpec.from_scene(scene))
         top = solver.model.top
         pins = pin_nodes(top, scene)
         if fidelity == "flexible":
@@ -132,7 +134,7 @@ def test_a_loop_that_does_not_close_is_refused_naming_the_pin_and_the_gap():
     scene = copy.deepcopy(four_bar())
     scene["structure"]["bodies"][1]["root"] = [D + 0.001, 0.0, 0.0]     # the right crank 1 mm too far right
     with pytest.raises(SceneError) as err:
-        StructureTopology.from_scene(scene)
+        StructureTopology.from_spec(StructureSpec.from_scene(scene))
     assert err.value.key == "structure.joints.B"
     assert err.value.value == "0.001 m apart"
 
@@ -141,7 +143,7 @@ def test_a_pin_off_the_nodes_is_refused_naming_its_span():
     scene = copy.deepcopy(four_bar())
     scene["structure"]["joints"][2]["other_span"] = 0.3           # the left crank's nodes: 0, 0.25, 0.5 m
     with pytest.raises(SceneError) as err:
-        StructureTopology.from_scene(scene)
+        StructureTopology.from_spec(StructureSpec.from_scene(scene))
     assert err.value.key == "structure.joints.A.other_span"
     assert "a node position of body 'left'" in err.value.allowed
 
@@ -161,7 +163,7 @@ def test_a_pin_about_the_chord_needs_the_same_chord_at_both_nodes():
     scene = copy.deepcopy(four_bar())
     scene["structure"]["bodies"][2]["chord_axis"] = [0.0, 0.6, 0.8]
     with pytest.raises(SceneError) as err:
-        StructureTopology.from_scene(scene)
+        StructureTopology.from_spec(StructureSpec.from_scene(scene))
     assert err.value.key == "structure.joints.A.axis"
 
 
@@ -172,7 +174,7 @@ def test_pins_anywhere_are_refused_in_the_strain_based_fidelity_naming_the_key()
     scene["structure"]["joints"] = [scene["structure"]["joints"][0],
                                     {**scene["structure"]["joints"][1], "span": L / 2}]
     with pytest.raises(SceneError) as err:
-        StructureTopology.from_scene(scene)
+        StructureTopology.from_spec(StructureSpec.from_scene(scene))
     assert err.value.key == "structure.joints.O2.span"
 
 
@@ -186,7 +188,7 @@ def test_a_scissor_chain_expands_to_named_bars_pins_sliders_and_probes():
     assert sorted(joints) == ["s_a1_slider", "s_a2", "s_b1_pin", "s_b2", "s_c1", "s_c2"]
     assert joints["s_a1_slider"]["line"] == [0.0, 1.0, 0.0]
     assert all(b["elements"] == 2 for b in scene["structure"]["bodies"])
-    top = StructureTopology.from_scene(scene)
+    top = StructureTopology.from_spec(StructureSpec.from_scene(scene))
     E = top.initial_coordinates()
     H = np.sin(np.radians(60.0))
     expected = {"a1": [0, H, 0], "a2": [0.5, H, 0], "a3": [1.0, H, 0], "b1": [0, 0, 0], "b2": [0.5, 0, 0],
@@ -220,5 +222,5 @@ def test_a_loop_of_parent_child_joints_is_refused_pointing_to_pins():
     for body in raw["structure"]["bodies"][:2]:
         body["root"] = body["span_axis"] = body["chord_axis"] = None
     with pytest.raises(SceneError) as err:
-        StructureTopology.from_scene(resolve_scene(raw, "x"))
+        StructureTopology.from_spec(StructureSpec.from_scene(resolve_scene(raw, "x")))
     assert err.value.key == "structure.joints" and "close a loop with a pin" in err.value.allowed

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError
+from fmu_common.specs import StructureUnitSpec
 from fmu_common.scene_schema import resolve_scene
 from structure_fmu.motion import SpinUp
 from structure_fmu.solver import StructureSolver
@@ -21,7 +22,7 @@ def heaving_scene(**motion):
 def test_heave_law_moves_every_point_rigidly():
     """Z = A sin(omega t) along the section normal (Otsuka et al. 2019, Sec. VI.D), velocities consistent with
     positions."""
-    solver = StructureSolver(heaving_scene(heave_amplitude=0.1, frequency=OMEGA))
+    solver = StructureSolver(StructureUnitSpec.from_scene(heaving_scene(heave_amplitude=0.1, frequency=OMEGA)))
     assert solver.state.q.size == 0          # no structural solver: a scene models only what it needs
     e0 = solver.e.copy()
     normal = np.cross([0, 1, 0], [1, 0, 0])
@@ -37,7 +38,8 @@ def test_heave_law_moves_every_point_rigidly():
 
 
 def test_pitch_law_rotates_about_the_pitch_axis():
-    solver = StructureSolver(heaving_scene(pitch_amplitude_deg=5.0, frequency=OMEGA, pitch_axis_position=0.25))
+    scene = heaving_scene(pitch_amplitude_deg=5.0, frequency=OMEGA, pitch_axis_position=0.25)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     top = solver.topology
     solver.advance(0.6)
     pitch = np.radians(5.0) * np.sin(OMEGA * 0.6)
@@ -54,7 +56,7 @@ def test_prescribed_fidelity_needs_a_motion():
     scene = heaving_scene()
     del scene["structure"]["motion"]
     with pytest.raises(SceneError, match="structure.motion"):
-        StructureSolver(scene)
+        StructureSolver(StructureUnitSpec.from_scene(scene))
 
 
 def test_spin_up_law_is_000_eq27_and_continuous():

@@ -5,6 +5,7 @@ from scipy.special import ellipk
 
 from orchestrator.scene.load import load_scene
 from fmu_common.scene_schema import resolve_scene
+from fmu_common.specs import StructureUnitSpec
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
 
@@ -27,7 +28,7 @@ def corner_distances(top, e):
 
 @pytest.mark.parametrize("integrator", ["rk4", "generalized-alpha"])
 def test_tumbling_rigid_body_keeps_its_shape(integrator):
-    solver = StructureSolver(tumbling_scene(integrator))
+    solver = StructureSolver(StructureUnitSpec.from_scene(tumbling_scene(integrator)))
     top = solver.topology
     reference = corner_distances(top, solver.e)
     worst, turned = 0.0, 0.0
@@ -75,7 +76,7 @@ def energy_scale(scene):
 
 def test_rigid_pendulum_period_and_rk4_energy():
     scene = load_scene(SCENES / "pendulum_rigid.toml")
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     energy0 = solver.monitors()["energy"]
     assert solver.monitors()["kinetic_energy"] == 0.0
     period = exact_period()
@@ -91,7 +92,7 @@ def test_rigid_pendulum_period_and_rk4_energy():
 def test_rigid_pendulum_energy_bounded_with_generalized_alpha():
     scene = load_scene(SCENES / "pendulum_rigid.toml", ["structure.integrator=generalized-alpha",
                                                            "structure.step=0.005"])
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     energy0 = solver.monitors()["energy"]
     energies = []
     for k in range(1, 21):

@@ -6,6 +6,7 @@ import pytest
 from scipy.special import ellipk
 
 from fmu_common.scene_schema import resolve_scene
+from fmu_common.specs import StructureUnitSpec
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import rotation_about
 from structure_fmu import element
@@ -82,7 +83,7 @@ def test_rigid_pendulum_period_includes_the_rotary_inertia(axis, chord_term):
     mass = MU * LENGTH
     inertia = mass * LENGTH**2 / 3 + chord_term + ROTARY * LENGTH
     expected = 4 * np.sqrt(inertia / (mass * G * LENGTH / 2)) * ellipk(np.sin(AMPLITUDE / 2) ** 2)
-    solver = StructureSolver(pendulum(axis))
+    solver = StructureSolver(StructureUnitSpec.from_scene(pendulum(axis)))
     times, angles = [0.0], [solver.fold_angles_deg()["pin"]]
     while solver.time < 2.2 * expected:
         solver.advance(solver.time + solver.step_size)

@@ -19,6 +19,8 @@ from orchestrator.scene.load import load_scene
 from orchestrator.run.port import UnitError
 from orchestrator.run.units import make_unit
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 from fmu_common.errors import SceneError
 from fmu_common.interface import fmi_name
 from fmu_common.shape_functions import shape_row
@@ -116,7 +118,7 @@ def test_rigid_probes_follow_the_rigid_body_formula_and_its_rate(rigid):
     """A rigid body's material point at span x and chord offset y is r^A + x r_x^A + y r_y^A (its root
     node's position and gradients), its velocity the same combination of their rates."""
     scene, fmu = rigid
-    top = Topology.from_scene(scene)
+    top = Topology.from_spec(StructureSpec.from_scene(scene))
     n = top.n_coordinates
     names = coordinates(n) + [v for p in scene["probes"] for v in probe_names(scene, p["name"])]
     out = drive(fmu, np.arange(41) * H, names)
@@ -158,7 +160,7 @@ def test_flexible_probes_and_gauge_from_the_element_shape_functions(flexible):
     from central differences of the reference line r(x, 0) (exact for the cubic Hermite line but for
     rounding) and the chord vector r_y = r(x, 1) - r(x, 0)."""
     scene, fmu = flexible
-    top = Topology.from_scene(scene)
+    top = Topology.from_spec(StructureSpec.from_scene(scene))
     n = top.n_coordinates
     gauge = scene["strain_gauges"][0]
     names = (coordinates(n) + [v for p in scene["probes"] for v in probe_names(scene, p["name"])]
@@ -258,7 +260,7 @@ def test_a_sensor_name_that_takes_another_outputs_name_is_refused(override, key,
 def test_probe_acceleration_of_a_released_rigid_pendulum():
     """pendulum_rigid at release, horizontal from its pin: angular acceleration 3 g / (2 L), so the tip (span L)
     accelerates by 3 g / 2 straight down and has no centripetal part yet."""
-    solver = StructureSolver(load_scene(SCENES / "pendulum_rigid.toml"))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "pendulum_rigid.toml")))
     n = len(solver.sensors.probe_names)
     tip = solver.sensor_outputs()[6 * n:9 * n].reshape(-1, 3)[solver.sensors.probe_names.index("tip")]
     assert tip == pytest.approx([0.0, 0.0, -1.5 * 9.81], abs=1e-9)
@@ -270,7 +272,8 @@ def test_probe_accelerations_are_the_rate_of_the_probe_velocities(fidelity):
     velocity output over +-1e-5 s (RK4 at 1e-4 s, the ANCF bars at 4e-5 s; the bars vibrate up to thousands of
     rad/s, so the difference must resolve those)."""
     step = ["structure.step=4e-5"] if fidelity == "flexible" else []
-    solver = StructureSolver(load_scene(SCENES / "double_pendulum.toml", [f"structure.fidelity={fidelity}", *step]))
+    scene = load_scene(SCENES / "double_pendulum.toml", [f"structure.fidelity={fidelity}", *step])
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     n, h = len(solver.sensors.probe_names), 1e-5
     readings = []
     for t in (0.1 - h, 0.1, 0.1 + h):

@@ -7,6 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from fmu_common.errors import SceneError
+from fmu_common.specs import StructureUnitSpec
 from orchestrator.scene.load import resolve_scene
 from structure_fmu.solver import StructureSolver
 
@@ -47,7 +48,7 @@ def test_a_ladder_slides_down_as_its_one_dof_model(fidelity, tolerance):
     scene = ladder(fidelity)
     if fidelity == "flexible":
         scene["structure"]["integrator"] = "generalized-alpha"
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     times = np.linspace(0.0, 0.5, 11)
     foot = []
     for t in times:
@@ -66,4 +67,4 @@ def test_a_slider_needs_exactly_one_of_line_and_plane():
 
 def test_a_slider_is_refused_in_the_strain_based_fidelity_naming_it():
     with pytest.raises(SceneError, match=r"structure\.joints\.wall\.type"):
-        StructureSolver(ladder("strain-based"))
+        StructureSolver(StructureUnitSpec.from_scene(ladder("strain-based")))

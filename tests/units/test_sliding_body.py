@@ -11,6 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from fmu_common.errors import SceneError
+from fmu_common.specs import StructureUnitSpec
 from fmu_common.vectors import perpendiculars, rotation_about
 from orchestrator.scene.load import resolve_scene
 from structure_fmu.solver import StructureSolver
@@ -61,7 +62,7 @@ def guided_bar(fidelity="rigid", kind="line", carried=True, stop=0.5, **slider):
 
 def probe_history(scene, times):
     """Probe positions (n_times, n_probes, 3), m, at `times`."""
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     history = []
     for t in times:
         solver.advance(t)
@@ -162,7 +163,7 @@ def test_a_bead_slides_out_along_a_spinning_rod():
     forcing = mu * (half * (2.0 * SPIN / RAMP + 2.0 * SPIN**2) + 1.5 * SPIN * transverse * times)
     bound = forcing * (np.cosh(SPIN * times) - 1.0) / SPIN**2 + mu * half
 
-    solver = StructureSolver(bead_on_rod())
+    solver = StructureSolver(StructureUnitSpec.from_scene(bead_on_rod()))
     rod_root = solver.topology.bodies["rod"].nodes[0]
     r = []
     for t in times:
@@ -186,4 +187,4 @@ def test_a_bead_slides_out_along_a_spinning_rod():
 ])
 def test_a_bad_slider_on_a_body_is_refused_naming_the_key(fidelity, slider, key):
     with pytest.raises(SceneError, match=rf"structure\.joints\.guide\.{key}\b"):
-        StructureSolver(guided_bar(fidelity, **slider))
+        StructureSolver(StructureUnitSpec.from_scene(guided_bar(fidelity, **slider)))

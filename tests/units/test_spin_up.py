@@ -4,6 +4,7 @@ import pytest
 
 from orchestrator.scene.load import load_scene
 from structure_fmu.motion import SpinUp
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 
@@ -17,7 +18,7 @@ def transverse_tip_deflection(elements, stop=20.0, sample=0.01):
     joint = scene["structure"]["joints"][0]
     law = SpinUp([0, 1, 0], [0, 0, 0], joint["omega"], joint["ramp_time"])
     length = scene["structure"]["bodies"][0]["length"]
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     times, deflection = [], []
     for k in range(1, int(round(stop / sample)) + 1):
         solver.advance(k * sample)

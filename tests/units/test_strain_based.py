@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError, SolverDiverged
+from fmu_common.specs import StructureUnitSpec
+from fmu_common.wing_spec import StructureSpec
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu import strain_kinematics as sk
@@ -19,7 +21,7 @@ UNIVERSAL = ["structure.joints.PQ.type=universal"]
 
 def model_of(path, *overrides):
     scene = load_scene(path, list(overrides))
-    return StrainBasedModel(StructureTopology.from_scene(scene), scene["structure"]["gravity"])
+    return StrainBasedModel(StructureTopology.from_spec(StructureSpec.from_scene(scene)), scene["structure"]["gravity"])
 
 
 def test_an_element_of_constant_curvature_is_an_arc():
@@ -110,7 +112,7 @@ def test_linear_stiffness_gives_the_piecewise_constant_curvature_cantilever():
 def test_double_pendulum_conserves_energy_and_keeps_its_joints(overrides):
     """The first 0.05 s of Otsuka et al. 2022, Secs. 4.1-4.3 (RK4, 1e-4 s): energy conserved to 1e-6 of the
     kinetic energy reached; the shared point exact; the joint parameters' constraints held by projection."""
-    solver = StructureSolver(load_scene(PENDULUM, ["time.stop=0.05", *overrides]))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(PENDULUM, ["time.stop=0.05", *overrides])))
     start = solver.monitors()["energy"]
     solver.advance(0.05)
     monitors = solver.monitors()
@@ -130,7 +132,7 @@ def test_every_shipped_scene_takes_the_strain_based_fidelity(path):
     raw = load_scene(path)
     if raw["structure"]["fidelity"] == "prescribed":
         with pytest.raises(SceneError, match="prescribed"):
-            StructureSolver(load_scene(path, ["structure.fidelity=strain-based"]))
+            StructureSolver(StructureUnitSpec.from_scene(load_scene(path, ["structure.fidelity=strain-based"])))
         return
     if raw["structure"]["scissors"]:          # pins at mid-length and closed loops: rigid or flexible only
         with pytest.raises(SceneError) as refused:
@@ -138,13 +140,13 @@ def test_every_shipped_scene_takes_the_strain_based_fidelity(path):
         assert refused.value.key == "structure.fidelity"
         return
     step = raw["coupling"]["step"]
-    solver = StructureSolver(load_scene(path, ["structure.fidelity=strain-based"]))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(path, ["structure.fidelity=strain-based"])))
     try:
         solver.advance(step)
     except SolverDiverged as diverged:
         assert raw["structure"]["integrator"] == "rk4" and "generalized-alpha" in str(diverged)
-        solver = StructureSolver(load_scene(path, ["structure.fidelity=strain-based",
-                                                   "structure.integrator=generalized-alpha"]))
+        solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(path, ["structure.fidelity=strain-based",
+                                                   "structure.integrator=generalized-alpha"])))
         solver.advance(step)
     monitors = solver.monitors()
     assert np.isfinite(monitors["energy"]) and monitors["constraint_residual"] < 1e-10
@@ -154,7 +156,7 @@ def test_a_body_without_a_root_joint_is_refused_naming_it():
     scene = load_scene(PENDULUM)
     scene["structure"]["joints"] = scene["structure"]["joints"][1:]          # body A loses its ball joint
     with pytest.raises(SceneError, match=r"structure\.bodies\.A.*strain-based fidelity supports"):
-        StructureSolver(scene)
+        StructureSolver(StructureUnitSpec.from_scene(scene))
 
 
 def test_a_driven_root_moves_the_body_with_its_law():
@@ -181,8 +183,8 @@ def test_first_bending_frequency_converges_to_euler_bernoulli():
     exact = 1.8751040687 ** 2 * np.sqrt(1e5 / (10.0 * 2.0 ** 4))
     errors = []
     for n in (4, 8, 16):
-        solver = StructureSolver(load_scene(SCENES / "cantilever_static.toml", [
-            "structure.fidelity=strain-based", f"structure.elements_per_body={n}"]))
+        solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "cantilever_static.toml", [
+            "structure.fidelity=strain-based", f"structure.elements_per_body={n}"])))
         errors.append(natural_frequencies(solver, 1)[0] / exact - 1)
     assert all(3.5 < a / b < 4.5 for a, b in zip(errors, errors[1:]))
     assert 0 < errors[-1] < 1e-3

@@ -14,6 +14,7 @@ import rigid_double_pendulum
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 
 PENDULUM = SCENES / "double_pendulum.toml"
 JOINTS = {"ball": [], "universal": ["structure.joints.PQ.type=universal"],
@@ -31,8 +32,9 @@ STIFF = [f"structure.bodies.{b}.section.{k}={v!r}" for b in "AB" for k, v in (
 def swing(fidelity, joint, stop, *extra):
     """{time (s): sampled tip position (m), energy (J), kinetic energy (J), joint monitors, free product} of the
     scene run to `stop` with the structure solver alone, sampled every SAMPLE s."""
-    solver = StructureSolver(load_scene(PENDULUM, [f"structure.fidelity={fidelity}", f"time.stop={stop}",
-                                                   *INTEGRATOR.get(fidelity, []), *JOINTS[joint], *extra]))
+    scene = load_scene(PENDULUM, [f"structure.fidelity={fidelity}", f"time.stop={stop}",
+                                  *INTEGRATOR.get(fidelity, []), *JOINTS[joint], *extra])
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     out = {key: [] for key in ("time", "tip", "energy", "kinetic", "monitors", "free")}
     for k in range(int(round(stop / SAMPLE)) + 1):
         solver.advance(k * SAMPLE)

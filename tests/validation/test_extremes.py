@@ -8,6 +8,7 @@ import pytest
 from orchestrator.cli import main
 from orchestrator.scene.load import load_scene
 from structure_fmu.modes import natural_frequencies
+from fmu_common.specs import StructureUnitSpec
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 
@@ -23,7 +24,8 @@ def scaled(factor):
 
 def rk4_step_limit(overrides):
     """Largest stable RK4 step 2 sqrt(2) / omega_max (RK4 on the imaginary axis), from the linear modes."""
-    omega_max = natural_frequencies(StructureSolver(load_scene(CANTILEVER, overrides)), count=None).max()
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(CANTILEVER, overrides)))
+    omega_max = natural_frequencies(solver, count=None).max()
     return float(2 * np.sqrt(2) / omega_max)
 
 

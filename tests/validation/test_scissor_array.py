@@ -13,6 +13,7 @@ import scissor_mechanism
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 
 ARRAY = SCENES / "scissor_array.toml"
 THETA0, LENGTH, BAR_MASS, FORCE, ROTARY = np.radians(75.0), 1.0, 2700.0 * 0.005 * 0.02, 50.0, 9.0e-6
@@ -24,7 +25,7 @@ def deploy(stop, *overrides):
     """{time, travel (slider a_1 towards b_1, m), energy, work, kinetic, residual} of the scene run to `stop` by the
     structure solver alone, sampled every SAMPLE s."""
     scene = load_scene(ARRAY, [f"time.stop={stop}", *overrides])
-    solver = StructureSolver(scene)
+    solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     a1 = [p["name"] for p in scene["probes"]].index("array_a1")
     out = {key: [] for key in ("time", "a1", "energy", "work", "kinetic", "residual")}
     for k in range(int(round(stop / SAMPLE)) + 1):

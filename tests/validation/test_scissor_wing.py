@@ -10,6 +10,7 @@ from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 
 WING = SCENES / "scissor_wing.toml"
 N, L, MASS = 4, 0.3, 1600.0 * 0.08 * 0.003 * 0.3          # SLEs, bar length (m), bar mass (kg)
@@ -37,7 +38,7 @@ def test_the_rigid_wing_deploys_in_still_air_as_its_one_dof_model():
     """The root joint's fold angle is the mechanism's angle theta: within 1e-9 rad of the reference until the
     latch (RK4 at 1 ms: measured 2.5e-12 rad), and the latch time, interpolated linearly within the step, within
     1e-5 s (measured 2.5e-6 s of 0.397 s)."""
-    solver = StructureSolver(load_scene(WING, ["aero.model=none", "flow.speed=0"]))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(WING, ["aero.model=none", "flow.speed=0"])))
     times = np.arange(0.0, 0.35, 0.01)
     theta_ref, latch_ref = reference(times)
     for t, expected in zip(times, theta_ref):

@@ -12,14 +12,15 @@ import finite_segment_chain
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu.solver import StructureSolver
+from fmu_common.specs import StructureUnitSpec
 
 SAMPLE = 0.01        # s, Eq. (24)'s sampling
 
 
 def free_end_z(fidelity, elements, stop):
     """Z (m) of B's free end at t = 0, 0.01, ..., stop s."""
-    solver = StructureSolver(load_scene(SCENES / "two_body_003.toml", [
-        f"structure.fidelity={fidelity}", f"structure.elements_per_body={elements}", f"time.stop={stop}"]))
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "two_body_003.toml", [
+        f"structure.fidelity={fidelity}", f"structure.elements_per_body={elements}", f"time.stop={stop}"])))
     z = []
     for k in range(int(round(stop / SAMPLE)) + 1):
         solver.advance(k * SAMPLE)

@@ -1,0 +1,64 @@
+"""The aero models as the aero unit realizes them: the registry from aero.model (its traits,
+`fmu_common.choices.AeroModel`) to what builds the model from the aero spec and the topology, and the contract
+every model keeps (`AerodynamicModel`), which AeroSolver calls.
+
+  strip            StripTheory: quasi-steady strips (strip.py)
+  uvlm-flat        UVLM with flat horseshoe legs along U, quasi-steady bound circulation (uvlm.FLAT)
+  uvlm-prescribed  UVLM with a shed ring wake convected with U (uvlm.PRESCRIBED)
+  uvlm-free        UVLM with a shed ring wake convected with U + w (uvlm.FREE)
+
+none builds no aero unit (`AeroModel.builds_unit`), so it has no entry here.
+"""
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from fmu_common.errors import SceneError
+from fmu_common.specs import AeroSpec
+
+from .lattice import Lattice
+from .strip import StripTheory
+from .uvlm import FLAT, FREE, PRESCRIBED, UVLM
+
+
+class AerodynamicModel(Protocol):
+    """An aero model on a topology's lattice (Otsuka et al. 2019, Sec. V): a state that starts at rest
+    (`initial_state`: time 0, not started) and is advanced to t_end (s) for the exchanged coordinates E (n,) and
+    rates dE (n,) at t_end, the free stream U (3,) m/s, the density (kg/m^3) and the unit free-stream direction
+    (3,), returning a new state (time, started, loads: Q, forces, outputs; `copy()`), the old one unchanged;
+    `vortex_geometry` of a state for pictures (`UVLM.vortex_geometry`)."""
+
+    lattice: Lattice
+
+    def initial_state(self): ...
+
+    def advance(self, state, t_end: float, E: np.ndarray, dE: np.ndarray, U: np.ndarray, density: float,
+                direction: np.ndarray): ...
+
+    def vortex_geometry(self, state, direction: np.ndarray) -> dict: ...
+
+
+def _uvlm(wake):
+    return lambda topology, aero, max_wake_rows: UVLM(topology, aero.chordwise_panels, aero.spanwise_panels,
+                                                      wake=wake, wake_length=aero.wake_length,
+                                                      max_wake_rows=max_wake_rows)
+
+
+MODELS = {
+    "strip": lambda topology, aero, max_wake_rows: StripTheory(topology, aero.spanwise_panels, aero.span_correction),
+    "uvlm-flat": _uvlm(FLAT),
+    "uvlm-prescribed": _uvlm(PRESCRIBED),
+    "uvlm-free": _uvlm(FREE),
+}
+"""aero.model -> (topology, AeroSpec, max_wake_rows) -> AerodynamicModel."""
+
+
+def build_model(topology, aero: AeroSpec, max_wake_rows: int) -> AerodynamicModel:
+    """The model aero.model selects, on `topology`, with the aero table's panels, wake length and span correction
+    and at most max_wake_rows shed rows; SceneError naming aero.model for one that builds no aero unit."""
+    name = aero.model.name
+    if name not in MODELS:
+        raise SceneError("aero.model", name, f"an aero model of the aero unit: one of {', '.join(map(repr, MODELS))}")
+    return MODELS[name](topology, aero, max_wake_rows)
