@@ -121,10 +121,19 @@ def _safe_divide(x, y):
 
 
 def segment_velocity(points, starts, ends, core=0.0, semi_infinite=False):
-    """Velocity (m/s) induced at each point by each segment of unit circulation (1 m^2/s), Otsuka et al. 2019, Eq. (19).
+    """Velocity induced at each point by each segment of unit circulation (1 m^2/s).
 
-    points (P, 3) m; starts (S, 3) m; ends (S, 3) m, or unit directions when `semi_infinite`;
-    core: Scully core radius delta (m), see the module docstring. Returns (P, S, 3).
+    Otsuka et al. 2019, Eq. 19
+
+    Args:
+        points: (P, 3) m, global frame.
+        starts: (S, 3) m, global frame.
+        ends: (S, 3) m, or unit directions when `semi_infinite`.
+        core: Scully core radius delta (m), see the module docstring.
+        semi_infinite: whether the segments run from `starts` to infinity along `ends`.
+
+    Returns:
+        (P, S, 3) m/s.
     """
     cx, cy, cz, k = _kernel(points, starts, ends, core, semi_infinite)
     return np.stack([cx * k, cy * k, cz * k], axis=-1)
@@ -133,11 +142,23 @@ def segment_velocity(points, starts, ends, core=0.0, semi_infinite=False):
 def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, normals=None):
     """Velocity at points of segments whose circulations are linear in K unknowns.
 
-    weights (S, K) (dense or scipy.sparse): segment circulation = weights @ unknowns, so for vortex
-    rings it is the +-1 incidence of segments in rings, and for known circulations a column (S, 1).
-    Without normals returns (P, 3, K): v_p = result[p] @ unknowns (m/s). With normals (P, 3) returns
-    the normal wash (P, K): n_p . v_p per unit unknown, the rows of an influence matrix (Otsuka et al. 2019, Eq. 22).
     Computed in blocks of points; no Python loop over points or segments inside a block.
+
+    Otsuka et al. 2019, Eq. 22
+
+    Args:
+        points: (P, 3) m, global frame.
+        starts: (S, 3) m, global frame.
+        ends: (S, 3) m, or unit directions when `semi_infinite`.
+        weights: (S, K) (dense or scipy.sparse): segment circulation = weights @ unknowns, so for vortex rings it is
+            the +-1 incidence of segments in rings, and for known circulations a column (S, 1).
+        core: Scully core radius delta, m.
+        semi_infinite: whether the segments run from `starts` to infinity along `ends`.
+        normals: (P, 3) unit normals, or None.
+
+    Returns:
+        without normals (P, 3, K): v_p = result[p] @ unknowns (m/s); with normals the normal wash (P, K): n_p . v_p
+        per unit unknown, the rows of an influence matrix.
     """
     points = np.asarray(points, dtype=float)
     n_points, n_segments = len(points), len(starts)
@@ -220,6 +241,18 @@ def _check(status):
 
 
 def induced_velocity(points, starts, ends, gamma, core=0.0, semi_infinite=False):
-    """Velocity (m/s) at points (P, 3) induced by segments of circulations gamma (S,) m^2/s: (P, 3)."""
+    """Velocity at points induced by segments of known circulations.
+
+    Args:
+        points: (P, 3) m, global frame.
+        starts: (S, 3) m, global frame.
+        ends: (S, 3) m, or unit directions when `semi_infinite`.
+        gamma: (S,) circulations, m^2/s.
+        core: Scully core radius delta, m.
+        semi_infinite: whether the segments run from `starts` to infinity along `ends`.
+
+    Returns:
+        (P, 3) m/s, global frame.
+    """
     gamma = np.asarray(gamma, dtype=float).reshape(-1, 1)
     return influence(points, starts, ends, gamma, core, semi_infinite)[:, :, 0]

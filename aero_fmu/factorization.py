@@ -26,8 +26,16 @@ DENSE_WEIGHTS = 100_000  # segment x panel entries up to which the stacked weigh
 
 
 class BoundSystem:
-    """Bound rings of a lattice, optionally with flat horseshoe wakes along the free stream (Otsuka et al. 2019, Sec. V)
-    of `wake_length` chords (inf: semi-infinite legs). `builds` counts the factorizations."""
+    """Bound rings of a lattice, optionally with flat horseshoe wakes along the free stream.
+
+    Otsuka et al. 2019, Sec. V. `builds` counts the factorizations.
+
+    Args:
+        lattice: the aero lattice (aero_fmu.lattice.Lattice).
+        rings: its RingSegments (aero_fmu.vlm).
+        flat_wake: whether horseshoe legs trail from the trailing edge.
+        wake_length: their length, chords (inf: semi-infinite legs).
+    """
 
     def __init__(self, lattice, rings, flat_wake=False, wake_length=np.inf):
         self.lattice, self.rings = lattice, rings
@@ -60,7 +68,15 @@ class BoundSystem:
         self._weights = stacked.toarray() if stacked.shape[0] * stacked.shape[1] <= DENSE_WEIGHTS else stacked
 
     def matrices(self, geometry, direction):
-        """(A_x, A_y, lu) at `geometry` with the free-stream unit `direction` (3,) (used by a flat wake)."""
+        """The influence matrices and the factorization at `geometry`.
+
+        Args:
+            geometry: the lattice's Geometry.
+            direction: (3,) unit free-stream direction (used by a flat wake), global frame.
+
+        Returns:
+            (A_x, A_y, lu).
+        """
         distances = distances_from_first(geometry.corners)
         if self._reference is not None and may_be_rigid(self._reference[1], distances, self.tolerance):
             ref_geometry, _, ref_direction, result = self._reference

@@ -23,6 +23,7 @@ class Loads:
     outputs: dict
 
     def copy(self):
+        """A copy that shares no array or dict with these loads."""
         return Loads(self.forces.copy(), self.points.copy(), self.Q.copy(), dict(self.outputs))
 
 
@@ -30,8 +31,21 @@ OUTPUT_NAMES = ("CL", "lift", "wake_panels", "drag", "side_force", "CD", "moment
 
 
 def resultants(lattice, geometry, forces, direction, speed, density, wake_panels) -> Loads:
-    """Loads of panel forces (n_panels, 3) N acting at geometry.application; direction (3,) unit, speed
-    m/s, density kg/m^3. Q = sum_panels S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12)."""
+    """The Loads of panel forces acting at geometry.application.
+
+    Q = sum_panels S(x_a, y_a)^T a.
+
+    Otsuka et al. 2019, Eq. 12
+
+    Args:
+        lattice: the aero lattice (aero_fmu.lattice.Lattice).
+        geometry: its Geometry at the current coordinates.
+        forces: (n_panels, 3) panel forces, N, global frame.
+        direction: (3,) unit free-stream direction, global frame.
+        speed: free-stream speed, m/s.
+        density: air density, kg/m^3.
+        wake_panels: number of shed wake panels (an output).
+    """
     points = geometry.application
     total = forces.sum(axis=0)
     # sum_p x_p x f_p from the 3 x 3 moment sum_p x_p f_p^T: one product instead of a cross per panel
@@ -48,6 +62,11 @@ def resultants(lattice, geometry, forces, direction, speed, density, wake_panels
 
 
 def zero_loads(lattice, n_coordinates) -> Loads:
-    """Loads before the first step: no force."""
+    """Loads before the first step: no force.
+
+    Args:
+        lattice: the aero lattice (aero_fmu.lattice.Lattice).
+        n_coordinates: n, the length of Q.
+    """
     outputs = {name: 0 if name == "wake_panels" else 0.0 for name in OUTPUT_NAMES}
     return Loads(np.zeros((lattice.n_panels, 3)), np.zeros((lattice.n_panels, 3)), np.zeros(n_coordinates), outputs)

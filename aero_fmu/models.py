@@ -32,12 +32,30 @@ class AerodynamicModel(Protocol):
 
     lattice: Lattice
 
-    def initial_state(self): ...
+    def initial_state(self):
+        """The state at rest: time 0, not started, no loads."""
 
     def advance(self, state, t_end: float, E: np.ndarray, dE: np.ndarray, U: np.ndarray, density: float,
-                direction: np.ndarray): ...
+                direction: np.ndarray):
+        """A new state at t_end for the coordinates and rates at t_end; `state` is unchanged.
 
-    def vortex_geometry(self, state, direction: np.ndarray) -> dict: ...
+        Args:
+            state: the model's state at the previous time.
+            t_end: time to reach, s.
+            E: (n,) exchanged coordinates at t_end, m and 1, global frame.
+            dE: (n,) their rates, per s.
+            U: (3,) free stream, m/s, global frame.
+            density: air density, kg/m^3.
+            direction: (3,) unit free-stream direction, global frame (defined also when |U| = 0).
+        """
+
+    def vortex_geometry(self, state, direction: np.ndarray) -> dict:
+        """The vortex system of `state` for pictures (`UVLM.vortex_geometry`).
+
+        Args:
+            state: the model's state.
+            direction: (3,) unit free-stream direction, global frame.
+        """
 
 
 def _uvlm(wake):
@@ -56,8 +74,13 @@ MODELS = {
 
 
 def build_model(topology, aero: AeroSpec, max_wake_rows: int) -> AerodynamicModel:
-    """The model aero.model selects, on `topology`, with the aero table's panels, wake length and span correction
-    and at most max_wake_rows shed rows; SceneError naming aero.model for one that builds no aero unit."""
+    """The model aero.model selects; SceneError naming aero.model for one that builds no aero unit.
+
+    Args:
+        topology: the aero unit's topology.
+        aero: the aero table (panels, wake length, span correction).
+        max_wake_rows: cap of shed wake rows.
+    """
     name = aero.model.name
     if name not in MODELS:
         raise SceneError("aero.model", name, f"an aero model of the aero unit: one of {', '.join(map(repr, MODELS))}")

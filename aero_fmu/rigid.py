@@ -9,9 +9,17 @@ import numpy as np
 
 
 def rigid_fit(reference, current):
-    """(R (3, 3), t (3,), residual (m)) of the rigid motion x -> R x + t that best maps the points
-    `reference` (n, 3) onto `current` (n, 3) in the least-squares sense (Kabsch: SVD of the 3 x 3
-    covariance, with the reflection removed); residual = max_i |R reference_i + t - current_i|."""
+    """The rigid motion x -> R x + t that best maps `reference` onto `current` in the least-squares sense.
+
+    Kabsch: SVD of the 3 x 3 covariance, with the reflection removed.
+
+    Args:
+        reference: (n, 3) points, m, global frame.
+        current: (n, 3) points, m, global frame.
+
+    Returns:
+        (R (3, 3), t (3,) m, residual = max_i |R reference_i + t - current_i| m).
+    """
     reference = np.asarray(reference, dtype=float)
     current = np.asarray(current, dtype=float)
     c0, c1 = reference.mean(axis=0), current.mean(axis=0)
@@ -25,14 +33,24 @@ def rigid_fit(reference, current):
 
 
 def distances_from_first(points):
-    """|p_i - p_0| (n,) m: what any rigid motion of the points keeps (`may_be_rigid`)."""
+    """|p_i - p_0| (n,) m: what any rigid motion of the points keeps (`may_be_rigid`).
+
+    Args:
+        points: (n, 3) m, global frame.
+    """
     offsets = points - points[0]
     return np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
 
 
 def may_be_rigid(reference_distances, distances, tolerance):
-    """False when no rigid motion can map the reference points onto the current ones within `tolerance` (m)
-    at every point: a distance from the first point (`distances_from_first` of the reference and of the
-    current points) changed by more than 2 tolerance. A cheap necessary test for geometries that deform,
-    where `rigid_fit` would fail anyway."""
+    """False when no rigid motion can map the reference points onto the current ones within `tolerance`.
+
+    A distance from the first point changed by more than 2 tolerance. A cheap necessary test for geometries that
+    deform, where `rigid_fit` would fail anyway.
+
+    Args:
+        reference_distances: (n,) `distances_from_first` of the reference points, m.
+        distances: (n,) those of the current points, m.
+        tolerance: m.
+    """
     return bool(np.abs(distances - reference_distances).max() <= 2 * tolerance)

@@ -43,6 +43,7 @@ class AeroState:
     inputs: tuple | None
 
     def copy(self) -> "AeroState":
+        """A copy that shares no array with this state."""
         return AeroState(self.model.copy(), _copied(self.inputs))
 
     def __getattr__(self, name):
@@ -56,9 +57,18 @@ def _copied(inputs):
 
 
 def interpolated_inputs(previous, e, de, k: int):
-    """[(s_j, e_j, de_j)] for j = 1..k: the time fraction s_j = j / k of the interval and the inputs
-    linearly interpolated between `previous` (e, de at its start; None: held at e, de) and e, de at its end;
-    the last one is e, de themselves (no rounding)."""
+    """The inputs of k substeps, linearly interpolated over the interval.
+
+    Args:
+        previous: (e, de) at the interval's start; None: held at e, de.
+        e: (n,) exchanged coordinates at its end, m and 1, global frame.
+        de: (n,) their rates at its end, per s.
+        k: number of substeps.
+
+    Returns:
+        [(s_j, e_j, de_j)] for j = 1..k, s_j = j / k the time fraction; the last one is e, de themselves (no
+        rounding).
+    """
     e0, de0 = previous if previous is not None else (e, de)
     inner = [(j / k, e0 + (j / k) * (e - e0), de0 + (j / k) * (de - de0)) for j in range(1, k)]
     return inner + [(1.0, e, de)]
@@ -67,7 +77,11 @@ def interpolated_inputs(previous, e, de, k: int):
 class AeroSolver:
     """The aerodynamic solver of one scene. See docs/aero_api.md.
 
-    max_wake_rows (keyword, not a scene key): cap of shed wake rows (wake.MAX_WAKE_ROWS by default)."""
+    Args:
+        spec: the aero unit's spec (fmu_common.specs.AeroUnitSpec).
+        parameters: {name: value} of tunable parameters (`tunable_parameters`), SI units; None: the defaults.
+        max_wake_rows: keyword, not a scene key: cap of shed wake rows (wake.MAX_WAKE_ROWS by default).
+    """
 
     def __init__(self, spec: AeroUnitSpec, parameters: dict | None = None, *, max_wake_rows: int = MAX_WAKE_ROWS):
         self.topology = Topology.from_spec(spec.structure)
@@ -99,23 +113,40 @@ class AeroSolver:
 
     @staticmethod
     def tunable_parameters(spec: AeroUnitSpec) -> dict:
-        """name -> (default, unit, description) of the scalars a system tool may change before a run: the
-        tunable keys of the scene's `flow` table (`fmu_common.scene_schema.tunable_parameters`)."""
+        """The scalars a system tool may change before a run.
+
+        The tunable keys of the scene's `flow` table (`fmu_common.scene_schema.tunable_parameters`).
+
+        Args:
+            spec: the aero unit's spec.
+
+        Returns:
+            {name: (default, unit, description)}.
+        """
         return dict(spec.parameters)
 
     # ---------------------------------------------------------------- stepping
     @property
     def time(self) -> float:
+        """Time of the current state, s."""
         return self.state.time
 
     @property
     def lattice(self):
+        """The model's lattice (aero_fmu.lattice.Lattice)."""
         return self.model.lattice
 
     def advance(self, t_end: float, e, de) -> None:
-        """The aero state at t_end for the coordinates e and rates de at t_end (docs/aero_api.md): one model
-        step, or with aero.step k substeps on interpolated inputs (module docstring). On an error the state
-        is unchanged."""
+        """The aero state at t_end for the coordinates and rates at t_end (docs/aero_api.md).
+
+        One model step, or with aero.step k substeps on interpolated inputs (module docstring). On an error the state is
+        unchanged.
+
+        Args:
+            t_end: time to reach, s.
+            e: (n,) exchanged coordinates at t_end, m and 1, global frame.
+            de: (n,) their rates, per s.
+        """
         n = self.topology.n_coordinates
         e, de = checked_input("e", e, n, self.state.time), checked_input("de", de, n, self.state.time)
         t_end = float(t_end)
@@ -176,5 +207,9 @@ class AeroSolver:
         return AeroState(self.state.copy(), _copied(self.inputs))
 
     def set_state(self, state: AeroState) -> None:
-        """Restore a state from get_state() (copied: the caller's object stays its own)."""
+        """Restore a state from get_state() (copied: the caller's object stays its own).
+
+        Args:
+            state: what get_state() returned.
+        """
         self.state, self.inputs = state.model.copy(), _copied(state.inputs)

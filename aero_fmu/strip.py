@@ -44,14 +44,22 @@ from .loads import Loads, resultants, zero_loads
 
 
 def aspect_ratio(topology) -> float:
-    """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of length x chord (m^2)."""
+    """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of length x chord (m^2).
+
+    Args:
+        topology: the aero unit's topology.
+    """
     bodies = topology.bodies.values()
     span = sum(b.length for b in bodies)
     return span ** 2 / sum(b.length * b.chord for b in bodies)
 
 
 def helmbold_factor(aspect: float) -> float:
-    """Helmbold's lift slope of a wing of aspect ratio A over the 2D 2 pi: A / (2 + sqrt(A^2 + 4))."""
+    """Helmbold's lift slope of a wing of aspect ratio A over the 2D 2 pi: A / (2 + sqrt(A^2 + 4)).
+
+    Args:
+        aspect: A, the aspect ratio.
+    """
     return aspect / (2.0 + np.sqrt(aspect ** 2 + 4.0))
 
 
@@ -63,11 +71,18 @@ class StripState:
     loads: Loads
 
     def copy(self):
+        """A copy that shares no array with this state."""
         return StripState(self.time, self.started, self.loads.copy())
 
 
 class StripTheory:
-    """Quasi-steady strip theory on N strips per body (module docstring)."""
+    """Quasi-steady strip theory on N strips per body (module docstring).
+
+    Args:
+        topology: the aero unit's topology.
+        spanwise: N, strips per body.
+        span_correction: "helmbold": the lift slope scaled by `helmbold_factor`; any other value: 2 pi.
+    """
 
     def __init__(self, topology, spanwise, span_correction="helmbold"):
         self.topology = topology
@@ -76,15 +91,30 @@ class StripTheory:
                                   else 1.0)
 
     def initial_state(self) -> StripState:
+        """The state at rest: time 0, not started, no loads."""
         return StripState(0.0, False, zero_loads(self.lattice, self.topology.n_coordinates))
 
     def vortex_geometry(self, state: StripState, direction) -> dict:
-        """No vortex system: every entry of `UVLM.vortex_geometry` None."""
+        """No vortex system: every entry of `UVLM.vortex_geometry` None.
+
+        Args:
+            state: the strip state.
+            direction: (3,) unit free-stream direction, global frame.
+        """
         return {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
 
     def advance(self, state, t_end, E, dE, U, density, direction) -> StripState:
-        """Strip forces at t_end for E, dE (n_coordinates,), free stream U (3,) m/s, density kg/m^3, unit
-        free-stream direction (3,). Memoryless: only the current E, dE matter."""
+        """Strip forces at t_end. Memoryless: only the current E, dE matter.
+
+        Args:
+            state: the state at the previous time.
+            t_end: time to reach, s.
+            E: (n,) exchanged coordinates at t_end, m and 1, global frame.
+            dE: (n,) their rates, per s.
+            U: (3,) free stream, m/s, global frame.
+            density: air density, kg/m^3.
+            direction: (3,) unit free-stream direction, global frame.
+        """
         lat = self.lattice
         geometry = lat.geometry(E)
         relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)    # V_rel (P, 3)

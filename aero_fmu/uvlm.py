@@ -93,16 +93,26 @@ class UVLMState:
     loads: Loads
 
     def copy(self):
+        """A copy that shares no array with this state."""
         return UVLMState(self.time, self.started, self.gamma.copy(), tuple(g.copy() for g in self.history),
                          tuple(self.steps), self.corners.copy(), None if self.wake is None else self.wake.copy(),
                          self.loads.copy())
 
 
 def circulation_rate(gamma, history, steps):
-    """dGamma/dt (n_panels,) m^2/s^2 at t_n from Gamma(t_n) and history = (Gamma(t_{n-1}), Gamma(t_{n-2})),
-    steps = (h1, h2) = (t_n - t_{n-1}, t_{n-1} - t_{n-2}): the derivative of the quadratic through the
-    three (second-order backward difference, variable steps; 3/2, -2, 1/2 over h for equal steps), the
-    first-order difference if h2 = 0, None if h1 = 0 (no previous step)."""
+    """dGamma/dt at t_n from Gamma(t_n) and the two previous circulations.
+
+    The derivative of the quadratic through the three (second-order backward difference, variable steps; 3/2, -2,
+    1/2 over h for equal steps), the first-order difference if h2 = 0.
+
+    Args:
+        gamma: (n_panels,) Gamma(t_n), m^2/s.
+        history: (Gamma(t_{n-1}), Gamma(t_{n-2})), each (n_panels,) m^2/s.
+        steps: (h1, h2) = (t_n - t_{n-1}, t_{n-1} - t_{n-2}), s.
+
+    Returns:
+        (n_panels,) m^2/s^2, or None if h1 = 0 (no previous step).
+    """
     (g1, g2), (h1, h2) = history, steps
     if h1 <= 0:
         return None
@@ -113,9 +123,18 @@ def circulation_rate(gamma, history, steps):
 
 
 class UVLM:
-    """UVLM of a topology: M chordwise x N spanwise rings per body, the WakeModel `wake` (FLAT, PRESCRIBED or
-    FREE), truncated at wake_length chords (inf: never; flat: semi-infinite legs), at most max_wake_rows
-    shed rows. The solver itself is stateless apart from the reusable factorization."""
+    """UVLM of a topology: M chordwise x N spanwise rings per body.
+
+    The solver itself is stateless apart from the reusable factorization.
+
+    Args:
+        topology: the aero unit's topology.
+        chordwise: M, rings per body along the chord.
+        spanwise: N, rings per body along the span.
+        wake: the WakeModel (FLAT, PRESCRIBED or FREE).
+        wake_length: truncation of the wake, chords (inf: never; flat: semi-infinite legs).
+        max_wake_rows: at most this many shed rows.
+    """
 
     def __init__(self, topology, chordwise, spanwise, wake=PRESCRIBED, wake_length=np.inf,
                  max_wake_rows=wakes.MAX_WAKE_ROWS):
@@ -132,15 +151,25 @@ class UVLM:
         self.wake_core = wakes.WAKE_CORE_FRACTION * smallest
 
     def initial_state(self) -> UVLMState:
+        """The state at rest: time 0, not started, zero circulation, no wake."""
         n, lat = self.lattice.n_panels, self.lattice
         return UVLMState(0.0, False, np.zeros(n), (np.zeros(n), np.zeros(n)), (0.0, 0.0),
                          np.zeros((lat.n_corners, 3)), None, zero_loads(lat, self.topology.n_coordinates))
 
     # ------------------------------------------------------------------ one call
     def advance(self, state: UVLMState, t_end, E, dE, U, density, direction) -> UVLMState:
-        """The state at t_end (see the module docstring). E, dE (n_coordinates,); U (3,) m/s the free
-        stream; density kg/m^3; direction (3,) the unit free-stream direction (the flat wake's legs, the
-        drag axis; defined also when |U| = 0)."""
+        """The state at t_end (see the module docstring).
+
+        Args:
+            state: the state at the previous time (unchanged).
+            t_end: time to reach, s.
+            E: (n,) exchanged coordinates at t_end, m and 1, global frame.
+            dE: (n,) their rates, per s.
+            U: (3,) the free stream, m/s, global frame.
+            density: air density, kg/m^3.
+            direction: (3,) the unit free-stream direction (the flat wake's legs, the drag axis; defined also when
+                |U| = 0), global frame.
+        """
         lat = self.lattice
         dt = float(t_end) - state.time
         geometry = lat.geometry(E)
@@ -169,10 +198,17 @@ class UVLM:
                          tuple(float(h) for h in steps), geometry.corners, wake, loads)
 
     def vortex_geometry(self, state: UVLMState, direction) -> dict:
-        """The vortex system of `state` for pictures (arrays copied; m, global frame): "rings" the bound ring
-        corners (B, M + 1, N + 1, 3), "wake", "wake_gamma" a shed wake's corners and circulations (m^2/s),
-        "legs" the flat wake's (unit `direction` (3,), length (B,) m); None where there is none (before the
-        first step: all)."""
+        """The vortex system of `state` for pictures (arrays copied; m, global frame).
+
+        Args:
+            state: the UVLM state.
+            direction: (3,) unit free-stream direction, global frame.
+
+        Returns:
+            {"rings": the bound ring corners (B, M + 1, N + 1, 3), "wake", "wake_gamma": a shed wake's corners and
+            circulations (m^2/s), "legs": the flat wake's (unit `direction` (3,), length (B,) m)}; None where there is
+            none (before the first step: all).
+        """
         out = {"rings": None, "wake": None, "wake_gamma": None, "legs": None}
         if not state.started:
             return out

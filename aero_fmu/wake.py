@@ -53,28 +53,41 @@ class ShedWake:
 
     @classmethod
     def empty(cls, head):
-        """No rings yet: only the head row at the trailing segments `head` (B, N + 1, 3)."""
+        """No rings yet: only the head row.
+
+        Args:
+            head: (B, N + 1, 3) the trailing segments' corners, m, global frame.
+        """
         head = np.asarray(head, dtype=float)
         return cls(head[:, None].copy(), np.zeros((head.shape[0], 0, head.shape[1] - 1)))
 
     @property
     def n_rows(self):
+        """R, the rows of rings shed."""
         return self.gamma.shape[1]
 
     @property
     def n_panels(self):
+        """B R N, the rings of the wake."""
         return self.gamma.size
 
     def copy(self):
+        """A copy that shares no array with this wake."""
         return ShedWake(self.corners.copy(), self.gamma.copy())
 
 
 def segments(wake: ShedWake):
-    """(starts (S, 3), ends (S, 3), circulations (S,), head (S,) bool) of the wake's unique segments.
+    """The wake's unique segments.
 
     Spanwise segment (r, j) -> (r, j+1), r = 0..R: Gamma_{r-1,j} - Gamma_{r,j} (zero outside);
     chordwise segment (r, j) -> (r+1, j), j = 0..N: Gamma_{r,j} - Gamma_{r,j-1} (zero outside).
     `head` marks the spanwise segments of row 0, which lie on the bound trailing segments.
+
+    Args:
+        wake: the ShedWake.
+
+    Returns:
+        (starts (S, 3) m, ends (S, 3) m, circulations (S,) m^2/s, head (S,) bool), global frame.
     """
     c, g = wake.corners, wake.gamma
     B, R, N = g.shape
@@ -93,17 +106,34 @@ def segments(wake: ShedWake):
 
 
 def live_segments(wake: ShedWake):
-    """(starts (S, 3), ends (S, 3), circulations (S,)) of the wake's unique segments (`segments`) that carry a
-    circulation (not, e.g., the inner trailing legs in 2D flow)."""
+    """The wake's unique segments (`segments`) that carry a circulation (not, e.g., the inner trailing legs in 2D flow).
+
+    Args:
+        wake: the ShedWake.
+
+    Returns:
+        (starts (S, 3) m, ends (S, 3) m, circulations (S,) m^2/s), global frame.
+    """
     starts, ends, circulation, _ = segments(wake)
     live = circulation != 0.0
     return starts[live], ends[live], circulation[live]
 
 
 def velocity(points, wake: ShedWake, core, head_core):
-    """Velocity (P, 3) m/s induced by the wake at points (P, 3), Otsuka et al. 2019, Eq. (19) with a Scully core (m);
-    the head row's spanwise segments with `head_core` (the bound core, so that they cancel the bound trailing
-    segments they lie on exactly in steady flow)."""
+    """Velocity induced by the wake at points, with a Scully core.
+
+    Otsuka et al. 2019, Eq. 19
+
+    Args:
+        points: (P, 3) m, global frame.
+        wake: the ShedWake.
+        core: Scully core radius, m.
+        head_core: the core of the head row's spanwise segments, m: the bound core, so that they cancel the
+            bound trailing segments they lie on exactly in steady flow.
+
+    Returns:
+        (P, 3) m/s, global frame.
+    """
     if wake.n_rows == 0:
         return np.zeros((len(points), 3))
     starts, ends, circulation, head = segments(wake)
@@ -113,24 +143,40 @@ def velocity(points, wake: ShedWake, core, head_core):
 
 
 def shed(wake: ShedWake, head, head_gamma, displacement) -> ShedWake:
-    """Convect every corner by `displacement` (B, R + 1, N + 1, 3) or (3,) m, then put a new ring in front:
-    from the new head row `head` (B, N + 1, 3) to the convected old head, with circulation `head_gamma`
-    (B, N), the trailing-edge bound rings' circulation of the previous step (Kutta condition)."""
+    """Convect every corner, then put a new ring in front (Kutta condition).
+
+    Args:
+        wake: the ShedWake.
+        head: (B, N + 1, 3) the new head row, m, global frame.
+        head_gamma: (B, N) the new ring's circulation, m^2/s: the trailing-edge bound rings' circulation of the
+            previous step.
+        displacement: (B, R + 1, N + 1, 3) or (3,) convection of the corners, m, global frame.
+    """
     moved = wake.corners + displacement
     return ShedWake(np.concatenate([np.asarray(head, float)[:, None], moved], axis=1),
                     np.concatenate([np.asarray(head_gamma, float)[:, None], wake.gamma], axis=1))
 
 
 def with_head(wake: ShedWake, head) -> ShedWake:
-    """The same wake with its head row moved to `head` (B, N + 1, 3) (a step repeated at the same time)."""
+    """The same wake with its head row moved (a step repeated at the same time).
+
+    Args:
+        wake: the ShedWake.
+        head: (B, N + 1, 3) the head row, m, global frame.
+    """
     corners = wake.corners.copy()
     corners[:, 0] = head
     return ShedWake(corners, wake.gamma.copy())
 
 
 def truncate(wake: ShedWake, max_length, max_rows=MAX_WAKE_ROWS) -> ShedWake:
-    """Drop the rings whose back row lies farther than `max_length` (B,) m (L_w c per body) from the head
-    row, keeping at least one and at most `max_rows` rings (module docstring)."""
+    """Drop the rings whose back row lies too far from the head row, keeping at least one (module docstring).
+
+    Args:
+        wake: the ShedWake.
+        max_length: (B,) L_w c per body, m.
+        max_rows: at most this many rings.
+    """
     R = wake.n_rows
     if R == 0:
         return wake

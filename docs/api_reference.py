@@ -4,7 +4,8 @@
     .venv/bin/python docs/api_reference.py [--out DIR]
 
 writes DIR/index.html (default build/api/, which git ignores) and one page per module of fmu_common,
-structure_fmu, aero_fmu and orchestrator with its sub-packages; docstrings are read as Markdown. No module is
+structure_fmu, aero_fmu and orchestrator with its sub-packages; docstrings are read as Markdown with Google-style
+sections (Args:, Returns:; docs/architecture.md, "Docstrings"). No module is
 left out: pdoc imports each one (the slave scripts with pythonfmu; orchestrator.build.import_trace, a script
 run as `python -I import_trace.py`, only defines functions when imported) but the packages' ``__main__``
 (``python -m orchestrator``), which runs the command line when imported and which pdoc never documents.
@@ -56,7 +57,7 @@ def build(out: Path) -> tuple[list[str], list[str]]:
 
     if out.exists():
         shutil.rmtree(out)      # pages of modules since removed or renamed would stay
-    pdoc.render.configure(docformat="markdown", footer_text="wingsim")
+    pdoc.render.configure(docformat="google", footer_text="wingsim")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

@@ -315,6 +315,11 @@ class SolverSlave(Fmi2Slave):
 
     # ---- FMI calls: none raises ------------------------------------------------------------------
     def get_real(self, vrs):
+        """fmi2GetReal: the values of Real variables; NaN (and the refusal logged) for a reference that is not one.
+
+        Args:
+            vrs: value references.
+        """
         key = ("get", tuple(vrs))
         idx = self._checked_references.get(key)
         if idx is None:
@@ -330,21 +335,54 @@ class SolverSlave(Fmi2Slave):
         return self._real[idx].tolist()
 
     def get_integer(self, vrs):
+        """fmi2GetInteger: the unit has no Integer variable; 0 and the refusal logged for each reference.
+
+        Args:
+            vrs: value references.
+        """
         return self._get_typed("fmi2GetInteger", Integer, vrs, int, 0)
 
     def get_boolean(self, vrs):
+        """fmi2GetBoolean: the unit has no Boolean variable; False and the refusal logged for each reference.
+
+        Args:
+            vrs: value references.
+        """
         return self._get_typed("fmi2GetBoolean", Boolean, vrs, bool, False)
 
     def get_string(self, vrs):
+        """fmi2GetString: the String variables' values (topology_hash); "" and the refusal logged for other references.
+
+        Args:
+            vrs: value references.
+        """
         return self._get_typed("fmi2GetString", String, vrs, str, "")
 
     def set_integer(self, vrs, values):
+        """fmi2SetInteger: refused, saying why (the unit has no settable Integer).
+
+        Args:
+            vrs: value references.
+            values: their values (ignored).
+        """
         self._refuse_set("fmi2SetInteger", Integer, vrs)
 
     def set_boolean(self, vrs, values):
+        """fmi2SetBoolean: refused, saying why (the unit has no settable Boolean).
+
+        Args:
+            vrs: value references.
+            values: their values (ignored).
+        """
         self._refuse_set("fmi2SetBoolean", Boolean, vrs)
 
     def set_string(self, vrs, values):
+        """fmi2SetString: refused, saying why (the String topology_hash is a constant).
+
+        Args:
+            vrs: value references.
+            values: their values (ignored).
+        """
         self._refuse_set("fmi2SetString", String, vrs)
 
     def _get_typed(self, call: str, kind: type, vrs, convert, neutral) -> list:
@@ -375,6 +413,12 @@ class SolverSlave(Fmi2Slave):
         self._error(f"{self.label}: {call} refused: {'; '.join(reasons)}; nothing was set")
 
     def set_real(self, vrs, values):
+        """fmi2SetReal: set inputs and, before initialization ends, parameters; refused (logged, nothing set) otherwise.
+
+        Args:
+            vrs: value references.
+            values: their values, in the variables' units.
+        """
         if self._phase == "terminated":
             self._refused_in_phase("fmi2SetReal")
             return
@@ -404,6 +448,13 @@ class SolverSlave(Fmi2Slave):
             self._error(f"{self.label}: fmi2SetReal refused: {type(exc).__name__}: {exc}; nothing was set")
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        """fmi2SetupExperiment: take the start time; refused (logged) out of phase or for a start time not finite.
+
+        Args:
+            start_time: the FMI start time, s.
+            stop_time: ignored (the scene's time.stop is the default experiment's).
+            tolerance: ignored.
+        """
         if self._refused_in_phase("fmi2SetupExperiment"):
             return
         t0 = float(start_time) if isinstance(start_time, (int, float)) else math.nan
@@ -414,10 +465,12 @@ class SolverSlave(Fmi2Slave):
         self._t0 = t0
 
     def enter_initialization_mode(self):
+        """fmi2EnterInitializationMode; refused (logged) out of phase."""
         if not self._refused_in_phase("fmi2EnterInitializationMode"):
             self._phase = "initialization"
 
     def exit_initialization_mode(self):
+        """fmi2ExitInitializationMode: rebuild the solver if the parameters changed; refused (logged) out of phase."""
         if self._refused_in_phase("fmi2ExitInitializationMode"):
             return
         self._phase = "stepping"
@@ -432,6 +485,7 @@ class SolverSlave(Fmi2Slave):
             self._fail(f"{self.label}: the parameters were refused: {type(exc).__name__}: {exc}")
 
     def terminate(self):
+        """fmi2Terminate; refused (logged) out of phase."""
         if not self._refused_in_phase("fmi2Terminate"):
             self._phase = "terminated"
 

@@ -31,6 +31,12 @@ class StateUnpickler(pickle.Unpickler):
         self.packages = packages
 
     def find_class(self, module, name):
+        """The global `module.name` if a unit state may hold it; UnpicklingError otherwise.
+
+        Args:
+            module: the global's module.
+            name: its name in the module.
+        """
         if (module, name) in _NUMPY_GLOBALS:
             return super().find_class(module, name)
         if module.split(".")[0] in self.packages and module in sys.modules and "." not in name:

@@ -21,6 +21,7 @@ class UnitReal(Real):
         self.unit = unit
 
     def to_xml(self):
+        """pythonfmu's ScalarVariable element with the unit attribute on its Real."""
         node = super().to_xml()
         if self.unit:
             node.find("Real").set("unit", self.unit)

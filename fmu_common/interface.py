@@ -257,6 +257,7 @@ class Layout:
 
     @property
     def reals(self) -> tuple[Variable, ...]:
+        """The Real variables, in value-reference order."""
         return tuple(v for v in self.variables if v.type == "Real")
 
     def where(self, row_type: type) -> slice:

@@ -50,18 +50,47 @@ EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chor
 
 
 def positive(unit, doc, default=REQUIRED, **options):
+    """A Number > 0.
+
+    Args:
+        unit: its unit.
+        doc: its one-line description.
+        default: REQUIRED, or the value when not given.
+        **options: more Number fields (tunable, inf, why).
+    """
     return Number(unit, default, doc, low=0.0, low_open=True, **options)
 
 
 def non_negative(unit, doc, default=REQUIRED, tunable=False):
+    """A Number >= 0.
+
+    Args:
+        unit: its unit.
+        doc: its one-line description.
+        default: REQUIRED, or the value when not given.
+        tunable: whether it is an FMI parameter.
+    """
     return Number(unit, default, doc, low=0.0, tunable=tunable)
 
 
 def fraction(doc, default):
+    """A Number in [0, 1], a fraction of the chord from the leading edge.
+
+    Args:
+        doc: its one-line description.
+        default: the value when not given.
+    """
     return Number("fraction of chord from the leading edge", default, doc, low=0.0, high=1.0)
 
 
 def angle(doc, default, limit=180.0):
+    """A Number of degrees in (-limit, limit).
+
+    Args:
+        doc: its one-line description.
+        default: the value when not given, deg.
+        limit: deg.
+    """
     return Number("deg", default, doc, low=-limit, high=limit, low_open=True, high_open=True)
 
 

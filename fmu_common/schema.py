@@ -60,6 +60,11 @@ def is_number(value: Any) -> bool:
 
 
 def is_name(value: Any) -> bool:
+    """True for a string that NAME_PATTERN matches whole.
+
+    Args:
+        value: any value.
+    """
     return isinstance(value, str) and NAME_PATTERN.fullmatch(value) is not None
 
 
@@ -96,9 +101,16 @@ class Key:
         return TUNABLE if self.tunable else value
 
     def allowed(self) -> str:
+        """What the key accepts, as an error message says it."""
         raise NotImplementedError
 
     def check(self, key: str, value: Any) -> Any:
+        """The checked value; SceneError naming `key` for one the key does not accept.
+
+        Args:
+            key: the dotted key, for the error.
+            value: the value given (not None).
+        """
         raise NotImplementedError
 
     def resolve(self, key: str, value: Any) -> Any:
@@ -130,6 +142,7 @@ class Number(Key):
                 and (self.high is None or (x < self.high if self.high_open else x <= self.high)))
 
     def range_text(self) -> str:
+        """The range accepted, e.g. "a number in [0, 1]"."""
         if self.low is not None and self.high is not None:
             return (f"a number in {'(' if self.low_open else '['}{_fmt(self.low)}, {_fmt(self.high)}"
                     f"{')' if self.high_open else ']'}")
@@ -175,6 +188,8 @@ class Integer(Key):
 
 @dataclass(frozen=True)
 class Choice(Key):
+    """One of `options`, a string."""
+
     options: tuple[str, ...] = ()
 
     type_name = "string"
@@ -190,6 +205,8 @@ class Choice(Key):
 
 @dataclass(frozen=True)
 class Text(Key):
+    """A string."""
+
     type_name = "string"
 
     def allowed(self) -> str:
@@ -256,6 +273,7 @@ class Table:
     type_name = "table"
 
     def allowed(self) -> str:
+        """What the table accepts, as an error message says it."""
         return f"a table with keys {', '.join(self.keys)}"
 
     def resolve(self, key: str, value: Any) -> dict:
@@ -277,11 +295,22 @@ class Table:
         return out
 
     def tunables(self, key: str, value: dict):
+        """(dotted key, declaration, value) of the tunable keys in the resolved table.
+
+        Args:
+            key: the table's dotted key ("" at the top level).
+            value: the resolved table.
+        """
         for name, spec in self.keys.items():
             if name in value:
                 yield from spec.tunables(f"{key}.{name}" if key else name, value[name])
 
     def blanked(self, value: dict) -> dict:
+        """`value` with the values of its tunable keys replaced by TUNABLE.
+
+        Args:
+            value: the resolved table.
+        """
         return {name: self.keys[name].blanked(v) if name in self.keys else v for name, v in value.items()}
 
 
@@ -299,12 +328,20 @@ class Variants:
 
     @property
     def selector_key(self) -> Choice:
+        """The selector as a Choice among the variants."""
         return Choice(default=self.default, options=tuple(self.tables), doc=self.doc)
 
     def allowed(self) -> str:
+        """What the table accepts, as an error message says it."""
         return f"a table whose {self.selector} is {self.selector_key.allowed()}"
 
     def resolve(self, key: str, value: Any) -> dict:
+        """The resolved table of the variant its selector names; SceneError naming the key otherwise.
+
+        Args:
+            key: the table's dotted key.
+            value: the table given.
+        """
         if not isinstance(value, dict):
             raise SceneError(key, value, self.allowed())
         kind = self.selector_key.resolve(f"{key}.{self.selector}", value.get(self.selector))
@@ -313,9 +350,20 @@ class Variants:
         return resolved
 
     def tunables(self, key: str, value: dict):
+        """(dotted key, declaration, value) of the tunable keys in the resolved table.
+
+        Args:
+            key: the table's dotted key.
+            value: the resolved table.
+        """
         yield from self.tables[value[self.selector]].tunables(key, value)
 
     def blanked(self, value: dict | None) -> dict | None:
+        """`value` with the values of its tunable keys replaced by TUNABLE (None stays None).
+
+        Args:
+            value: the resolved table, or None.
+        """
         return None if value is None else self.tables[value[self.selector]].blanked(value)
 
 
@@ -333,10 +381,17 @@ class Tables:
     type_name = "array of tables"
 
     def allowed(self) -> str:
+        """What the array accepts, as an error message says it."""
         least = f" (at least {self.min_items})" if self.min_items else ""
         return f"an array of tables, one per {self.what}{least}"
 
     def resolve(self, key: str, value: Any) -> list[dict]:
+        """The resolved items; SceneError naming the key for a wrong array, item or repeated name.
+
+        Args:
+            key: the array's dotted key.
+            value: the array given (None: the default).
+        """
         if value is None:
             if self.default is REQUIRED:
                 raise SceneError(key, MISSING, "required; " + self.allowed())
@@ -358,8 +413,19 @@ class Tables:
         return out
 
     def tunables(self, key: str, value: list):
+        """(dotted key, declaration, value) of the tunable keys in the resolved items.
+
+        Args:
+            key: the array's dotted key.
+            value: the resolved items.
+        """
         for index, item in enumerate(value):
             yield from self.item.tunables(f"{key}.{item_label(index, item)}", item)
 
     def blanked(self, value: list) -> list:
+        """`value` with the values of its items' tunable keys replaced by TUNABLE.
+
+        Args:
+            value: the resolved items.
+        """
         return [self.item.blanked(item) for item in value]

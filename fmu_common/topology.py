@@ -195,10 +195,12 @@ class Topology:
     # ------------------------------------------------------------------ queries
     @property
     def n_nodes(self):
+        """Number of nodes."""
         return len(self.node_names)
 
     @property
     def n_coordinates(self):
+        """n = 9 n_nodes, the length of the exchanged coordinates E."""
         return 9 * self.n_nodes
 
     @property

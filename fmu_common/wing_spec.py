@@ -45,6 +45,12 @@ class SectionSpec:
 
     @classmethod
     def from_table(cls, key: str, table: dict) -> "SectionSpec":
+        """The spec of a resolved section table.
+
+        Args:
+            key: the table's dotted key, for errors.
+            table: the resolved section table, SI units.
+        """
         return cls(key, table["chord"], table["axis_position"], table["torsional_rigidity"], table["thickness"],
                    table["density"], table["youngs_modulus"], table["axial_stiffness"],
                    table["bending_stiffness_flap"], table["bending_stiffness_chord"], table["mass_per_length"],

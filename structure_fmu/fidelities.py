@@ -32,45 +32,214 @@ class StructuralModel(Protocol):
     mass_E: np.ndarray                 # (n, n) the constant mass matrix on E (Otsuka et al. 2019, Eq. 5)
 
     @property
-    def constraint_count(self) -> int: ...
+    def constraint_count(self) -> int:
+        """Constraint rows the integrators solve, m (the independent ones)."""
 
-    def initial_coordinates(self) -> np.ndarray: ...
+    def initial_coordinates(self) -> np.ndarray:
+        """q at t = 0.
+
+        Returns:
+            (n_q,) generalized coordinates, SI (m, 1 or rad per coordinate).
+        """
 
     def coordinates(self, q, dq, t) -> tuple:
-        """(E, dE/dt, p'' or None) at q, q', t."""
+        """The exchanged coordinates and rates at a state, and the prescribed acceleration.
 
-    def mass_matrix(self, q, t) -> np.ndarray: ...
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates q', per s.
+            t: time, s.
 
-    def solve_mass(self, q, t, b) -> np.ndarray: ...
+        Returns:
+            (E (n,), dE/dt (n,), p'' (3 n_prescribed,) or None when nothing prescribed moves), global frame.
+        """
+
+    def mass_matrix(self, q, t) -> np.ndarray:
+        """M_q, the mass matrix on q.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+
+        Returns:
+            (n_q, n_q) SI.
+        """
+
+    def solve_mass(self, q, t, b) -> np.ndarray:
+        """M_q^-1 b.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            b: (n_q,) or (n_q, k) right-hand sides.
+
+        Returns:
+            the shape of b.
+        """
 
     def force_q(self, q, dq, t, Q, latched) -> tuple:
-        """(the reduced force (n_q,), E, dE, p'') for the generalized force Q (n,) on E."""
+        """The reduced generalized force on q and the exchanged coordinates it was computed at.
 
-    def external_force_E(self, t, Q) -> np.ndarray: ...
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched} of the state (State.latched).
 
-    def constraint_residual(self, q, E) -> np.ndarray: ...
+        Returns:
+            (the reduced force (n_q,), E (n,), dE (n,), p'' or None).
+        """
 
-    def constraint_violation(self, q, E) -> float: ...
+    def external_force_E(self, t, Q) -> np.ndarray:
+        """The external generalized force on E: the point loads and Q.
 
-    def constraint_jacobian(self, q, E) -> np.ndarray: ...
+        Args:
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
 
-    def constraint_rate(self, q, dq, E, dE) -> np.ndarray: ...
+        Returns:
+            (n,) N and N m, global frame.
+        """
 
-    def constraint_gamma(self, q, dq, E, dE, ddp) -> np.ndarray: ...
+    def constraint_residual(self, q, E) -> np.ndarray:
+        """Phi, the constraint rows the integrators solve.
 
-    def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p) -> tuple: ...
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
 
-    def iteration_pattern(self) -> np.ndarray: ...
+        Returns:
+            (m,) one value per row, in the row's unit.
+        """
 
-    def acceleration_E(self, q, dq, ddq, t) -> np.ndarray: ...
+    def constraint_violation(self, q, E) -> float:
+        """Largest |Phi| of every row, redundant ones included (the monitor).
 
-    def velocity_map(self, q, t) -> np.ndarray: ...
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+        """
 
-    def rates_of(self, q, dE, t) -> np.ndarray: ...
+    def constraint_jacobian(self, q, E) -> np.ndarray:
+        """Phi_q, the constraint Jacobian.
 
-    def fold_angles(self, q, E) -> dict: ...
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
 
-    def potential_energy(self, q, E, latched, angles) -> float: ...
+        Returns:
+            (m, n_q).
+        """
+
+    def constraint_rate(self, q, dq, E, dE) -> np.ndarray:
+        """dPhi/dt.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            E: (n,) the exchanged coordinates at q, global frame.
+            dE: (n,) their rates, per s.
+
+        Returns:
+            (m,) per s.
+        """
+
+    def constraint_gamma(self, q, dq, E, dE, ddp) -> np.ndarray:
+        """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            E: (n,) the exchanged coordinates at q, global frame.
+            dE: (n,) their rates, per s.
+            ddp: (3 n_prescribed,) the prescribed acceleration p'', or None.
+
+        Returns:
+            (m,) per s^2.
+        """
+
+    def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p) -> tuple:
+        """Generalized-alpha's iteration matrix without the constraint rows.
+
+        Peng et al. 2019, Fig. 3
+
+        Args:
+            t: time, s.
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            latched: {hinge: latched} of the state.
+            lam: (m,) the constraint multipliers.
+            beta_p: beta', 1/s^2, the factor on the mass matrix.
+            gamma_p: gamma', 1/s, the factor on the damping.
+
+        Returns:
+            (S (n_q, n_q), E (n,)).
+        """
+
+    def iteration_pattern(self) -> np.ndarray:
+        """The entries of the iteration matrix [[S, G^T], [G, 0]] that can be nonzero.
+
+        Returns:
+            (n_q + m, n_q + m) bool.
+        """
+
+    def acceleration_E(self, q, dq, ddq, t) -> np.ndarray:
+        """d2E/dt2 for the generalized accelerations q''.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            ddq: (n_q,) their accelerations, per s^2.
+            t: time, s.
+
+        Returns:
+            (n,) per s^2, global frame.
+        """
+
+    def velocity_map(self, q, t) -> np.ndarray:
+        """dE/dq.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+
+        Returns:
+            (n, n_q).
+        """
+
+    def rates_of(self, q, dE, t) -> np.ndarray:
+        """The q' whose exchanged rates come closest to dE (least squares).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dE: (n,) wanted rates of E, per s, global frame.
+            t: time, s.
+
+        Returns:
+            (n_q,) per s.
+        """
+
+    def fold_angles(self, q, E) -> dict:
+        """The fold angle of each revolute hinge.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+
+        Returns:
+            {hinge: fold angle, rad}.
+        """
+
+    def potential_energy(self, q, E, latched, angles) -> float:
+        """Elastic, gravity and actuator spring potential, J.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+            latched: {hinge: latched} of the state.
+            angles: {hinge: fold angle, rad} at E.
+        """
 
 
 MODELS: dict[str, type] = {"prescribed": StructureModel, "rigid": StructureModel, "flexible": StructureModel,
@@ -79,6 +248,10 @@ MODELS: dict[str, type] = {"prescribed": StructureModel, "rigid": StructureModel
 
 
 def model_class(fidelity: Fidelity) -> type:
-    """The model class of `fidelity` (the one choice made by its name)."""
+    """The model class of `fidelity` (the one choice made by its name).
+
+    Args:
+        fidelity: the structure's fidelity (fmu_common.choices.Fidelity).
+    """
     return MODELS[fidelity.name]
 

@@ -42,6 +42,7 @@ class State:
     work: float = 0.0            # J, work of the external forces since t = 0 (StructureSolver.advance)
 
     def copy(self):
+        """A copy that shares no array or dict with this state."""
         return replace(self, q=self.q.copy(), dq=self.dq.copy(), ddq=self.ddq.copy(), accel=self.accel.copy(),
                        multipliers=self.multipliers.copy(), latched=dict(self.latched),
                        latch_times=dict(self.latch_times))
@@ -57,7 +58,19 @@ def _schur_solve(S, b):
 
 
 def constrained_accelerations(model, t, q, dq, Q, latched):
-    """q'' and lambda from the index-1 equations by a Schur complement on the mass matrix."""
+    """q'' and lambda from the index-1 equations by a Schur complement on the mass matrix.
+
+    Args:
+        model: the StructuralModel (structure_fmu.fidelities).
+        t: time, s.
+        q: (n_q,) generalized coordinates.
+        dq: (n_q,) their rates, per s.
+        Q: (n,) generalized external force on the exchanged coordinates E, N and N m, global frame.
+        latched: {hinge: latched} (State.latched).
+
+    Returns:
+        (q'' (n_q,) per s^2, lambda (m,) the constraint multipliers).
+    """
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
     if model.constraint_count == 0:
         return model.solve_mass(q, t, F), np.zeros(0)
@@ -71,7 +84,19 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
 
 
 def project(model, t, q, dq, iterations=4, tol=1e-13):
-    """Mass-weighted projection of q onto Phi = 0 and of q' onto dPhi/dt = 0."""
+    """Mass-weighted projection of q onto Phi = 0 and of q' onto dPhi/dt = 0.
+
+    Args:
+        model: the StructuralModel (structure_fmu.fidelities).
+        t: time, s.
+        q: (n_q,) generalized coordinates.
+        dq: (n_q,) their rates, per s.
+        iterations: at most this many Newton projections of q.
+        tol: |Phi_i| below which q is on the constraints, in each row's unit.
+
+    Returns:
+        (q (n_q,), q' (n_q,)) projected.
+    """
     if model.constraint_count == 0:
         return q, dq
     for _ in range(iterations):
@@ -104,11 +129,26 @@ class RK4:
         """Nothing to forget: every step starts from the state alone."""
 
     def initialize(self, model, state, Q):
+        """The state's accelerations and multipliers at its start, from the index-1 equations.
+
+        Args:
+            model: the StructuralModel.
+            state: the State at the start; updated in place and returned.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+        """
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
         state.accel = state.ddq.copy()
         return state
 
     def step(self, model, state, h, Q):
+        """The state at t + h: one RK4 step followed by the constraint projection.
+
+        Args:
+            model: the StructuralModel.
+            state: the State at t (not modified).
+            h: step, s.
+            Q: (n,) generalized external force on E over the step, N and N m, global frame.
+        """
         t, q, v = state.t, state.q, state.dq
         f = lambda tt, qq, vv: constrained_accelerations(model, tt, qq, vv, Q, state.latched)
         half = 0.5 * h
@@ -140,7 +180,15 @@ class _NewtonDiverging(Exception):
 
 
 class GeneralizedAlpha:
-    """Generalized-alpha (Peng et al. 2019, Eqs. 23-25) for index-3 constrained systems (Arnold & Bruls)."""
+    """Generalized-alpha for index-3 constrained systems (Arnold & Bruls).
+
+    Peng et al. 2019, Eqs. 23-25
+
+    Args:
+        rho_inf: spectral radius at infinite frequency, 0 to 1 (1: no high-frequency dissipation).
+        tol: relative tolerance of the Newton iteration on q.
+        max_iterations: Newton iterations of a step before it counts as diverged.
+    """
 
     name = "generalized-alpha"
     divergence_hint = "reduce structure.step, or lower structure.rho_inf to damp high frequencies"
@@ -158,6 +206,7 @@ class GeneralizedAlpha:
         self.newton_iterations = 0   # total, for monitoring
 
     def reset(self):
+        """Forget the iteration matrix and the error estimate factor (a latch changed the forces)."""
         self._matrix, self._eta = None, 1.0
 
     @property
@@ -172,6 +221,13 @@ class GeneralizedAlpha:
         self._matrix, self._eta = saved
 
     def initialize(self, model, state, Q):
+        """The state's accelerations and multipliers at its start, from the index-1 equations.
+
+        Args:
+            model: the StructuralModel.
+            state: the State at the start; updated in place and returned.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+        """
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
         state.accel = state.ddq.copy()
         return state
@@ -186,10 +242,19 @@ class GeneralizedAlpha:
         self._matrix = (h, self._lu[1].factor(S, G, beta_p))
 
     def step(self, model, state, h, Q):
-        """The state at t + h. Newton starts from the constant-acceleration predictor; if that iteration
-        diverges it restarts from the displacement predictor with a fresh iteration matrix: a point
-        torque on short elements gives the gradient coordinates huge initial accelerations (1e8 m/s^2
-        with 15 elements per body in deploy_flexible), and h^2 q''_n then predicts a far-off state."""
+        """The state at t + h.
+
+        Newton starts from the constant-acceleration predictor; if that iteration diverges it restarts from the
+        displacement predictor with a fresh iteration matrix: a point torque on short elements gives the gradient
+        coordinates huge initial accelerations (1e8 m/s^2 with 15 elements per body in deploy_flexible), and h^2 q''_n
+        then predicts a far-off state.
+
+        Args:
+            model: the StructuralModel.
+            state: the State at t (not modified).
+            h: step, s.
+            Q: (n,) generalized external force on E over the step, N and N m, global frame.
+        """
         try:
             return self._newton(model, state, h, Q, "acceleration")
         except _NewtonDiverging:
@@ -306,11 +371,27 @@ class Integrator(Protocol):
     divergence_hint: str
     memory: object
 
-    def initialize(self, model, state: State, Q) -> State: ...
+    def initialize(self, model, state: State, Q) -> State:
+        """The state's accelerations at its start for the generalized force Q.
 
-    def step(self, model, state: State, h: float, Q) -> State: ...
+        Args:
+            model: the StructuralModel (structure_fmu.fidelities).
+            state: the State at the start.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+        """
 
-    def reset(self) -> None: ...
+    def step(self, model, state: State, h: float, Q) -> State:
+        """One step of h from a state to a new State.
+
+        Args:
+            model: the StructuralModel (structure_fmu.fidelities).
+            state: the State at t.
+            h: step, s.
+            Q: (n,) generalized external force on E over the step, N and N m, global frame.
+        """
+
+    def reset(self) -> None:
+        """Forget what is carried between steps (a latch changes the forces)."""
 
 
 INTEGRATORS = {"rk4": lambda structure: RK4(),
@@ -319,7 +400,11 @@ INTEGRATORS = {"rk4": lambda structure: RK4(),
 
 
 def integrator_for(structure) -> Integrator:
-    """The integrator the structure spec selects (structure.integrator, with its rho_inf)."""
+    """The integrator the structure spec selects (structure.integrator, with its rho_inf).
+
+    Args:
+        structure: the structure spec (fmu_common.wing_spec.StructureSpec).
+    """
     if structure.integrator not in INTEGRATORS:
         raise SceneError("structure.integrator", structure.integrator, f"one of {', '.join(map(repr, INTEGRATORS))}")
     return INTEGRATORS[structure.integrator](structure)

@@ -42,6 +42,14 @@ class Factorization:
     upper: int
 
     def solve(self, b):
+        """A^-1 b; ValueError if LAPACK's solve fails.
+
+        Args:
+            b: (n_q + m,) right-hand side.
+
+        Returns:
+            (n_q + m,) the solution.
+        """
         if self.order is None:
             x, info = dgetrs(self.lu, self.pivots, b)
         else:
@@ -62,7 +70,13 @@ class IterationLU:
     """Factorizes A (module docstring) for a model with n_q coordinates and m constraint rows."""
 
     def __init__(self, n_q, m, pattern=None):
-        """pattern: (n_q + m, n_q + m) bool, True wherever A can be nonzero (None: use the dense LU)."""
+        """How the iteration matrix A of n_q coordinates and m constraint rows is factorized.
+
+        Args:
+            n_q: number of generalized coordinates.
+            m: number of constraint rows.
+            pattern: (n_q + m, n_q + m) bool, True wherever A can be nonzero (None: use the dense LU).
+        """
         self.n_q, self.m = n_q, m
         size = n_q + m
         self.banded = False
@@ -91,8 +105,16 @@ class IterationLU:
         self._gt = (band_flat[in_gt], (j[in_gt] - n_q) * n_q + i[in_gt])
 
     def factor(self, S, G, row_scale):
-        """The LU of A for S (n_q, n_q), G (m, n_q) and b' = row_scale; numpy.linalg.LinAlgError if A is
-        singular."""
+        """The LU of A; numpy.linalg.LinAlgError if A is singular.
+
+        Args:
+            S: (n_q, n_q) the iteration matrix without the constraint rows.
+            G: (m, n_q) the constraint Jacobian, or None without constraints.
+            row_scale: b', the factor on the constraint rows.
+
+        Returns:
+            the Factorization.
+        """
         if self.banded:
             band = np.zeros(self._band_shape, order="F")
             band_view = band.reshape(-1, order="F")          # a view: the band is Fortran-contiguous

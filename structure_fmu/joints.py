@@ -29,13 +29,24 @@ def _sine_cosine(a0, a1, a2, b0, b1, b2, n0, n1, n2):
 
 
 def fold_angle(x):
-    """theta (rad) of a chord-axis hinge for x = [a, b, n] (9,), the stacked 3-vectors."""
+    """theta (rad) of a chord-axis hinge.
+
+    Args:
+        x: (9,) [a, b, n], the stacked 3-vectors.
+    """
     _, s, c = _sine_cosine(*x.tolist())
     return math.atan2(s, c)
 
 
 def fold_angle_gradient(x):
-    """(theta, d theta/dx (9,)) of a chord-axis hinge for x = [a, b, n] (9,), the stacked 3-vectors."""
+    """theta and its gradient for a chord-axis hinge.
+
+    Args:
+        x: (9,) [a, b, n], the stacked 3-vectors.
+
+    Returns:
+        (theta rad, d theta/dx (9,)).
+    """
     a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
     (p0, p1, p2), s, c = _sine_cosine(*values)
     w = 1.0 / (s * s + c * c)
@@ -52,6 +63,12 @@ def fold_angle_gradient(x):
 # Plain float arithmetic on 3-tuples below (also the joint monitors'): on single 3-vectors it is several times
 # faster than numpy calls.
 def dot(a, b):
+    """a . b of two 3-vectors by their components (cheaper than numpy's on single vectors).
+
+    Args:
+        a: (3,) vector.
+        b: (3,) vector.
+    """
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -60,14 +77,32 @@ def _cross(a, b):
 
 
 def unit_frame(rx, ry):
-    """(x = r_x / |r_x|, |r_x|, z = x x r_y) of a node with gradients r_x, r_y."""
+    """The unit frame of a node from its gradients.
+
+    Args:
+        rx: (3,) r_x, 1, global frame.
+        ry: (3,) r_y, 1, global frame.
+
+    Returns:
+        (x = r_x / |r_x| (3,), |r_x|, z = x x r_y (3,)), global frame.
+    """
     length = math.sqrt(dot(rx, rx))
     x = (rx[0] / length, rx[1] / length, rx[2] / length)
     return x, length, _cross(x, ry)
 
 
 def frame_direction(c, x, y, z):
-    """c_x x + c_y y + c_z z."""
+    """c_x x + c_y y + c_z z.
+
+    Args:
+        c: (3,) components in the frame.
+        x: (3,) first axis, global frame.
+        y: (3,) second axis, global frame.
+        z: (3,) third axis, global frame.
+
+    Returns:
+        (3,) global frame.
+    """
     c0, c1, c2 = c
     return (c0 * x[0] + c1 * y[0] + c2 * z[0], c0 * x[1] + c1 * y[1] + c2 * z[1], c0 * x[2] + c1 * y[2] + c2 * z[2])
 
@@ -82,9 +117,16 @@ def _direction_gradient(x, length, ry, c, g):
 
 
 def axis_angle_gradient(x, hinge):
-    """(theta, d theta/dx) of a revolute joint about any axis (module docstring, second form) for
-    x = [r_x^A, r_y^A, r_x^B, r_y^B] (12,) of the parent's tip node A and the child's root node B, or
-    x = [r_x^B, r_y^B] (6,) with the ground."""
+    """theta and its gradient for a revolute joint about any axis (module docstring, second form).
+
+    Args:
+        x: (12,) [r_x^A, r_y^A, r_x^B, r_y^B] of the parent's tip node A and the child's root node B, or (6,)
+            [r_x^B, r_y^B] with the ground; 1, global frame.
+        hinge: the Hinge (structure_fmu.topology).
+
+    Returns:
+        (theta rad, d theta/dx, the shape of x).
+    """
     values = x.tolist()
     ground = hinge.parent_slot is None
     rxb, ryb = values[-6:-3], values[-3:]
@@ -108,7 +150,15 @@ def axis_angle_gradient(x, hinge):
 
 
 def hinge_angle_gradient(hinge, E):
-    """(theta (rad), idx, d theta/dE[idx]) of a hinge at E: idx the distinct E indices theta depends on."""
+    """The fold angle of a hinge at E and its gradient.
+
+    Args:
+        hinge: the Hinge (structure_fmu.topology).
+        E: (n,) exchanged coordinates, global frame.
+
+    Returns:
+        (theta rad, idx (k,) the distinct E indices theta depends on, d theta/dE[idx] (k,)).
+    """
     if hinge.axis_slot is not None:
         idx = hinge_coordinates(hinge)
         theta, grad = fold_angle_gradient(E[idx])
@@ -119,7 +169,12 @@ def hinge_angle_gradient(hinge, E):
 
 
 def hinge_angle(hinge, E):
-    """theta (rad) of a hinge at E."""
+    """theta (rad) of a hinge at E.
+
+    Args:
+        hinge: the Hinge (structure_fmu.topology).
+        E: (n,) exchanged coordinates, global frame.
+    """
     if hinge.axis_slot is not None:
         return fold_angle(E[hinge_coordinates(hinge)])
     return hinge_angle_gradient(hinge, E)[0]
@@ -129,6 +184,12 @@ def actuator_torque(hinge, theta, dtheta, latched):
     """Spring actuator torque K theta + C dtheta/dt + T_const (N m), acting to decrease theta.
 
     Once latched (Otsuka et al. 2022, Sec. 5) the spring stiffness is K times latch_factor about the stop angle.
+
+    Args:
+        hinge: the Hinge with its actuator parameters.
+        theta: fold angle, rad.
+        dtheta: its rate, rad/s.
+        latched: {hinge: latched}.
     """
     if latched:
         spring = hinge.latch_factor * hinge.stiffness * (theta - hinge.stop_angle)
@@ -139,19 +200,37 @@ def actuator_torque(hinge, theta, dtheta, latched):
 
 
 def actuator_energy(hinge, theta, latched):
-    """The potential (J) of the actuator of `actuator_torque` at the fold angle theta (rad): 1/2 K theta^2 +
-    T_const theta, latched 1/2 latch_factor K (theta - stop)^2 + T_const theta (the damping C stores none)."""
+    """The potential (J) of the actuator of `actuator_torque`.
+
+    1/2 K theta^2 + T_const theta, latched 1/2 latch_factor K (theta - stop)^2 + T_const theta (the damping C stores
+    none).
+
+    Args:
+        hinge: the Hinge with its actuator parameters.
+        theta: fold angle, rad.
+        latched: {hinge: latched}.
+    """
     if latched:
         return 0.5 * hinge.latch_factor * hinge.stiffness * (theta - hinge.stop_angle) ** 2 + hinge.torque * theta
     return 0.5 * hinge.stiffness * theta**2 + hinge.torque * theta
 
 
 def actuator_terms(hinges, E, dE, latched):
-    """Per hinge, what the generalized actuator force on E is made of (Otsuka et al. 2019, Sec. II.C, virtual work
-    -torque * delta theta: the force is -torque * grad on the coordinates idx):
+    """Per hinge, what the generalized actuator force on E is made of.
 
-    (idx (k,) distinct indices into E, torque N m, its stiffness d torque / d theta N m/rad, its damping
-    d torque / d theta' N m s/rad, grad = d theta / dE[idx] (k,))."""
+    Otsuka et al. 2019, Sec. II.C: virtual work -torque * delta theta, the force is -torque * grad on the
+    coordinates idx.
+
+    Args:
+        hinges: the Hinges (structure_fmu.topology).
+        E: (n,) exchanged coordinates, global frame.
+        dE: (n,) their rates, per s.
+        latched: {hinge: latched}.
+
+    Returns:
+        per hinge with an actuator, (idx (k,) distinct indices into E, torque N m, its stiffness d torque / d theta
+        N m/rad, its damping d torque / d theta' N m s/rad, grad = d theta / dE[idx] (k,)).
+    """
     for h in hinges:
         theta, idx, grad = hinge_angle_gradient(h, E)
         torque, stiffness = actuator_torque(h, theta, float(np.dot(grad, dE[idx])), latched.get(h.name, False))
@@ -174,8 +253,14 @@ def _axis_coordinates(parent_slot, child_slot):
 
 
 def hinge_coordinates(hinge):
-    """Indices into E of the coordinates the hinge's fold angle depends on: the parent's r_x, the child's r_x
-    and the axis r_y (9,) of a chord-axis hinge, the distinct ones of [r_x^A, r_y^A, r_x^B, r_y^B] otherwise."""
+    """Indices into E of the coordinates the hinge's fold angle depends on.
+
+    The parent's r_x, the child's r_x and the axis r_y (9,) of a chord-axis hinge, the distinct ones of
+    [r_x^A, r_y^A, r_x^B, r_y^B] otherwise.
+
+    Args:
+        hinge: the Hinge (structure_fmu.topology).
+    """
     if hinge.axis_slot is not None:
         return _coordinates_of(hinge.parent_slot, hinge.child_slot, hinge.axis_slot)
     return _axis_coordinates(hinge.parent_slot, hinge.child_slot)[1]

@@ -14,6 +14,8 @@ from fmu_common.vectors import rodrigues, skew
 
 @dataclass(frozen=True)
 class Kinematics:
+    """A law's rotation R and translation h at one time, with their rates, global frame."""
+
     rotation: np.ndarray          # R (3, 3)
     omega: np.ndarray             # rad/s
     alpha: np.ndarray             # rad/s^2
@@ -30,6 +32,11 @@ class Fixed:
     pivot = np.zeros(3)
 
     def kinematics(self, t):
+        """The identity rotation and zero translation, at rest.
+
+        Args:
+            t: time, s.
+        """
         z, zz = np.zeros(3), np.zeros((3, 3))
         return Kinematics(np.eye(3), z, z, z, z, z, zz, zz)
 
@@ -53,10 +60,18 @@ class _AxisRotation:
 
 
 class SpinUp:
-    """Rotation about `axis` through `pivot` by the spin-up law of Otsuka et al. 2019, Eq. (27).
+    """Rotation about `axis` through `pivot` by the spin-up law.
+
+    Otsuka et al. 2019, Eq. 27
 
     theta = omega_s / T_s [t^2/2 + (T_s / 2 pi)^2 (cos(2 pi t / T_s) - 1)] for t < T_s,
     theta = omega_s (t - T_s / 2) afterwards.
+
+    Args:
+        axis: (3,) unit rotation axis, global frame.
+        pivot: (3,) point on the axis, m, global frame.
+        omega: omega_s, the final rate, rad/s.
+        ramp_time: T_s, s.
     """
 
     def __init__(self, axis, pivot, omega, ramp_time):
@@ -66,7 +81,11 @@ class SpinUp:
         self._still = np.zeros(3)
 
     def angle(self, t):
-        """theta, dtheta/dt, d2theta/dt2 (rad, rad/s, rad/s^2)."""
+        """theta, dtheta/dt, d2theta/dt2 (rad, rad/s, rad/s^2).
+
+        Args:
+            t: time, s.
+        """
         ws, Ts = self.omega, self.ramp_time
         if t < Ts:
             c = 2 * np.pi / Ts
@@ -76,6 +95,11 @@ class SpinUp:
         return ws * (t - Ts / 2), ws, 0.0
 
     def kinematics(self, t):
+        """The rotation by `angle(t)` about the axis.
+
+        Args:
+            t: time, s.
+        """
         z = self._still
         return self._rotation.kinematics(*self.angle(t), z, z, z)
 
@@ -85,6 +109,15 @@ class HeavePitch:
 
     h(t) = heave_amplitude sin(frequency t) (m); pitch(t) = pitch_amplitude sin(frequency t + phase) (rad).
     A constant pitch (sudden start at an angle of attack) is pitch_amplitude with frequency 0 and phase pi/2.
+
+    Args:
+        heave_axis: (3,) unit heave direction, global frame.
+        pitch_axis: (3,) unit pitch axis, global frame.
+        pivot: (3,) point on the pitch axis, m, global frame.
+        heave_amplitude: m.
+        pitch_amplitude: rad.
+        frequency: rad/s.
+        phase: of the pitch ahead of the heave, rad.
     """
 
     def __init__(self, heave_axis, pitch_axis, pivot, heave_amplitude, pitch_amplitude, frequency, phase):
@@ -96,6 +129,11 @@ class HeavePitch:
         self._rotation = _AxisRotation(self.pitch_axis)
 
     def kinematics(self, t):
+        """The heave and pitch at time t.
+
+        Args:
+            t: time, s.
+        """
         w = self.frequency
         s, c = np.sin(w * t), np.cos(w * t)
         sp, cp = np.sin(w * t + self.phase), np.cos(w * t + self.phase)

@@ -33,16 +33,20 @@ class Section:
 
     @property
     def stiffness(self):
+        """(EA N, EI_yy N m^2, EI_zz N m^2, GJ N m^2), the element's stiffness tuple."""
         return (self.axial, self.flap, self.chordwise, self.torsion)
 
 
 def section_from_spec(spec: SectionSpec) -> Section:
-    """Build a Section from a body's section table (fmu_common.wing_spec.SectionSpec); errors name its key.
+    """Build a Section from a body's section table; errors name its key.
 
     A rectangular plate (chord c, thickness h, density rho, Young's modulus E) gives EA = E c h,
     EI_yy = E c h^3 / 12, EI_zz = E h c^3 / 12, rho A = rho c h; explicit values override these.
     The mass is spread uniformly over the chord. SceneError if a derived property is not a finite number > 0
     (a product of finite values may overflow or underflow).
+
+    Args:
+        spec: the section table (fmu_common.wing_spec.SectionSpec), SI units.
     """
     chord, axis, h = spec.chord, spec.axis_position, spec.thickness
     derived = {}

@@ -22,7 +22,12 @@ class Slot:
     prescribed: dict = field(default_factory=dict)
 
     def plus(self, other, factor):
-        """self + factor other, without the terms that cancel."""
+        """self + factor other, without the terms that cancel.
+
+        Args:
+            other: the Slot added.
+            factor: its coefficient (-).
+        """
         out = Slot(dict(self.free), dict(self.prescribed))
         for src, dst in ((other.free, out.free), (other.prescribed, out.prescribed)):
             for j, c in src.items():
@@ -32,11 +37,20 @@ class Slot:
         return out
 
     def signature(self):
+        """A hashable form of the combination (coefficients rounded to 1e-12): equal slots have equal signatures."""
         return (tuple(sorted((j, round(c, 12)) for j, c in self.free.items())),
                 tuple(sorted((j, round(c, 12)) for j, c in self.prescribed.items())))
 
     def value(self, free_values, prescribed_values):
-        """The slot's 3-vector for the free and prescribed vectors (lists of (3,) arrays)."""
+        """The slot's 3-vector for the free and prescribed vectors.
+
+        Args:
+            free_values: the free vectors, a list of (3,) arrays.
+            prescribed_values: the prescribed vectors, a list of (3,) arrays.
+
+        Returns:
+            (3,) in the slot's unit (m for R, - for RX, RY), global frame.
+        """
         out = np.zeros(3)
         for j, c in self.free.items():
             out += c * free_values[j]
@@ -46,10 +60,20 @@ class Slot:
 
 
 def eliminate(slots: list[Slot], difference: Slot, candidates) -> int | None:
-    """Make `difference` (a combination of slots that must vanish) zero by substituting one free vector: the
-    candidate with the largest index among `candidates` (free vector indices) that appears in it. Updates
-    `slots` in place; returns the eliminated index, or None when no candidate appears (the caller then keeps
-    the equation as constraint rows)."""
+    """Make `difference` zero by substituting one free vector.
+
+    The candidate with the largest index among `candidates` that appears in it is substituted. Updates `slots` in
+    place.
+
+    Args:
+        slots: the slots of E, updated in place.
+        difference: a combination of slots that must vanish.
+        candidates: free vector indices that may be eliminated.
+
+    Returns:
+        the eliminated index, or None when no candidate appears (the caller then keeps the equation as constraint
+        rows).
+    """
     usable = [j for j in difference.free if j in candidates and abs(difference.free[j]) > 1e-12]
     if not usable:
         return None
@@ -67,8 +91,15 @@ def eliminate(slots: list[Slot], difference: Slot, candidates) -> int | None:
 
 
 def compact(slots: list[Slot], *per_free: list) -> list[list]:
-    """Renumber the free vectors that some slot still uses as 0, 1, ... (in order), in place in `slots`;
-    returns each list of `per_free` (one entry per old free vector) restricted to the used ones."""
+    """Renumber the free vectors that some slot still uses as 0, 1, ... (in order), in place in `slots`.
+
+    Args:
+        slots: the slots of E, renumbered in place.
+        *per_free: lists with one entry per old free vector.
+
+    Returns:
+        each list of `per_free` restricted to the used free vectors.
+    """
     used = sorted({j for slot in slots for j in slot.free})
     new = {j: i for i, j in enumerate(used)}
     slots[:] = [Slot({new[j]: c for j, c in slot.free.items()}, dict(slot.prescribed)) for slot in slots]

@@ -18,8 +18,12 @@ from .sensors import Sensors
 from .topology import StructureTopology
 
 class StructureSolver:
-    """The structural solver of one scene, from the structure unit's spec (fmu_common.specs.StructureUnitSpec).
-    See docs/solver_api.md."""
+    """The structural solver of one scene. See docs/solver_api.md.
+
+    Args:
+        spec: the structure unit's spec (fmu_common.specs.StructureUnitSpec).
+        parameters: {name: value} of tunable parameters (`tunable_parameters`), SI units; None: the defaults.
+    """
 
     def __init__(self, spec: StructureUnitSpec, parameters: dict | None = None):
         self.topology = StructureTopology.from_spec(spec.structure)
@@ -74,8 +78,16 @@ class StructureSolver:
 
     @staticmethod
     def tunable_parameters(spec: StructureUnitSpec) -> dict:
-        """name -> (default, unit, description) of the scalars a system tool may change before a run: the
-        tunable keys of the scene's `structure` table (`fmu_common.scene_schema.tunable_parameters`)."""
+        """The scalars a system tool may change before a run.
+
+        The tunable keys of the scene's `structure` table (`fmu_common.scene_schema.tunable_parameters`).
+
+        Args:
+            spec: the structure unit's spec.
+
+        Returns:
+            {name: (default, unit, description)}.
+        """
         return dict(spec.parameters)
 
     def _check_initial_constraints(self):
@@ -91,6 +103,7 @@ class StructureSolver:
     # ---------------------------------------------------------------- stepping
     @property
     def time(self) -> float:
+        """Time of the current state, s."""
         return self.state.t
 
     def _initialize(self, Q):
@@ -98,7 +111,12 @@ class StructureSolver:
         self._initialized = True
 
     def advance(self, t_end: float, Q=None) -> None:
-        """Take internal steps from `time` to `t_end` (s) with the generalized force Q held constant."""
+        """Take internal steps from `time` to `t_end` with the generalized force Q held constant.
+
+        Args:
+            t_end: time to reach, s.
+            Q: (n,) generalized external force on E, N and N m, global frame; None: zero.
+        """
         Q = self._zero_Q if Q is None else checked_input("Q", Q, self._zero_Q.size, self.state.t)
         self._last_Q = Q
         if self.state.q.size == 0:        # fully prescribed: no dynamics
@@ -171,10 +189,12 @@ class StructureSolver:
 
     @property
     def e(self) -> np.ndarray:
+        """(n,) exchanged coordinates E at the current state, m and 1, global frame (a copy)."""
         return self._evaluated(self.state)[0].copy()
 
     @property
     def de(self) -> np.ndarray:
+        """(n,) their rates dE/dt at the current state, m/s and 1/s, global frame (a copy)."""
         return self._evaluated(self.state)[1].copy()
 
     def constraint_residual(self) -> float:
@@ -182,6 +202,7 @@ class StructureSolver:
         return self._evaluated(self.state)[3]
 
     def fold_angles_deg(self) -> dict:
+        """{revolute: fold angle, deg} at the current state."""
         return {k: math.degrees(v) for k, v in self._evaluated(self.state)[2].items()}
 
     def sensor_outputs(self) -> np.ndarray:
@@ -210,6 +231,12 @@ class StructureSolver:
         return joint_monitors(self.topology.joint_lines, self.topology.bodies, self._evaluated(self.state)[0])
 
     def monitors(self) -> dict:
+        """The monitors at the current state.
+
+        Returns:
+            {energy J, kinetic_energy J, external_work J, constraint_residual, latched {hinge: bool},
+            latch_times {hinge: s}}.
+        """
         E, dE, angles, residual = self._evaluated(self.state)
         kinetic = 0.5 * float(np.dot(dE, np.dot(self.model.mass_E, dE)))
         return {"energy": kinetic + self.model.potential_energy(self.state.q, E, self.state.latched, angles),
@@ -225,6 +252,11 @@ class StructureSolver:
         return (self.state.copy(), self._initialized, self.integrator.memory, self._last_Q.copy())
 
     def set_state(self, saved) -> None:
+        """Restore a state made by `get_state` (copied, so that it can be restored again).
+
+        Args:
+            saved: what `get_state` returned.
+        """
         state, initialized, memory, last_Q = saved
         self.state, self._initialized, self._last_Q = state.copy(), initialized, last_Q.copy()
         self.integrator.memory = memory

@@ -40,6 +40,8 @@ from structure_fmu.solver import StructureSolver
 
 
 class StructureSlave(SolverSlave):
+    """The structure unit's FMI 2.0 co-simulation slave over StructureSolver."""
+
     author = "wingsim"
     description = "Structure unit: ANCF or strain-based wing bodies, joints, actuators and latches (wingsim)"
     label = STRUCTURE.unit

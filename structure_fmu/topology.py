@@ -116,8 +116,11 @@ class StructureTopology(topology.Topology):
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_spec(cls, structure: StructureSpec) -> "StructureTopology":
-        """Build the topology of a scene's structure table (fmu_common.wing_spec); raises SceneError naming
-        the key."""
+        """Build the topology of a scene's structure table; raises SceneError naming the key.
+
+        Args:
+            structure: the structure table (fmu_common.wing_spec.StructureSpec).
+        """
         top = super().from_spec(structure)
         motion = structure.motion
         if top.fidelity.moved_by_law and motion is None:
@@ -159,8 +162,12 @@ class StructureTopology(topology.Topology):
         return Slot(prescribed={len(self.prescribed_initial) - 1: 1.0})
 
     def new_fixed(self, value, is_position):
-        """A slot of a new prescribed vector that stays at `value` (3,) (m for a point, else -), under a Fixed
-        motion of its own."""
+        """A slot of a new prescribed vector that stays at `value`, under a Fixed motion of its own.
+
+        Args:
+            value: (3,) m for a point, else 1, global frame.
+            is_position: whether the vector is a point (else a gradient).
+        """
         self.motions.append(Fixed())
         return self._new_prescribed(value, is_position, len(self.motions) - 1)
 
@@ -284,7 +291,13 @@ class StructureTopology(topology.Topology):
         self.free_initial, self.free_is_position = compact(self.slots, self.free_initial, self.free_is_position)
 
     def node_at(self, key, body_name, span):
-        """The node of body `body_name` at `span` (m from its root); SceneError naming `key` otherwise."""
+        """The node of body `body_name` at `span`; SceneError naming `key` otherwise.
+
+        Args:
+            key: the scene key the span was read from, for the error.
+            body_name: the body's name.
+            span: distance from the body's root, m.
+        """
         body = self.bodies[body_name]
         n_el = len(body.elements)
         position = span / body.length * n_el
@@ -328,6 +341,7 @@ class StructureTopology(topology.Topology):
     # ------------------------------------------------------------------ queries
     @property
     def n_free(self):
+        """Number of free coordinates n_q, 3 per free vector."""
         return 3 * len(self.free_initial)
 
     def maps(self):
@@ -343,11 +357,20 @@ class StructureTopology(topology.Topology):
         return np.kron(t_vec, np.eye(3)), np.kron(p_vec, np.eye(3))
 
     def initial_free(self):
+        """q at t = 0: the free vectors stacked, (n_q,), m and 1, global frame."""
         return np.concatenate(self.free_initial) if self.free_initial else np.zeros(0)
 
     def fold_angles(self, e):
-        """Fold angle of each revolute joint (rad): the child's signed angle about the axis relative to the
-        parent (joints.py)."""
+        """Fold angle of each revolute joint: the child's signed angle about the axis relative to the parent.
+
+        joints.py computes it.
+
+        Args:
+            e: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            {joint: rad}.
+        """
         e = np.asarray(e)
         return {h.name: hinge_angle(h, e) for h in self.hinges}
 
