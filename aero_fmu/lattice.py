@@ -49,8 +49,18 @@ class Geometry:
 
 
 def shape_rows(x, y, length):
-    """s(x, y), s_x = ds/dx (1/m) and s_y = ds/dy (1/m) of Otsuka et al. 2019, Eq. (2), each (..., 6), for
-    [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]; x along the element (0..l, m), y along the chord (m)."""
+    """s(x, y), s_x = ds/dx and s_y = ds/dy, the shape function rows for [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B].
+
+    Otsuka et al. 2019, Eq. 2
+
+    Args:
+        x: position along the element, 0..l, m.
+        y: position along the chord, m.
+        length: l, the element length, m.
+
+    Returns:
+        (s (..., 6), s_x (..., 6) 1/m, s_y (..., 6) 1/m).
+    """
     x, y, length = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, length)))
     _, dN, _, L = hermite(x / length, length)
     s = shape_row(x, y, length)
@@ -69,10 +79,16 @@ class Lattice:
     b (M+1)(N+1) + i (N+1) + j; panel (b, i, j), i < M, j < N, is b M N + i N + j.
     Attributes: `rings` (n_panels, 4) corner indices of each ring in circulation order
     (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1), so a positive circulation induces velocity along -n
-    inside the ring and, in a flow from leading to trailing edge, makes a force along +n (Otsuka et al. 2019, Eq. 25);
-    `trailing_corners` (n_bodies, N + 1) and `trailing_panels` (n_bodies, N); per panel `panel_span`,
+    inside the ring and, in a flow from leading to trailing edge, makes a force along +n (Otsuka et al. 2019,
+    Eq. 25); `trailing_corners` (n_bodies, N + 1) and `trailing_panels` (n_bodies, N); per panel `panel_span`,
     `panel_chord` (reference lengths, m), `chord` (body chord, m), `body` (body index); `body_chords` (B,) m;
     `reference_area` (sum of body length x chord, m^2) and `core_radius` (m).
+
+    Args:
+        topology: the aero unit's topology.
+        chordwise: M, panels per body along the chord.
+        spanwise: N, panels per body along the span.
+        core_fraction: the vortex core radius as a fraction of the smallest panel length.
     """
 
     def __init__(self, topology, chordwise, spanwise, core_fraction=CORE_FRACTION):
@@ -127,8 +143,16 @@ class Lattice:
 
     # ------------------------------------------------------------------ per time step
     def geometry(self, E):
-        """The lattice at the exchanged coordinates E (9 n_nodes,): one matrix product (Otsuka et al. 2019,
-        Eqs. 20-21, 24)."""
+        """The lattice at the exchanged coordinates E: one matrix product.
+
+        Otsuka et al. 2019, Eqs. 20-21, 24
+
+        Args:
+            E: (9 n_nodes,) exchanged coordinates, m and 1, global frame.
+
+        Returns:
+            the Geometry.
+        """
         X = np.asarray(E, dtype=float).reshape(-1, 3)
         P = self._all @ X
         nc, n_p = self.n_corners, self.n_panels
@@ -140,17 +164,43 @@ class Lattice:
         return Geometry(corners, colloc, app, r_x, r_y, normal, norm * self._reference_panel_area)
 
     def grid_points(self, E):
-        """Panel edge points (n_corners, 3), chord fractions i/M (leading edge 0, trailing edge 1), m."""
+        """Panel edge points at chord fractions i/M (leading edge 0, trailing edge 1).
+
+        Args:
+            E: (9 n_nodes,) exchanged coordinates, m and 1, global frame.
+
+        Returns:
+            (n_corners, 3) m, global frame.
+        """
         return self.grid_matrix @ np.asarray(E, dtype=float).reshape(-1, 3)
 
     def generalized_force(self, forces):
-        """Q (9 n_nodes,) of panel forces a (n_panels, 3) N acting at the application points:
-        Q = sum_panels S(x_a, y_a)^T a (Otsuka et al. 2019, Eq. 12), virtual-work consistent with r = S e."""
+        """Q of panel forces acting at the application points, virtual-work consistent with r = S e.
+
+        Q = sum_panels S(x_a, y_a)^T a.
+
+        Otsuka et al. 2019, Eq. 12
+
+        Args:
+            forces: (n_panels, 3) panel forces a, N, global frame.
+
+        Returns:
+            (9 n_nodes,) N and N m, global frame.
+        """
         return (self.application_matrix.T @ np.asarray(forces, dtype=float)).ravel()
 
     @staticmethod
     def full(matrix):
-        """kron(matrix, I_3): the (3 n, 9 n_nodes) form acting on E directly (Otsuka et al. 2019, Eq. 20)."""
+        """kron(matrix, I_3): the form acting on E directly.
+
+        Otsuka et al. 2019, Eq. 20
+
+        Args:
+            matrix: (n, n_nodes * 3) rows on the nodal vectors.
+
+        Returns:
+            (3 n, 9 n_nodes).
+        """
         return np.kron(matrix, np.eye(3))
 
 

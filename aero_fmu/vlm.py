@@ -49,8 +49,14 @@ class RingSegments:
 
 
 def ring_segments(lattice: Lattice) -> RingSegments:
-    """Spanwise segments (b, i, j) -> (b, i, j+1), i = 0..M, then chordwise (b, i, j) -> (b, i+1, j),
-    j = 0..N, with the +-1 incidence of the ring legs (i,j)->(i+1,j)->(i+1,j+1)->(i,j+1)->(i,j)."""
+    """The unique segments of the bound rings and their incidence.
+
+    Spanwise segments (b, i, j) -> (b, i, j+1), i = 0..M, then chordwise (b, i, j) -> (b, i+1, j), j = 0..N, with
+    the +-1 incidence of the ring legs (i,j)->(i+1,j)->(i+1,j+1)->(i,j+1)->(i,j).
+
+    Args:
+        lattice: the Lattice.
+    """
     M, N, B = lattice.M, lattice.N, len(lattice.body_names)
     nc = (M + 1) * (N + 1)
     b, i, j = (a.ravel() for a in np.meshgrid(np.arange(B), np.arange(M + 1), np.arange(N), indexing="ij"))
@@ -75,14 +81,26 @@ def ring_segments(lattice: Lattice) -> RingSegments:
 
 
 def bound_segments(rings: RingSegments, corners) -> Segments:
-    """The bound rings' segments at the corner positions (n_corners, 3) m of one geometry."""
+    """The bound rings' segments at the corner positions of one geometry.
+
+    Args:
+        rings: the RingSegments.
+        corners: (n_corners, 3) m, global frame.
+    """
     return Segments(corners[rings.start], corners[rings.end], rings.incidence)
 
 
 def horseshoe_weights(lattice: Lattice):
-    """(legs, span, -span) sparse weights of the horseshoe wake (topology only, built once per lattice):
-    legs (B (N+1), n_panels) maps Gamma to the trailing legs from the trailing corners, span (B N, n_panels)
-    to the spanwise closing segments of finite legs, -span to the horseshoes' bound segments."""
+    """Sparse weights of the horseshoe wake (topology only, built once per lattice).
+
+    Args:
+        lattice: the Lattice.
+
+    Returns:
+        (legs, span, -span): legs (B (N+1), n_panels) maps Gamma to the trailing legs from the trailing corners,
+        span (B N, n_panels) to the spanwise closing segments of finite legs, -span to the horseshoes' bound
+        segments.
+    """
     B, N, n_p = len(lattice.body_names), lattice.N, lattice.n_panels
     panels = lattice.trailing_panels                        # (B, N)
     # column j of wake "rings": legs (M, j) -> far_j (+1), far_j -> far_{j+1} (+1), (M, j+1) -> far_{j+1}
@@ -97,19 +115,39 @@ def horseshoe_weights(lattice: Lattice):
 
 
 def leg_ends(lattice: Lattice, heads, direction, wake_length):
-    """Far ends (B, N + 1, 3) m of finite horseshoe legs from the trailing corners `heads` (B, N + 1, 3):
-    wake_length chords of their body along the unit free-stream `direction` (3,) (an array)."""
+    """Far ends of finite horseshoe legs: wake_length chords of their body along the free stream.
+
+    Args:
+        lattice: the Lattice.
+        heads: (B, N + 1, 3) the trailing corners, m, global frame.
+        direction: (3,) unit free-stream direction (an array), global frame.
+        wake_length: chords.
+
+    Returns:
+        (B, N + 1, 3) m, global frame.
+    """
     return heads + (wake_length * lattice.body_chords)[:, None, None] * direction
 
 
 def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> list:
-    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation (Otsuka et al. 2019, Sec. V).
+    """Flat wake: a horseshoe behind each trailing-edge ring, with that ring's circulation.
+
+    Otsuka et al. 2019, Sec. V
 
     The legs start at the last rings' trailing corners (a quarter panel behind the trailing edge) and run
     along the unit `direction` (the free stream) for wake_length chords of their body, closed there by a
     starting-vortex segment; wake_length = inf gives semi-infinite legs and no closing segment. The
     horseshoe's bound segment runs opposite to the last ring's trailing segment, so the two cancel: the
     circulation leaves the trailing edge only through the legs (steady Kutta condition).
+
+    Args:
+        lattice: the Lattice.
+        corners: (n_corners, 3) m, global frame.
+        direction: (3,) unit free-stream direction, global frame.
+        wake_length: chords (inf: semi-infinite legs).
+
+    Returns:
+        a list of Segments.
     """
     d = np.asarray(direction, dtype=float)
     legs, span, bound = horseshoe_weights(lattice)
@@ -127,34 +165,82 @@ def horseshoe_wake(lattice: Lattice, corners, direction, wake_length=np.inf) -> 
 
 
 def influence_matrix(points, normals, systems, core) -> np.ndarray:
-    """A (P, n_panels): normal wash n_p . v at `points` per unit ring circulation, summed over the vortex
-    systems (Otsuka et al. 2019, Eqs. 19, 22). core: vortex core radius (m), see biot_savart.py."""
+    """A: normal wash n_p . v at `points` per unit ring circulation, summed over the vortex systems.
+
+    Otsuka et al. 2019, Eqs. 19, 22
+
+    Args:
+        points: (P, 3) m, global frame.
+        normals: (P, 3) unit normals, global frame.
+        systems: the vortex systems (Segments).
+        core: vortex core radius (m), see biot_savart.py.
+
+    Returns:
+        (P, n_panels) 1/m.
+    """
     return sum(influence(points, s.starts, s.ends, s.weights, core, s.semi_infinite, normals) for s in systems)
 
 
 def induced_velocity(points, systems, gamma, core) -> np.ndarray:
-    """Velocity (P, 3) m/s induced at points by the systems with ring circulations gamma (n_panels,)."""
+    """Velocity induced at points by the vortex systems with ring circulations gamma.
+
+    Args:
+        points: (P, 3) m, global frame.
+        systems: the vortex systems (Segments).
+        gamma: (n_panels,) m^2/s.
+        core: vortex core radius, m.
+
+    Returns:
+        (P, 3) m/s, global frame.
+    """
     return sum(influence(points, s.starts, s.ends, s.weights @ gamma[:, None], core, s.semi_infinite)[:, :, 0]
                for s in systems)
 
 
 def pressure_forces(lattice: Lattice, geometry, gamma, velocity, density, dgamma_dt=None) -> np.ndarray:
-    """Panel forces a (n_panels, 3) N by Otsuka et al. 2019, Eqs. (23) and (25), with V (n_panels, 3) the fluid velocity
-    relative to the panel at its collocation point (m/s). See `pressure_jump_forces`."""
+    """Panel forces from the fluid velocity relative to each panel. See `pressure_jump_forces`.
+
+    Otsuka et al. 2019, Eqs. 23, 25
+
+    Args:
+        lattice: the Lattice.
+        geometry: its Geometry.
+        gamma: (n_panels,) m^2/s.
+        velocity: (n_panels, 3) V, the fluid velocity relative to the panel at its collocation point, m/s, global
+            frame.
+        density: kg/m^3.
+        dgamma_dt: (n_panels,) m^2/s^2, or None (steady).
+
+    Returns:
+        (n_panels, 3) panel forces a, N, global frame.
+    """
     v_x = np.sum(velocity * geometry.r_x, axis=1)
     v_y = np.sum(velocity * geometry.r_y, axis=1)
     return pressure_jump_forces(lattice, geometry, gamma, v_x, v_y, density, dgamma_dt)
 
 
 def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, dgamma_dt=None) -> np.ndarray:
-    """Panel forces a (n_panels, 3) N by Otsuka et al. 2019, Eqs. (23) and (25) from the tangential velocity products.
+    """Panel forces from the tangential velocity products.
+
+    Otsuka et al. 2019, Eqs. 23, 25
 
     Delta p_ij = rho [V . (tau_x (G_ij - G_i,j-1) / Delta x + tau_y (G_ij - G_i-1,j) / Delta y) + dG_ij/dt]
     with V the fluid velocity relative to the panel at its collocation point, tau the unit tangents
     (Eq. 24), Delta x = |r_x| L/N, Delta y = |r_y| c/M the panel's span and chord lengths,
     G_i,-1 = G_-1,j = 0 at the body's root edge and leading edge; a = Delta p * area * n (Eq. 25).
-    Only V . r_x = v_x and V . r_y = v_y (m/s, r_x, r_y dimensionless, (n_panels,)) enter, since
-    tau / Delta = r / (|r|^2 * reference length); dgamma_dt (n_panels,) m^2/s^2 or None (steady).
+    Only V . r_x and V . r_y enter, since tau / Delta = r / (|r|^2 * reference length).
+
+    Args:
+        lattice: the Lattice.
+        geometry: its Geometry.
+        gamma: (n_panels,) m^2/s.
+        v_x: (n_panels,) V . r_x, m/s (r_x dimensionless).
+        v_y: (n_panels,) V . r_y, m/s (r_y dimensionless).
+        density: kg/m^3.
+        dgamma_dt: (n_panels,) m^2/s^2, or None (steady).
+
+    Returns:
+        (n_panels, 3) panel forces a, N, global frame.
     """
     M, N = lattice.M, lattice.N
     G = np.asarray(gamma, dtype=float).reshape(-1, M, N)
@@ -170,13 +256,31 @@ def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, d
 
 
 def kutta_joukowski_forces(segments: Segments, gamma_segments, velocity, density) -> np.ndarray:
-    """Force rho Gamma_s V_s x (b_s - a_s) (N) on each finite segment (S, 3); V_s (S, 3) m/s at its middle."""
+    """Force rho Gamma_s V_s x (b_s - a_s) on each finite segment.
+
+    Args:
+        segments: the Segments.
+        gamma_segments: (S,) their circulations, m^2/s.
+        velocity: (S, 3) V_s at each segment's middle, m/s, global frame.
+        density: kg/m^3.
+
+    Returns:
+        (S, 3) N, global frame.
+    """
     dl = segments.ends - segments.starts
     return density * np.asarray(gamma_segments)[:, None] * np.cross(velocity, dl)
 
 
 def lift_axis(geometry, flow_velocity) -> np.ndarray:
-    """Unit lift direction: the area-weighted mean normal without its component along the free stream."""
+    """Unit lift direction: the area-weighted mean normal without its component along the free stream.
+
+    Args:
+        geometry: the lattice's Geometry.
+        flow_velocity: (3,) free stream, m/s, global frame.
+
+    Returns:
+        (3,) global frame.
+    """
     n = geometry.area @ geometry.normal
     u = _unit(flow_velocity)
     if u is not None:
@@ -205,8 +309,17 @@ class SteadySolution:
 
 
 class SteadyVLM:
-    """Steady VLM of one topology with a flat horseshoe wake; keeps the bound influence matrix per
-    geometry and the LU of the full matrix per (geometry, wake direction)."""
+    """Steady VLM of one topology with a flat horseshoe wake.
+
+    Keeps the bound influence matrix per geometry and the LU of the full matrix per (geometry, wake direction).
+
+    Args:
+        topology: the aero unit's topology.
+        chordwise: M, panels per body along the chord.
+        spanwise: N, panels per body along the span.
+        wake_length: chords (inf: semi-infinite legs).
+        lattice: a Lattice to use (None: built from the topology).
+    """
 
     def __init__(self, topology, chordwise, spanwise, wake_length=np.inf, lattice=None):
         self.lattice = lattice or Lattice(topology, chordwise, spanwise)
@@ -216,7 +329,14 @@ class SteadyVLM:
         self._full = (None, None)     # ((E bytes, direction bytes), (wake systems, LU))
 
     def bound_part(self, E):
-        """(geometry, bound segments, A_bound) at E, recomputed only when E changes."""
+        """The bound part at E, recomputed only when E changes.
+
+        Args:
+            E: (n,) exchanged coordinates, m and 1, global frame.
+
+        Returns:
+            (geometry, bound segments, A_bound).
+        """
         E = np.asarray(E, dtype=float)
         key = E.tobytes()
         if self._bound[0] != key:
@@ -237,9 +357,19 @@ class SteadyVLM:
         return self._full[1]
 
     def solve(self, E, flow_velocity, density, lift_direction=None) -> SteadySolution:
-        """Circulations, panel forces (Otsuka et al. 2019, Eqs. 22, 23 steady part, 25) and C_L = lift / (q S)
-        with S the reference area; C_L = 0 at zero dynamic pressure. flow_velocity (3,) m/s, density kg/m^3;
-        lift_direction (3,) or None for `lift_axis`."""
+        """Circulations, panel forces and C_L = lift / (q S), S the reference area; C_L = 0 at zero dynamic pressure.
+
+        Otsuka et al. 2019, Eqs. 22, 23 (steady part), 25
+
+        Args:
+            E: (n,) exchanged coordinates, m and 1, global frame.
+            flow_velocity: (3,) free stream, m/s, global frame.
+            density: kg/m^3.
+            lift_direction: (3,) unit lift direction, or None for `lift_axis`.
+
+        Returns:
+            the SteadySolution.
+        """
         U = np.asarray(flow_velocity, dtype=float)
         geometry, bound, _ = self.bound_part(E)
         direction = _unit(U)
@@ -257,10 +387,22 @@ class SteadyVLM:
         return SteadySolution(CL, lift, gamma, forces, velocity, geometry, systems)
 
     def segment_forces(self, solution, flow_velocity, density):
-        """Kutta-Joukowski forces rho Gamma_s V_s x dl_s (S, 3) N on the bound segments of a solution: the
-        independent check of Eq. (23). Net circulation per segment (the trailing row is cancelled by the
-        wake's bound segment), V_s = U + induced velocity at the segment middle (the vortex core makes a
-        segment's own and its collinear neighbours' contributions zero there)."""
+        """Kutta-Joukowski forces rho Gamma_s V_s x dl_s on the bound segments of a solution.
+
+        The independent check of Otsuka et al. 2019, Eq. 23.
+
+        Net circulation per segment (the trailing row is cancelled by the wake's bound segment), V_s = U + induced
+        velocity at the segment middle (the vortex core makes a segment's own and its collinear neighbours'
+        contributions zero there).
+
+        Args:
+            solution: a SteadySolution of `solve`.
+            flow_velocity: (3,) free stream, m/s, global frame.
+            density: kg/m^3.
+
+        Returns:
+            (S, 3) N, global frame.
+        """
         bound = solution.systems[0]
         gamma_s = self.rings.incidence @ solution.gamma
         gamma_s[self.rings.trailing] = 0.0
@@ -271,7 +413,19 @@ class SteadyVLM:
 
 
 def steady_lift(topology, E, M, N, flow_velocity, density, wake_length=np.inf):
-    """(C_L, Gamma (n_panels,) m^2/s, panel forces (n_panels, 3) N) of the steady VLM with a flat
-    horseshoe wake of wake_length chords (inf: semi-infinite legs). See `SteadyVLM.solve`."""
+    """The steady VLM with a flat horseshoe wake. See `SteadyVLM.solve`.
+
+    Args:
+        topology: the aero unit's topology.
+        E: (n,) exchanged coordinates, m and 1, global frame.
+        M: panels per body along the chord.
+        N: panels per body along the span.
+        flow_velocity: (3,) free stream, m/s, global frame.
+        density: kg/m^3.
+        wake_length: chords (inf: semi-infinite legs).
+
+    Returns:
+        (C_L, Gamma (n_panels,) m^2/s, panel forces (n_panels, 3) N).
+    """
     s = SteadyVLM(topology, M, N, wake_length).solve(E, flow_velocity, density)
     return s.CL, s.gamma, s.forces

@@ -71,12 +71,17 @@ class AxisProduct:
 
 
 class AxisProducts(GatheredRows):
-    """Vectorized evaluation of the `AxisProduct` rows on E (n,), with their Jacobian on q for E = T q + P p.
+    """Vectorized evaluation of the `AxisProduct` rows on E, with their Jacobian on q for E = T q + P p.
 
     Each row gathers the four 3-vectors [r_x^A, r_y^A, r_x^B, r_y^B] (twelve E entries: r_x and r_y of a node
     are contiguous), so that every row has the same form u . w with u = v_A(a) and w = v_B(b); a row with the
     ground has u = a: zero coefficients on the gathered r_x^A, r_y^A (the child's, as placeholders: their
     derivatives vanish) and the constant a.
+
+    Args:
+        rows: the AxisProduct rows (m of them).
+        T: (n, n_q) the map of q onto E (`StructureTopology.maps`).
+        n: the length of E.
     """
 
     def __init__(self, rows, T, n):
@@ -94,13 +99,28 @@ class AxisProducts(GatheredRows):
         return (frame_vector(self._a, X[:, 0], X[:, 1]) + self._ground, frame_vector(self._b, X[:, 2], X[:, 3]))
 
     def residual(self, E):
-        """Phi (m,)."""
+        """Phi, one value per row.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m,) dimensionless.
+        """
         u, w = self._vectors(self._gather(E))
         return np.einsum("mi,mi->m", u, w)
 
     def gradient(self, E):
-        """dPhi/dE on each row's twelve entries [r_x^A, r_y^A, r_x^B, r_y^B], (m, 12):
-        d(u . w) = w . du + u . dw with d(r_x x r_y) . c = dr_x . (r_y x c) + dr_y . (c x r_x)."""
+        """dPhi/dE on each row's twelve entries [r_x^A, r_y^A, r_x^B, r_y^B].
+
+        d(u . w) = w . du + u . dw with d(r_x x r_y) . c = dr_x . (r_y x c) + dr_y . (c x r_x).
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m, 12).
+        """
         X = self._gather(E)
         u, w = self._vectors(X)
         uw = np.stack([w, w, u, u], axis=1)
@@ -108,8 +128,17 @@ class AxisProducts(GatheredRows):
         return (self._linear * uw + self._normal * turned).reshape(-1, 12)
 
     def velocity_quadratic(self, dE, E):
-        """The part of d2Phi/dt2 quadratic in dE (m,), at E:
-        2 u'.w' + 2 a_z (r_x^A' x r_y^A') . w + 2 b_z (r_x^B' x r_y^B') . u."""
+        """The part of d2Phi/dt2 quadratic in dE, at E.
+
+        2 u'.w' + 2 a_z (r_x^A' x r_y^A') . w + 2 b_z (r_x^B' x r_y^B') . u.
+
+        Args:
+            dE: (n,) rates of the exchanged coordinates, per s.
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m,) 1/s^2.
+        """
         X = self._gather(E)
         u, w = self._vectors(X)
         V = self._gather(dE)
@@ -124,7 +153,14 @@ class AxisProducts(GatheredRows):
                       + b[:, 2] * np.einsum("mi,mi->m", products[:, 5], u))
 
     def hessian(self, E):
-        """d2Phi/dE2 on each row's twelve entries, exact, (m, 12, 12), at E."""
+        """d2Phi/dE2 on each row's twelve entries, exact, at E.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m, 12, 12).
+        """
         X = self._gather(E)
         xa, ya, xb, yb = X[:, 0], X[:, 1], X[:, 2], X[:, 3]
         u, w = self._vectors(X)
@@ -144,8 +180,9 @@ class AxisProducts(GatheredRows):
 
 
 class Constraints:
-    """Vectorized evaluation of the nonlinear constraints of a StructureTopology whose free coordinates q map
-    to E = T q + P p (`T`, (n, n_q), `StructureTopology.maps`).
+    """Vectorized evaluation of the nonlinear constraints of a StructureTopology whose free coordinates q map to E.
+
+    E = T q + P p.
 
     The unit-length and orthogonality rows are both products c (X_a . X_b) + c0 of two slots of
     X = E.reshape(-1, 3) (unit: a = b, c = 1/2, c0 = -1/2; orthogonality: c = 1, c0 = 0); the `LinearRow`s
@@ -155,7 +192,12 @@ class Constraints:
     arrays or matrices built once (these run several times per time step on small arrays).
 
     The axis and sliding rows are nonlinear beyond quadratic: their velocity term and Hessian depend on E as well
-    as on dE and the multipliers: `velocity_quadratic` and `hessian_sum` take E."""
+    as on dE and the multipliers: `velocity_quadratic` and `hessian_sum` take E.
+
+    Args:
+        topology: the StructureTopology.
+        T: (n, n_q) the map of q onto E (`StructureTopology.maps`).
+    """
 
     def __init__(self, topology, T):
         self.unit = np.array(topology.unit_slots, dtype=int)
@@ -208,7 +250,14 @@ class Constraints:
         return np.concatenate(parts) if len(parts) > 1 else products
 
     def residual(self, E):
-        """Phi(E), shape (count,)."""
+        """Phi(E).
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (count,) in each row's unit.
+        """
         products = np.dot((E[self._ia] * E[self._ib]).reshape(-1, 3), self._ones3) * self._coefficient + self._constant
         if self._products_only:
             return products
@@ -216,7 +265,14 @@ class Constraints:
                            lambda: self.axes.residual(E), lambda: self.sliding.residual(E))
 
     def jacobian(self, E):
-        """G_q = dPhi/dq = (dPhi/dE) T at E, dense (count, n_q)."""
+        """G_q = dPhi/dq = (dPhi/dE) T at E, dense.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (count, n_q).
+        """
         pairs = E[self._pair].reshape(-1, 1, 6) @ self._pair_rows
         products = pairs.reshape(len(self._pair_rows), self._n_free)
         if self._products_only:
@@ -225,7 +281,15 @@ class Constraints:
                            lambda: self.sliding.jacobian(E))
 
     def rate(self, E, dE):
-        """dPhi/dt = (dPhi/dE) dE at E for a rate dE (n,) on the exchanged coordinates, shape (count,)."""
+        """dPhi/dt = (dPhi/dE) dE at E.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+            dE: (n,) a rate of the exchanged coordinates, per s.
+
+        Returns:
+            (count,) per s.
+        """
         pairs = np.dot((E[self._pair] * dE[self._swapped]).reshape(-1, 6), self._ones6) * self._coefficient
         if self._products_only:
             return pairs
@@ -233,8 +297,17 @@ class Constraints:
                            lambda: self.sliding.rate(E, dE))
 
     def velocity_quadratic(self, dE, E):
-        """The term of d2Phi/dt2 that is not G d2E/dt2, quadratic in dE (count,): dE^T H_i dE for the
-        quadratic rows, 0 for the linear rows; the axis and sliding rows' terms also depend on E."""
+        """The term of d2Phi/dt2 that is not G d2E/dt2, quadratic in dE.
+
+        dE^T H_i dE for the quadratic rows, 0 for the linear rows; the axis and sliding rows' terms also depend on E.
+
+        Args:
+            dE: (n,) rates of the exchanged coordinates, per s.
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (count,) per s^2.
+        """
         products = self._velocity_coefficient * np.dot((dE[self._ia] * dE[self._ib]).reshape(-1, 3), self._ones3)
         if self._products_only:
             return products
@@ -242,8 +315,17 @@ class Constraints:
                            lambda: self.sliding.velocity_quadratic(dE, E))
 
     def hessian_sum(self, multipliers, E):
-        """sum_i lambda_i d2Phi_i/dE2, dense (n, n): the constraint part of the tangent stiffness at E, exact (the
-        linear rows add nothing)."""
+        """sum_i lambda_i d2Phi_i/dE2: the constraint part of the tangent stiffness at E.
+
+        Exact; the linear rows add nothing.
+
+        Args:
+            multipliers: (count,) lambda.
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (n, n) dense.
+        """
         multipliers = np.asarray(multipliers)
         values = multipliers[self._hessian_multiplier]
         out = np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)

@@ -13,9 +13,15 @@ from fmu_common.vectors import cross, skew
 
 
 def frame_angular_velocity_map(root):
-    """W (3, 9) with omega = W d(root)/dt for the root node coordinates [r, r_x, r_y].
+    """W with omega = W d(root)/dt for the root node coordinates [r, r_x, r_y].
 
     omega = 1/2 sum_i e_i x de_i over the frame e_1 = r_x/|r_x|, e_2 = r_y, e_3 = e_1 x e_2.
+
+    Args:
+        root: (9,) the root node's [r, r_x, r_y], m and 1, global frame.
+
+    Returns:
+        (3, 9).
     """
     x, y = root[3:6], root[6:9]
     nx = np.linalg.norm(x)
@@ -31,7 +37,14 @@ def frame_angular_velocity_map(root):
 
 
 def rigid_velocity_projector(E_body):
-    """P (9m, 9m) mapping a body's coordinate rates to those of the rigid motion of its root frame."""
+    """P mapping a body's coordinate rates to those of the rigid motion of its root frame.
+
+    Args:
+        E_body: (9m,) the body's coordinates (m nodes), global frame.
+
+    Returns:
+        (9m, 9m).
+    """
     nodes = E_body.reshape(-1, 3, 3)
     m = len(nodes)
     W = frame_angular_velocity_map(E_body[:9])
@@ -50,7 +63,16 @@ def _arms(nodes):
 
 
 def deformation_damping_matrix(E_body, mass_body, alpha):
-    """D = alpha (I - P)^T M (I - P) for one body; the damping force is -D de (used for the tangent)."""
+    """D = alpha (I - P)^T M (I - P) for one body; the damping force is -D de (used for the tangent).
+
+    Args:
+        E_body: (9m,) the body's coordinates (m nodes), global frame.
+        mass_body: (9m, 9m) its mass matrix, SI.
+        alpha: damping coefficient, 1/s.
+
+    Returns:
+        (9m, 9m), the units of alpha M.
+    """
     A = np.eye(len(E_body)) - rigid_velocity_projector(E_body)
     return alpha * A.T @ mass_body @ A
 
@@ -60,6 +82,15 @@ def deformation_damping_force(E_body, dE_body, mass_body, alpha):
 
     P^T y is non-zero only on the root coordinates: the sum of y over the r slots (translation) plus
     W^T sum_j a_j x y_j (rotation), since y . (omega x a) = omega . (a x y).
+
+    Args:
+        E_body: (9m,) the body's coordinates (m nodes), global frame.
+        dE_body: (9m,) their rates, per s.
+        mass_body: (9m, 9m) its mass matrix, SI.
+        alpha: damping coefficient, 1/s.
+
+    Returns:
+        (9m,) N and N m, global frame.
     """
     nodes, rates = E_body.reshape(-1, 3, 3), dE_body.reshape(-1, 3, 3)
     W = frame_angular_velocity_map(E_body[:9])

@@ -68,14 +68,19 @@ def _cached_per_lengths(build):
 
 @_cached_per_lengths
 def gauss_basis(length):
-    """hermite() at the Gauss points for each element length, (n, 5, .), cached (lengths are constant)."""
+    """hermite() at the Gauss points for each element length, cached (lengths are constant).
+
+    Args:
+        length: (n,) element lengths, m.
+
+    Returns:
+        the arrays of hermite(), each (n, 5, .).
+    """
     return hermite(GAUSS_XI[None, :], length[:, None])
 
 
 def flap_curvature(derivatives):
-    """Bending curvature out of the wing plane of the reference line, 1/m, shape (...,), from the rows
-    r' (-), r'' (1/m) along the span and the chord vector r_y (-) at the same points, stacked as
-    `derivatives` (..., 3, 3).
+    """Bending curvature out of the wing plane of the reference line.
 
     The geometric curvature projected on the unit section normal, kappa_y = r'' . n / |r'|^2 with
     n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
@@ -84,6 +89,13 @@ def flap_curvature(derivatives):
     Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
     |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2 (one determinant and one Gram product: on the few
     points of a sample this is half the cost of the cross and dot products).
+
+    Args:
+        derivatives: (..., 3, 3) the rows r' (1), r'' (1/m) along the span and the chord vector r_y (1) at the same
+            points, global frame.
+
+    Returns:
+        (...,) 1/m.
     """
     gram = derivatives @ np.swapaxes(derivatives, -1, -2)
     r1r1, ryry, r1ry = gram[..., 0, 0], gram[..., 2, 2], gram[..., 0, 2]
@@ -91,16 +103,25 @@ def flap_curvature(derivatives):
 
 
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_inertia=None):
-    """Constant element mass matrix (Otsuka et al. 2019, Eq. 5) by exact quadrature of rho * int S^T S dA dx,
-    plus the section's rotary inertia rho I_yy int S'^T S' dx.
+    """Constant element mass matrix by exact quadrature of rho * int S^T S dA dx, plus the section's rotary inertia.
 
-    length l (m), mass_per_length rho A (kg/m), first_moment rho Q_z (kg), chord_inertia rho I_zz (kg m),
-    rotary_inertia rho I_yy (kg m; None: 0), all shape (n,), the section moments taken about the reference
-    line (y = 0). S' = dS/dx on the reference line (the Hermite shape on r and r_x), so that the rotary term is
-    the Rayleigh beam's kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit length (Otsuka et al. 2022, Table 4's
-    rho I_yy): a rigid turn of the line at rate omega about an axis across it adds rho I_yy l omega^2 / 2
-    (whether the turn is about the chord or about the section normal).
-    Returns (n, 18, 18). Exact: the integrands are polynomials of degree 6 in x at most and 5 points integrate 9.
+    Otsuka et al. 2019, Eq. 5
+
+    The rotary term is rho I_yy int S'^T S' dx, S' = dS/dx on the reference line (the Hermite shape on r and r_x),
+    so that it is the Rayleigh beam's kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit length (Otsuka et al. 2022,
+    Table 4's rho I_yy): a rigid turn of the line at rate omega about an axis across it adds rho I_yy l omega^2 / 2
+    (whether the turn is about the chord or about the section normal). The section moments are taken about the
+    reference line (y = 0). Exact: the integrands are polynomials of degree 6 in x at most and 5 points integrate 9.
+
+    Args:
+        length: (n,) l, m.
+        mass_per_length: (n,) rho A, kg/m.
+        first_moment: (n,) rho Q_z, kg.
+        chord_inertia: (n,) rho I_zz, kg m.
+        rotary_inertia: (n,) rho I_yy, kg m; None: 0.
+
+    Returns:
+        (n, 18, 18), kg (r rows) and kg m (gradient rows), on the element coordinates e.
     """
     N, dN, _, L = gauss_basis(length)  # (n, g, 4), (n, g, 2)
     zero = np.zeros_like(L[..., :1])
@@ -119,9 +140,18 @@ def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_ine
 
 
 def distributed_force(length, mass_per_length, first_moment, acceleration):
-    """Generalized force of a uniform body force field: int rho S^T g dA dx (Otsuka et al. 2019, Sec. II.C), (n, 18).
+    """Generalized force of a uniform body force field: int rho S^T g dA dx. Exact (polynomial integrand).
 
-    acceleration: (3,) m/s^2 (gravity). Exact (polynomial integrand).
+    Otsuka et al. 2019, Sec. II.C
+
+    Args:
+        length: (n,) l, m.
+        mass_per_length: (n,) rho A, kg/m.
+        first_moment: (n,) rho Q_z, kg.
+        acceleration: (3,) g, m/s^2 (gravity), global frame.
+
+    Returns:
+        (n, 18) N and N m, global frame.
     """
     N, _, _, L = gauss_basis(length)
     w = GAUSS_W[None, :] * np.asarray(length)[:, None]
@@ -181,9 +211,17 @@ def _measures(e, length):
 
 
 def elastic_energy(e, length, stiffness):
-    """Elastic energy U of Otsuka et al. 2019, Eq. (7) per element, J, shape (n,).
+    """Elastic energy U per element.
 
-    stiffness: (n, 4) columns EA (N), EI_yy (flap, N m^2), EI_zz (chord, N m^2), GJ (N m^2).
+    Otsuka et al. 2019, Eq. 7
+
+    Args:
+        e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
+        length: (n,) l, m.
+        stiffness: (n, 4) columns EA (N), EI_yy (flap, N m^2), EI_zz (chord, N m^2), GJ (N m^2).
+
+    Returns:
+        (n,) J.
     """
     m = _measures(e, length)
     EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
@@ -194,11 +232,21 @@ def elastic_energy(e, length, stiffness):
 
 
 def elastic_force(e, length, stiffness):
-    """Generalized elastic force -dU/de per element, shape (n, 18) (Otsuka et al. 2019, Eq. 4).
+    """Generalized elastic force -dU/de per element.
+
+    Otsuka et al. 2019, Eq. 4
 
     Exact gradient of `elastic_energy`; complex-safe, so that a complex step differentiates it exactly (the
     tests' reference for `elastic_jacobian`). Real coordinates run the C kernel of element_kernels.c
     (fmu_common.c_library; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy.
+
+    Args:
+        e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
+        length: (n,) l, m.
+        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2).
+
+    Returns:
+        (n, 18) N and N m, global frame.
     """
     kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:
@@ -255,8 +303,9 @@ def _field_basis(length):
 
 
 def elastic_jacobian(e, length, stiffness):
-    """Tangent stiffness dU^2/de^2 = -d(force)/de per element, (n, 18, 18): the exact second derivative of
-    `elastic_energy` (Otsuka et al. 2019, Eqs. 7-11 with the definitions of the module docstring).
+    """Tangent stiffness dU^2/de^2 = -d(force)/de per element: the exact second derivative of `elastic_energy`.
+
+    Otsuka et al. 2019, Eqs. 7-11 (with the definitions of the module docstring)
 
     Per Gauss point, the bending and arc-stretch terms are functions of the fields (r', r'', r_y): their
     Hessian there is c (grad m grad m^T + m Hess m) for each squared measure m (flap = (r' x r_y) . r'' has
@@ -267,6 +316,14 @@ def elastic_jacobian(e, length, stiffness):
     `elastic_force` (tests/units/test_element.py). Real coordinates run the C kernel of element_kernels.c
     (fmu_common.c_library; the same terms, equal to 1e-12) unless $WINGSIM_KERNELS = numpy; this numpy form is
     the reference.
+
+    Args:
+        e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
+        length: (n,) l, m.
+        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2).
+
+    Returns:
+        (n, 18, 18).
     """
     kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:

@@ -21,15 +21,24 @@ from .joints import dot, frame_direction, unit_frame
 
 
 def monitor_names(name: str, kind: str) -> list[str]:
-    """The monitors of the joint `name` of type `kind` ('ball', 'universal', 'revolute') with a parent body."""
+    """The monitors of a joint with a parent body.
+
+    Args:
+        name: the joint's name.
+        kind: its type, 'ball', 'universal' or 'revolute'.
+    """
     axis = {"universal": ["_axis_product"], "revolute": ["_axis_error"]}.get(kind, [])
     return [f"{name}{suffix}" for suffix in ["_point_mismatch", *axis]]
 
 
 def joint_monitors(joint_lines, bodies, e) -> dict[str, float]:
-    """{monitor name: value} (module docstring) of the joints `joint_lines` (Topology.joint_lines) between the
-    `bodies` (Topology.bodies: name -> Body with its global node indices) at the exchanged coordinates e
-    (9 n_nodes,)."""
+    """{monitor name: value} (module docstring) of the joints.
+
+    Args:
+        joint_lines: the joints (Topology.joint_lines).
+        bodies: the bodies they join (Topology.bodies: name -> Body with its global node indices).
+        e: (9 n_nodes,) exchanged coordinates, m and 1, global frame.
+    """
     e = np.asarray(e, dtype=float)
     out = {}
     for line in joint_lines:

@@ -37,17 +37,31 @@ class SlidingRow:
 
 
 def frame_vector(c, x, y):
-    """v(c) = c_x x + c_y y + c_z (x x y), (m, 3), for components c (m, 3) and gradients x = r_x, y = r_y
-    (m, 3)."""
+    """v(c) = c_x x + c_y y + c_z (x x y), one per row.
+
+    Args:
+        c: (m, 3) components, 1.
+        x: (m, 3) r_x, 1, global frame.
+        y: (m, 3) r_y, 1, global frame.
+
+    Returns:
+        (m, 3) global frame.
+    """
     return c[:, :1] * x + c[:, 1:2] * y + c[:, 2:] * cross(x, y)
 
 
 class GatheredRows:
-    """Rows that each read four 3-vector slots of E (n,), twelve entries `index` (m, 12), with E = T q + P p
-    (T (n, n_q)): a subclass gives residual(E), gradient(E) (m, 12), velocity_quadratic(dE, E) and hessian(E)
-    (m, 12, 12) on the gathered entries; the Jacobian on q, the rate and the Hessian sum on E follow here.
-    Entries that coincide in E (two rows' or one row's) are summed where the derivatives are scattered on E or
-    mapped by T."""
+    """Rows that each read four 3-vector slots of E (n,), twelve entries, with E = T q + P p.
+
+    A subclass gives residual(E), gradient(E) (m, 12), velocity_quadratic(dE, E) and hessian(E) (m, 12, 12) on the
+    gathered entries; the Jacobian on q, the rate and the Hessian sum on E follow here. Entries that coincide in E
+    (two rows' or one row's) are summed where the derivatives are scattered on E or mapped by T.
+
+    Args:
+        index: (m, 12) the E entries each row reads.
+        T: (n, n_q) the map of q onto E.
+        n: the length of E.
+    """
 
     def __init__(self, index, T, n):
         self._index = np.asarray(index, dtype=int).reshape(-1, 12)
@@ -60,22 +74,52 @@ class GatheredRows:
         return E[self._index].reshape(-1, 4, 3)
 
     def jacobian(self, E):
-        """G_q = dPhi/dq (m, n_q)."""
+        """G_q = dPhi/dq.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m, n_q).
+        """
         return np.einsum("mk,mkj->mj", self.gradient(E), self._T)
 
     def rate(self, E, dE):
-        """dPhi/dt (m,) for the rate dE (n,)."""
+        """dPhi/dt for the rate dE.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+            dE: (n,) their rates, per s.
+
+        Returns:
+            (m,) per s.
+        """
         return np.einsum("mk,mk->m", self.gradient(E), dE[self._index])
 
     def hessian_sum(self, multipliers, E):
-        """sum_i lambda_i d2Phi_i/dE2, dense (n, n), for the rows' multipliers (m,)."""
+        """sum_i lambda_i d2Phi_i/dE2, dense.
+
+        Args:
+            multipliers: (m,) the rows' multipliers lambda.
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (n, n).
+        """
         values = (np.asarray(multipliers)[:, None, None] * self.hessian(E)).ravel()
         return np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
 
 
 class SlidingRows(GatheredRows):
-    """Vectorized evaluation of `SlidingRow`s: each row gathers [X_p, X_q, r_x^Q, r_y^Q]; with d = X_p - X_q and
-    v = v_Q(c), Phi = d . v - offset (m)."""
+    """Vectorized evaluation of `SlidingRow`s.
+
+    Each row gathers [X_p, X_q, r_x^Q, r_y^Q]; with d = X_p - X_q and v = v_Q(c), Phi = d . v - offset (m).
+
+    Args:
+        rows: the SlidingRows (m of them).
+        T: (n, n_q) the map of q onto E.
+        n: the length of E.
+    """
 
     def __init__(self, rows, T, n):
         slot = lambda s: list(range(3 * s, 3 * s + 3))                                 # noqa: E731
@@ -84,13 +128,28 @@ class SlidingRows(GatheredRows):
         self._offset = np.array([r.offset for r in rows], dtype=float)
 
     def residual(self, E):
-        """Phi (m,), m."""
+        """Phi, one value per row, m.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m,) m.
+        """
         X = self._gather(E)
         return np.einsum("mi,mi->m", X[:, 0] - X[:, 1], frame_vector(self._c, X[:, 2], X[:, 3])) - self._offset
 
     def gradient(self, E):
-        """dPhi/dE on each row's twelve entries [X_p, X_q, r_x^Q, r_y^Q], (m, 12): v, -v, c_x d + c_z (r_y x d),
-        c_y d + c_z (d x r_x), from (r_x x r_y) . d = r_x . (r_y x d) = r_y . (d x r_x)."""
+        """dPhi/dE on each row's twelve entries [X_p, X_q, r_x^Q, r_y^Q].
+
+        v, -v, c_x d + c_z (r_y x d), c_y d + c_z (d x r_x), from (r_x x r_y) . d = r_x . (r_y x d) = r_y . (d x r_x).
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m, 12).
+        """
         X = self._gather(E)
         c = self._c
         d = X[:, 0] - X[:, 1]
@@ -100,8 +159,17 @@ class SlidingRows(GatheredRows):
                               axis=1)
 
     def velocity_quadratic(self, dE, E):
-        """The part of d2Phi/dt2 that is not (dPhi/dE) E'' (m,), m/s2, at E:
-        2 d' . v' + 2 c_z d . (r_x' x r_y'), with v' = c_x r_x' + c_y r_y' + c_z (r_x' x r_y + r_x x r_y')."""
+        """The part of d2Phi/dt2 that is not (dPhi/dE) E'', at E.
+
+        2 d' . v' + 2 c_z d . (r_x' x r_y'), with v' = c_x r_x' + c_y r_y' + c_z (r_x' x r_y + r_x x r_y').
+
+        Args:
+            dE: (n,) rates of the exchanged coordinates, per s.
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m,) m/s^2.
+        """
         X, V = self._gather(E), self._gather(dE)
         c = self._c
         products = cross(np.stack([V[:, 2], X[:, 2], V[:, 2]], axis=1), np.stack([X[:, 3], V[:, 3], V[:, 3]], axis=1))
@@ -110,9 +178,17 @@ class SlidingRows(GatheredRows):
                       + c[:, 2] * np.einsum("mi,mi->m", X[:, 0] - X[:, 1], products[:, 2]))
 
     def hessian(self, E):
-        """d2Phi/dE2 on each row's twelve entries, exact, (m, 12, 12), 1/m, at E. The nonzero blocks:
-        dv/dr_x = c_x I - c_z [r_y]_x and dv/dr_y = c_y I + c_z [r_x]_x on X_p (minus on X_q), and
-        d2 [d . (r_x x r_y)] / dr_x dr_y = -c_z [d]_x."""
+        """d2Phi/dE2 on each row's twelve entries, exact, at E.
+
+        The nonzero blocks: dv/dr_x = c_x I - c_z [r_y]_x and dv/dr_y = c_y I + c_z [r_x]_x on X_p (minus on X_q), and
+        d2 [d . (r_x x r_y)] / dr_x dr_y = -c_z [d]_x.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+
+        Returns:
+            (m, 12, 12) 1/m.
+        """
         X = self._gather(E)
         c = self._c
         eye = np.eye(3)

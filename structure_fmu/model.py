@@ -20,8 +20,18 @@ from .joints import actuator_energy, actuator_terms
 
 
 class StructureModel:
-    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters: the model of
-    the prescribed, rigid and flexible fidelities (structure_fmu.fidelities)."""
+    """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters.
+
+    The model of the prescribed, rigid and flexible fidelities (structure_fmu.fidelities).
+
+    Args:
+        topology: the StructureTopology.
+        gravity: (3,) m/s^2, global frame.
+        hinge_parameters: {hinge: {parameter: value}} replacing its actuator's (stiffness N m/rad, damping
+            N m s/rad, ...); None: the topology's.
+        body_damping: {body: alpha, 1/s}; None: the topology's.
+        damping_model: "deformation" (-alpha (I-P)^T M (I-P) de, damping.py) or "mass-proportional" (-alpha M de).
+    """
 
     ancf_elastic = True
     """Whether a deformable body carries the ANCF elastic force on E (Otsuka et al. 2019, Eqs. 7-11)."""
@@ -90,7 +100,14 @@ class StructureModel:
 
     # ---------------------------------------------------------------- kinematics
     def prescribed(self, t):
-        """p, p', p'' (stacked prescribed vectors and rates) at time t, each (3 n_prescribed,)."""
+        """The stacked prescribed vectors and rates at time t.
+
+        Args:
+            t: time, s.
+
+        Returns:
+            (p, p', p''), each (3 n_prescribed,), global frame.
+        """
         p, dp, ddp = (a.copy() for a in self._fixed)
         for motion, rows, arms, is_pos in self._moving:
             k = motion.kinematics(t)
@@ -117,7 +134,13 @@ class StructureModel:
         self._motion_at = (None, None)         # (t, (P p, P p', p'')) of the last t asked
 
     def coordinates(self, q, dq, t):
-        """E, dE/dt, and the prescribed acceleration p'' at time t (None when nothing prescribed moves)."""
+        """E, dE/dt, and the prescribed acceleration p'' at time t (None when nothing prescribed moves).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+        """
         # np.dot rather than @ in the per-stage paths: a third of the operator's overhead on these small arrays
         if self._fixed_offset is not None:
             return np.dot(self.T, q) + self._fixed_offset, np.dot(self.T, dq), None
@@ -129,15 +152,31 @@ class StructureModel:
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
-        """The factor (-) on a PointLoad's force at time t (s): 1, or the cosine ramp up to its ramp_time."""
+        """The factor (-) on a PointLoad's force at time t: 1, or the cosine ramp up to its ramp_time.
+
+        Otsuka et al. 2019, Eq. 26
+
+        Args:
+            load: the PointLoad (structure_fmu.topology).
+            t: time, s.
+        """
         if load.ramp_time is not None:   # Otsuka et al. 2019, Eq. (26)
             ts = load.ramp_time
             return 0.5 * (1 - np.cos(np.pi * t / ts)) if t < ts else 1.0
         return 1.0
 
     def external_force_E(self, t, Q):
-        """The external generalized force on E (n,) at time t (s): the point loads and Q (N, N m). Its power on
-        dE is what the energy monitor's external work integrates."""
+        """The external generalized force on E at time t: the point loads and Q.
+
+        Its power on dE is what the energy monitor's external work integrates.
+
+        Args:
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+
+        Returns:
+            (n,) N and N m, global frame.
+        """
         F = np.array(Q, dtype=float)
         for load in self.loads:
             k = load.element
@@ -146,7 +185,18 @@ class StructureModel:
         return F
 
     def force_E(self, E, dE, t, Q, latched):
-        """Generalized force on E (n,): elastic, gravity, point loads, actuators, damping and external Q."""
+        """Generalized force on E: elastic, gravity, point loads, actuators, damping and external Q.
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+            dE: (n,) their rates, per s.
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched}.
+
+        Returns:
+            (n,) N and N m, global frame.
+        """
         F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
         if self.flexible:
             e_el = E[self.dofs]
@@ -161,8 +211,17 @@ class StructureModel:
         return F
 
     def tangent_E(self, E, dE, latched):
-        """(K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton: K grad grad^T) and
-        -dF/d(dE) (damping, actuator C grad grad^T) of `force_E` (point loads, gravity and Q do not depend on E)."""
+        """The tangents of `force_E` (point loads, gravity and Q do not depend on E).
+
+        Args:
+            E: (n,) exchanged coordinates, global frame.
+            dE: (n,) their rates, per s.
+            latched: {hinge: latched}.
+
+        Returns:
+            (K_E, C_E), each (n, n): -dF/dE (elastic exact, actuator Gauss-Newton: K grad grad^T) and -dF/d(dE)
+            (damping, actuator C grad grad^T).
+        """
         n = self.n
         if self.flexible:
             jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
@@ -182,7 +241,18 @@ class StructureModel:
         return K, C
 
     def force_q(self, q, dq, t, Q, latched):
-        """Reduced force T^T F - T^T M_E P p'' (the inertia of the prescribed motion) and the current E, dE, p''."""
+        """Reduced force T^T F - T^T M_E P p'' (the inertia of the prescribed motion) and the current E, dE, p''.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched}.
+
+        Returns:
+            (force (n_q,), E (n,), dE (n,), p'' or None).
+        """
         E, dE, ddp = self.coordinates(q, dq, t)
         F = np.dot(self.T.T, self.force_E(E, dE, t, Q, latched))
         if ddp is not None:
@@ -195,11 +265,28 @@ class StructureModel:
         return self.top.initial_free()
 
     def mass_matrix(self, q, t):
-        """M_q (n_q, n_q) at q and t (s), constant here."""
+        """M_q at q and t, constant here.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+
+        Returns:
+            (n_q, n_q).
+        """
         return self.mass_q
 
     def solve_mass(self, q, t, b):
-        """M_q^-1 b at q and t (s), for b (n_q,) or (n_q, k)."""
+        """M_q^-1 b at q and t.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            b: (n_q,) or (n_q, k).
+
+        Returns:
+            the shape of b.
+        """
         return np.dot(self.mass_inverse, b)
 
     @property
@@ -212,32 +299,88 @@ class StructureModel:
         return values if self._rows is None else values[self._rows]
 
     def constraint_residual(self, q, E):
-        """Phi (count,) at the state whose exchanged coordinates are E."""
+        """Phi at the state whose exchanged coordinates are E.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+
+        Returns:
+            (count,).
+        """
         return self._kept(self.constraints.residual(E))
 
     def constraint_violation(self, q, E):
-        """Largest |Phi| of every row, the redundant ones the integrators leave out included (the monitor)."""
+        """Largest |Phi| of every row, the redundant ones the integrators leave out included (the monitor).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+        """
         residual = self.constraints.residual(E) if len(self._dropped) else self.constraint_residual(q, E)
         return float(np.abs(residual).max(initial=0.0))
 
     def constraint_jacobian(self, q, E):
-        """Phi_q (count, n_q)."""
+        """Phi_q.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+
+        Returns:
+            (count, n_q).
+        """
         return self._kept(self.constraints.jacobian(E))
 
     def constraint_rate(self, q, dq, E, dE):
-        """dPhi/dt (count,)."""
+        """dPhi/dt.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            E: (n,) the exchanged coordinates at q, global frame.
+            dE: (n,) their rates, per s.
+
+        Returns:
+            (count,) per s.
+        """
         return self._kept(self.constraints.rate(E, dE))
 
     def constraint_gamma(self, q, dq, E, dE, ddp):
-        """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints (count,)."""
+        """-(d2Phi/dt2 - Phi_q q''): the right-hand side of the acceleration-level constraints.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            E: (n,) the exchanged coordinates at q, global frame.
+            dE: (n,) their rates, per s.
+            ddp: (3 n_prescribed,) the prescribed acceleration p'', or None.
+
+        Returns:
+            (count,) per s^2.
+        """
         gamma = -self.constraints.velocity_quadratic(dE, E)
         if ddp is not None:
             gamma -= self.constraints.rate(E, self.P @ ddp)
         return self._kept(gamma)
 
     def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
-        """(beta' M_q + gamma' C_t + K_t (n_q, n_q), E): generalized-alpha's iteration matrix without the
-        constraint rows (Peng et al. 2019, Fig. 3), with the constraint Hessian in K_t."""
+        """Generalized-alpha's iteration matrix without the constraint rows, with the constraint Hessian in K_t.
+
+        Peng et al. 2019, Fig. 3
+
+        Args:
+            t: time, s.
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            latched: {hinge: latched}.
+            lam: (count,) the constraint multipliers.
+            beta_p: beta', 1/s^2.
+            gamma_p: gamma', 1/s.
+
+        Returns:
+            (beta' M_q + gamma' C_t + K_t (n_q, n_q), E (n,)).
+        """
         E, dE, _ = self.coordinates(q, dq, t)
         K, C = self.tangent_E(E, dE, latched)
         if self.constraints.count:
@@ -271,29 +414,69 @@ class StructureModel:
         return pattern
 
     def acceleration_E(self, q, dq, ddq, t):
-        """d2E/dt2 (n,) for q'' = ddq: T q'' + P p''(t)."""
+        """d2E/dt2 for q'' = ddq: T q'' + P p''(t).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            ddq: (n_q,) their accelerations, per s^2.
+            t: time, s.
+
+        Returns:
+            (n,) per s^2, global frame.
+        """
         if self._fixed_offset is not None:          # p'' = 0
             return np.dot(self.T, ddq)
         _, _, ddp = self.coordinates(q, dq, t)
         return self.T @ ddq + (self.P @ ddp if ddp is not None else 0.0)
 
     def velocity_map(self, q, t):
-        """dE/dq (n, n_q): T, constant here."""
+        """dE/dq: T, constant here.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+
+        Returns:
+            (n, n_q).
+        """
         return self.T
 
     def rates_of(self, q, dE, t):
-        """The q' whose exchanged rates come closest to dE (least squares; exact when dE is reachable)."""
+        """The q' whose exchanged rates come closest to dE (least squares; exact when dE is reachable).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dE: (n,) wanted rates of E, per s, global frame.
+            t: time, s.
+
+        Returns:
+            (n_q,) per s.
+        """
         _, dp, _ = self.prescribed(t)
         return np.linalg.lstsq(self.T, dE - self.P @ dp, rcond=None)[0]
 
     def fold_angles(self, q, E):
-        """{revolute: fold angle, rad} at the state whose exchanged coordinates are E."""
+        """{revolute: fold angle, rad} at the state whose exchanged coordinates are E.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+        """
         return self.top.fold_angles(E)
 
     # ---------------------------------------------------------------- monitors
     def potential_energy(self, q, E, latched, angles):
-        """Elastic + gravity potential + actuator spring potential, J, at E with the fold angles
-        {hinge: rad} of E (`StructureTopology.fold_angles`). The energy monitor is this plus 1/2 dE^T M_E dE."""
+        """Elastic + gravity potential + actuator spring potential, J.
+
+        The energy monitor is this plus 1/2 dE^T M_E dE.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+            latched: {hinge: latched}.
+            angles: {hinge: fold angle, rad} of E (`StructureTopology.fold_angles`).
+        """
         elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
             if self.flexible else 0.0
         potential = -float(np.dot(self.gravity_E, E))
@@ -341,11 +524,19 @@ REDUNDANCY_TOLERANCE = 1e-8
 
 
 def independent_rows(jacobian):
-    """Indices of the rows of `jacobian` (m, n_q) that are independent of the rows before them, in order
-    (modified Gram-Schmidt, twice). A planar closed loop of rigid bodies closed by the rows X_a - X_b = 0
+    """Indices of the rows of `jacobian` that are independent of the rows before them, in order.
+
+    Modified Gram-Schmidt, twice. A planar closed loop of rigid bodies closed by the rows X_a - X_b = 0
     (pins.py) repeats one of them (the out-of-plane one) at every configuration; judged at t = 0, so a
     mechanism must not start in a singular configuration (the constraint_residual monitor, which includes
-    the rows left out, shows it if it did)."""
+    the rows left out, shows it if it did).
+
+    Args:
+        jacobian: (m, n_q) constraint Jacobian.
+
+    Returns:
+        (k,) int row indices.
+    """
     rows = np.asarray(jacobian, dtype=float)
     basis = np.zeros_like(rows)             # orthonormal rows spanning the kept ones
     keep = []

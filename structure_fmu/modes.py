@@ -11,8 +11,15 @@ from scipy.linalg import eigh, null_space
 
 
 def natural_modes(solver):
-    """(omega (k,) rad/s ascending, shapes (n_q, k)) of `solver`'s structure at its current state: every
-    mode of the tangent space, the shapes on its coordinates q and mass-normalized (shapes^T M shapes = I)."""
+    """The natural modes of `solver`'s structure at its current state: every mode of the tangent space.
+
+    Args:
+        solver: a StructureSolver.
+
+    Returns:
+        (omega (k,) rad/s ascending, shapes (n_q, k)): the shapes on its coordinates q, mass-normalized
+        (shapes^T M shapes = I).
+    """
     model, state = solver.model, solver.state
     q, still = state.q, np.zeros_like(state.q)
     K, E = model.iteration_matrix(state.t, q, still, state.latched, state.multipliers, 0.0, 0.0)
@@ -23,7 +30,11 @@ def natural_modes(solver):
 
 
 def natural_frequencies(solver, count=6):
-    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state
-    (all of them if count is None)."""
+    """The `count` lowest natural frequencies (rad/s) of `solver`'s structure at its current state.
+
+    Args:
+        solver: a StructureSolver.
+        count: how many; None: all of them.
+    """
     omega, _ = natural_modes(solver)
     return omega if count is None else omega[:count]

@@ -32,10 +32,15 @@ GAP_TOLERANCE = 1e-9
 
 
 def add_pins(top, joints) -> None:
-    """Share the points (and chords) of the pins among `joints` (fmu_common.wing_spec) in the
-    StructureTopology `top`, or add their rows;
-    SceneError naming the key for a pin on a point that is not a node, two sides apart at t = 0, or a pin
-    the fidelity cannot hold."""
+    """Share the points (and chords) of the pins among `joints` in the StructureTopology `top`, or add their rows.
+
+    SceneError naming the key for a pin on a point that is not a node, two sides apart at t = 0, or a pin the
+    fidelity cannot hold.
+
+    Args:
+        top: the StructureTopology, changed in place.
+        joints: the structure's joints (fmu_common.wing_spec).
+    """
     for spec in (j for j in joints if isinstance(j, PinSpec)):
         key = spec.key
         if not top.fidelity.nodes_anywhere:
@@ -110,8 +115,14 @@ class _Pin:
 
 
 def add_sliders(top, joints) -> None:
-    """Rows keeping each slider's node on its line (two rows, normals n perpendicular to it) or plane (one):
-    fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow)."""
+    """Rows keeping each slider's node on its line (two rows, normals n perpendicular to it) or plane (one).
+
+    Fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow).
+
+    Args:
+        top: the StructureTopology, changed in place.
+        joints: the structure's joints (fmu_common.wing_spec).
+    """
     for spec in (j for j in joints if isinstance(j, SliderSpec)):
         key = spec.key
         if not top.fidelity.nodes_anywhere:

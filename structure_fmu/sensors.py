@@ -25,20 +25,39 @@ AXES = "xyz"
 
 
 def probe_output_names(probe: str) -> tuple[list[str], list[str], list[str]]:
-    """(position names ``<probe>_x/_y/_z``, velocity names ``<probe>_vx/_vy/_vz``, acceleration names
-    ``<probe>_ax/_ay/_az``) of a probe's outputs."""
+    """The names of a probe's outputs.
+
+    Args:
+        probe: the probe's name.
+
+    Returns:
+        (position names ``<probe>_x/_y/_z``, velocity names ``<probe>_vx/_vy/_vz``, acceleration names
+        ``<probe>_ax/_ay/_az``).
+    """
     return [f"{probe}_{a}" for a in AXES], [f"{probe}_v{a}" for a in AXES], [f"{probe}_a{a}" for a in AXES]
 
 
 def output_names(probe_names: list[str], gauge_names: list[str]) -> list[str]:
-    """Names of the sensor outputs in the structure unit's order: every probe's position, then every probe's
-    velocity, then every probe's acceleration, then the gauges' strains."""
+    """Names of the sensor outputs in the structure unit's order.
+
+    Every probe's position, then every probe's velocity, then every probe's acceleration, then the gauges' strains.
+
+    Args:
+        probe_names: the probes' names.
+        gauge_names: the strain gauges' names.
+    """
     names = [probe_output_names(p) for p in probe_names]
     return [n for kind in range(3) for group in names for n in group[kind]] + list(gauge_names)
 
 
 class Sensors:
-    """Probes and strain gauges (fmu_common.specs.ProbeSpec, StrainGaugeSpec) on a topology."""
+    """Probes and strain gauges on a topology.
+
+    Args:
+        probes: the probes (fmu_common.specs.ProbeSpec).
+        gauges: the strain gauges (fmu_common.specs.StrainGaugeSpec).
+        topology: the StructureTopology they sit on.
+    """
 
     def __init__(self, probes: tuple[ProbeSpec, ...], gauges: tuple[StrainGaugeSpec, ...], topology) -> None:
         n_slots = 3 * topology.n_nodes
@@ -55,21 +74,45 @@ class Sensors:
 
     @classmethod
     def from_spec(cls, spec: StructureUnitSpec, topology) -> "Sensors":
-        """The sensors of the structure unit's spec (its probes and strain gauges)."""
+        """The sensors of the structure unit's spec (its probes and strain gauges).
+
+        Args:
+            spec: the structure unit's spec (fmu_common.specs.StructureUnitSpec).
+            topology: the StructureTopology.
+        """
         return cls(spec.probes, spec.strain_gauges, topology)
 
     def positions(self, e: np.ndarray) -> np.ndarray:
-        """Probe global positions (n_probes, 3), m, from the coordinates e (n,)."""
+        """Probe positions.
+
+        Args:
+            e: (n,) exchanged coordinates, m and 1, global frame.
+
+        Returns:
+            (n_probes, 3) m, global frame.
+        """
         return self._probe_rows @ np.asarray(e, dtype=float).reshape(-1, 3)
 
     def velocities(self, de: np.ndarray) -> np.ndarray:
-        """Probe global velocities (n_probes, 3), m/s, from the coordinate rates de (n,): the same rows; also
-        the accelerations (m/s^2) from dde."""
+        """Probe velocities; also the accelerations (m/s^2) from dde, with the same rows.
+
+        Args:
+            de: (n,) rates of the exchanged coordinates, per s.
+
+        Returns:
+            (n_probes, 3) m/s, global frame.
+        """
         return np.dot(self._probe_rows, np.asarray(de, dtype=float).reshape(-1, 3))
 
     def strains(self, e: np.ndarray) -> np.ndarray:
-        """Surface strain of each gauge (n_gauges,), 1: d kappa_y, positive when the gauged (-n) face
-        stretches (`flap_curvature`)."""
+        """Surface strain of each gauge: d kappa_y, positive when the gauged (-n) face stretches (`flap_curvature`).
+
+        Args:
+            e: (n,) exchanged coordinates, m and 1, global frame.
+
+        Returns:
+            (n_gauges,) 1.
+        """
         if not self.gauge_names:
             return np.zeros(0)
         return self._strains(self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3))
@@ -98,8 +141,16 @@ class Sensors:
         return output_names(self.probe_names, self.gauge_names)
 
     def outputs(self, e: np.ndarray, de: np.ndarray, dde: np.ndarray) -> np.ndarray:
-        """All readings flat, in the order of ``output_names``: positions (m), velocities (m/s), accelerations
-        (m/s^2), strains (1)."""
+        """All readings flat, in the order of ``output_names``.
+
+        Args:
+            e: (n,) exchanged coordinates, m and 1, global frame.
+            de: (n,) their rates, per s.
+            dde: (n,) their accelerations, per s^2.
+
+        Returns:
+            positions (m), velocities (m/s), accelerations (m/s^2), strains (1).
+        """
         n_probes, n_gauges = len(self.probe_names), len(self.gauge_names)
         at_e = np.dot(self._position_rows, np.asarray(e, dtype=float).reshape(-1, 3))
         strains = self._strains(at_e[n_probes:].reshape(n_gauges, 3, 3)) if n_gauges else np.zeros(0)

@@ -40,8 +40,17 @@ K0, GENERATORS = _generators()
 def transfer(strains, lengths):
     """Element transfer matrices and their derivatives along the strains.
 
-    strains (n, 4), lengths (n,) m -> (Phi (n, 4, 4), dPhi (n, 4, 4, 4)) with H_end = Phi H_start
-    (Otsuka et al. 2022, Eq. 7) and dPhi[:, p] = d Phi / d xi_p."""
+    H_end = Phi H_start.
+
+    Otsuka et al. 2022, Eq. 7
+
+    Args:
+        strains: (n, 4) the elements' strains xi.
+        lengths: (n,) m.
+
+    Returns:
+        (Phi (n, 4, 4), dPhi (n, 4, 4, 4)), dPhi[:, p] = d Phi / d xi_p.
+    """
     n = len(strains)
     X = lengths[:, None, None] * (K0 + np.einsum("np,pij->nij", strains, GENERATORS))
     big = np.zeros((n, 4 * (STRAINS + 1), 4 * (STRAINS + 1)))
@@ -57,8 +66,16 @@ def transfer(strains, lengths):
 
 
 def transfer_second(strains, rates, lengths):
-    """d2 Phi/dt2 at zero strain acceleration: the second derivative of exp(ds K(xi)) along the strain rates,
-    (n, 4, 4), for strains and rates (n, 4) and lengths (n,) m."""
+    """d2 Phi/dt2 at zero strain acceleration: the second derivative of exp(ds K(xi)) along the strain rates.
+
+    Args:
+        strains: (n, 4) the elements' strains xi.
+        rates: (n, 4) their rates, per s.
+        lengths: (n,) m.
+
+    Returns:
+        (n, 4, 4).
+    """
     n = len(strains)
     X = lengths[:, None, None] * (K0 + np.einsum("np,pij->nij", strains, GENERATORS))
     Y = lengths[:, None, None] * np.einsum("np,pij->nij", rates, GENERATORS)
@@ -80,8 +97,18 @@ PARAMETERS = {"revolute": 1, "ball": 4, "universal": 9, "fixed": 0}
 
 
 def quaternion_matrix(z):
-    """R(zeta) of Otsuka et al. 2022, Eq. (21), (3, 3): a rotation for a unit zeta (4,), |zeta|^2 times one
-    otherwise (homogeneous quadratic, so its second derivative along w is 2 R(w))."""
+    """R(zeta): a rotation for a unit zeta, |zeta|^2 times one otherwise.
+
+    Otsuka et al. 2022, Eq. 21
+
+    Homogeneous quadratic, so its second derivative along w is 2 R(w).
+
+    Args:
+        z: (4,) Euler parameters zeta.
+
+    Returns:
+        (3, 3).
+    """
     z0, z1, z2, z3 = z
     return np.array([[z0 * z0 + z1 * z1 - z2 * z2 - z3 * z3, 2 * (z1 * z2 - z0 * z3), 2 * (z1 * z3 + z0 * z2)],
                      [2 * (z1 * z2 + z0 * z3), z0 * z0 - z1 * z1 + z2 * z2 - z3 * z3, 2 * (z2 * z3 - z0 * z1)],
@@ -89,7 +116,14 @@ def quaternion_matrix(z):
 
 
 def quaternion_of(rotation):
-    """Unit Euler parameters (4,) of a rotation matrix (3, 3), zeta_0 >= 0 (Shepperd's method)."""
+    """Unit Euler parameters of a rotation matrix, zeta_0 >= 0 (Shepperd's method).
+
+    Args:
+        rotation: (3, 3) rotation matrix.
+
+    Returns:
+        (4,) zeta.
+    """
     R = np.asarray(rotation, dtype=float)
     trace = np.trace(R)
     candidates = [trace, R[0, 0], R[1, 1], R[2, 2]]
@@ -110,11 +144,21 @@ def quaternion_of(rotation):
 
 
 def joint_gradients(kind, eta, axis, orientation):
-    """(c (3, 3), dc (n_eta, 3, 3)) of a joint: c(eta) and d c / d eta_k.
+    """c(eta) and d c / d eta_k of a joint.
 
     revolute (Otsuka et al. 2022, Eq. 15 for the chord axis): F_child = F_parent R(axis, theta) orientation,
     c = orientation^T R^T; ball (Eqs. 19-21): F_child = F_parent R(zeta), c = R(zeta)^T; universal (Eqs. 16-17):
-    c = mu, the nine direction cosines row by row; fixed: c = orientation^T."""
+    c = mu, the nine direction cosines row by row; fixed: c = orientation^T.
+
+    Args:
+        kind: the joint's kind: "revolute", "ball", "universal"; any other is fixed.
+        eta: (n_eta,) the joint parameters.
+        axis: (3,) unit revolute axis, parent frame.
+        orientation: (3, 3) the child's frame relative to the parent's at eta's origin.
+
+    Returns:
+        (c (3, 3), dc (n_eta, 3, 3)).
+    """
     if kind == "revolute":
         R = rotation_about(axis, eta[0])
         dR = skew(axis) @ R
@@ -127,7 +171,14 @@ def joint_gradients(kind, eta, axis, orientation):
 
 
 def quaternion_gradient(z):
-    """d R(zeta) / d zeta_k (4, 3, 3) of Eq. (21), linear in zeta."""
+    """d R(zeta) / d zeta_k of Otsuka et al. 2022, Eq. 21, linear in zeta.
+
+    Args:
+        z: (4,) Euler parameters zeta.
+
+    Returns:
+        (4, 3, 3).
+    """
     z0, z1, z2, z3 = z
     return 2.0 * np.array([[[z0, -z3, z2], [z3, z0, -z1], [-z2, z1, z0]],
                            [[z1, z2, z3], [z2, -z1, -z0], [z3, z0, -z1]],
@@ -136,7 +187,18 @@ def quaternion_gradient(z):
 
 
 def joint_second(kind, eta, rate, axis, orientation):
-    """d2 c/dt2 at zero parameter acceleration (3, 3), for parameter rates `rate`."""
+    """d2 c/dt2 at zero parameter acceleration.
+
+    Args:
+        kind: the joint's kind: "revolute", "ball", "universal"; any other is fixed.
+        eta: (n_eta,) the joint parameters.
+        rate: (n_eta,) their rates, per s.
+        axis: (3,) unit revolute axis, parent frame.
+        orientation: (3, 3) the child's frame relative to the parent's at eta's origin.
+
+    Returns:
+        (3, 3) per s^2.
+    """
     if kind == "revolute":
         R = rotation_about(axis, eta[0])
         k = skew(axis)
@@ -147,7 +209,16 @@ def joint_second(kind, eta, rate, axis, orientation):
 
 
 def initial_parameters(kind, angle, orientation):
-    """eta at t = 0 for a joint whose child starts at `angle` (rad, revolute) and `orientation` (3, 3)."""
+    """eta at t = 0 for a joint whose child starts at `angle` and `orientation`.
+
+    Args:
+        kind: the joint's kind: "revolute", "ball", "universal"; any other is fixed.
+        angle: the revolute's initial angle, rad.
+        orientation: (3, 3) the child's initial frame relative to the parent's.
+
+    Returns:
+        (n_eta,).
+    """
     if kind == "revolute":
         return np.array([angle])
     if kind == "ball":

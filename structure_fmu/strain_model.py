@@ -60,7 +60,15 @@ class _Root:
 
 
 class StrainBasedModel(StructureModel):
-    """The StructureModel's inertia and forces on E, over the strain-based coordinates q (see the module)."""
+    """The StructureModel's inertia and forces on E, over the strain-based coordinates q (see the module).
+
+    Args:
+        topology: the StructureTopology.
+        gravity: (3,) m/s^2, global frame.
+        hinge_parameters: {hinge: {parameter: value}} replacing its actuator's; None: the topology's.
+        body_damping: {body: alpha, 1/s}; None: the topology's.
+        damping_model: "deformation" or "mass-proportional" (StructureModel).
+    """
 
     ancf_elastic = False      # the elastic force is K q (Otsuka et al. 2022, Eq. 9)
 
@@ -211,11 +219,31 @@ class StrainBasedModel(StructureModel):
         return np.vstack([Hpdd[0], c_ddot @ Hp[1:] + 2.0 * c_dot @ Hpd[1:] + c @ Hpdd[1:]])
 
     def acceleration_E(self, q, dq, ddq, t):
-        """d2E/dt2 (n,) for q'' = ddq: B q'' + dB/dt q' (plus a driven root's acceleration)."""
+        """d2E/dt2 for q'' = ddq: B q'' + dB/dt q' (plus a driven root's acceleration).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            dq: (n_q,) their rates, per s.
+            ddq: (n_q,) their accelerations, per s^2.
+            t: time, s.
+
+        Returns:
+            (n,) per s^2, global frame.
+        """
         return self.velocity_map(q, t) @ ddq + self._motion(q, dq, t)[2]
 
     def velocity_map(self, q, t):
-        """B = dE/dq (n, n_q) at q (Otsuka et al. 2022, Eq. 9)."""
+        """B = dE/dq at q.
+
+        Otsuka et al. 2022, Eq. 9
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            t: time, s.
+
+        Returns:
+            (n, n_q).
+        """
         dH = self._configuration(q, t)[1]
         return dH[:, :3].reshape(-1, self.n_q)
 
@@ -224,12 +252,28 @@ class StrainBasedModel(StructureModel):
         return self._q0.copy()
 
     def coordinates(self, q, dq, t):
-        """E, dE/dt and None (the prescribed acceleration is inside the force, see force_q)."""
+        """E, dE/dt and None (the prescribed acceleration is inside the force, see force_q).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+        """
         E, dE, _ = self._motion(q, dq, t)
         return E, dE, None
 
     def mass_matrix(self, q, t):
-        """B^T M_E B (n_q, n_q) at q and t (s) (Otsuka et al. 2022, Eq. 9; t matters with a driven root)."""
+        """B^T M_E B at q and t (t matters with a driven root).
+
+        Otsuka et al. 2022, Eq. 9
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            t: time, s.
+
+        Returns:
+            (n_q, n_q).
+        """
         return self._mass(q, t)[0]
 
     def _mass(self, q, t):
@@ -251,13 +295,35 @@ class StrainBasedModel(StructureModel):
         return self._cache_mass[1]
 
     def solve_mass(self, q, t, b):
-        """(M + Psi_q^T w Psi_q)^-1 b at q and t (s): the integrators' index-1 solve and projection metric (see
-        _mass)."""
+        """(M + Psi_q^T w Psi_q)^-1 b at q and t: the integrators' index-1 solve and projection metric (see _mass).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            t: time, s.
+            b: (n_q,) or (n_q, k).
+
+        Returns:
+            the shape of b.
+        """
         return cho_solve(self._mass(q, t)[1], b, check_finite=False)
 
     def force_q(self, q, dq, t, Q, latched):
-        """B^T (F_E - M_E dB/dt q') - K q (Otsuka et al. 2022, Eq. 9), with F_E the ANCF model's force on E
-        (gravity, loads, actuators, damping, Q), and the current E, dE; no separate prescribed term."""
+        """B^T (F_E - M_E dB/dt q') - K q and the current E, dE; no separate prescribed term.
+
+        Otsuka et al. 2022, Eq. 9
+
+        F_E is the ANCF model's force on E (gravity, loads, actuators, damping, Q).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched}.
+
+        Returns:
+            (force (n_q,), E (n,), dE (n,), None).
+        """
         E, dE, a = self._motion(q, dq, t)
         B = self.velocity_map(q, t)
         F = B.T @ (self.force_E(E, dE, t, Q, latched) - self._mass_E_sparse @ a) - self.stiffness_diagonal * q
@@ -280,8 +346,23 @@ class StrainBasedModel(StructureModel):
         return -self._constraints.velocity_quadratic(dq)
 
     def iteration_matrix(self, t, q, dq, latched, lam, beta_p, gamma_p):
-        """beta' M + B^T (gamma' C_E + K_E) B + K + sum lambda_i Psi_i,qq: generalized-alpha's matrix with the
-        tangent of the forces on E mapped by B (the derivatives of B itself left out: modified Newton)."""
+        """Generalized-alpha's matrix with the tangent of the forces on E mapped by B.
+
+        beta' M + B^T (gamma' C_E + K_E) B + K + sum lambda_i Psi_i,qq (the derivatives of B itself left out: modified
+        Newton).
+
+        Args:
+            t: time, s.
+            q: (n_q,) strain-based coordinates.
+            dq: (n_q,) their rates, per s.
+            latched: {hinge: latched}.
+            lam: the constraint multipliers.
+            beta_p: beta', 1/s^2.
+            gamma_p: gamma', 1/s.
+
+        Returns:
+            (S (n_q, n_q), E (n,)).
+        """
         E, dE, _ = self._motion(q, dq, t)
         B = self.velocity_map(q, t)
         K_E, C_E = self.tangent_E(E, dE, latched)
@@ -302,7 +383,14 @@ class StrainBasedModel(StructureModel):
 
     # ---------------------------------------------------------------- monitors
     def potential_energy(self, q, E, latched, angles):
-        """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J."""
+        """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J.
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            E: (n,) the exchanged coordinates at q, global frame.
+            latched: {hinge: latched}.
+            angles: {hinge: fold angle, rad} of E.
+        """
         return super().potential_energy(q, E, latched, angles) + 0.5 * float(q @ (self.stiffness_diagonal * q))
 
 
