@@ -58,9 +58,13 @@ def c_compiler() -> list[str]:
 
 
 def library_name(source: Path, platform: str | None = None) -> str:
-    """File name of the library of `source` for `platform` (sysconfig.get_platform()'s names: this interpreter's
-    by default, "win-amd64" for 64-bit Windows): `<stem>-<digest of source, flags and platform>.so`, `.dll` on
-    Windows."""
+    """File name of the library of `source`: `<stem>-<digest of source, flags and platform>.so`, `.dll` on Windows.
+
+    Args:
+        source: the C file.
+        platform: sysconfig.get_platform()'s name of the target, "win-amd64" for 64-bit Windows; None: this
+            interpreter's.
+    """
     platform = platform or sysconfig.get_platform()
     h = hashlib.sha256(Path(source).read_bytes())
     h.update(" ".join(_flags(platform)).encode() + platform.encode())
@@ -73,9 +77,15 @@ def _flags(platform: str) -> tuple[str, ...]:
 
 
 def cross_compiled(source: str | Path, compiler: list[str], platform: str) -> Path:
-    """The library of the C file `source` for `platform`, compiled with `compiler` (a cross compiler) into the
-    cache folder the first time; CLibraryUnavailable when the compilation fails, OSError if the cache folder
-    cannot be written."""
+    """The library of the C file `source` for `platform`, compiled with a cross compiler into the cache folder once.
+
+    CLibraryUnavailable when the compilation fails, OSError if the cache folder cannot be written.
+
+    Args:
+        source: the C file.
+        compiler: the cross compiler's command line.
+        platform: sysconfig.get_platform()'s name of the target.
+    """
     source = Path(source).resolve()
     target = cache_folder() / library_name(source, platform)
     if target.is_file():
@@ -84,8 +94,13 @@ def cross_compiled(source: str | Path, compiler: list[str], platform: str) -> Pa
 
 
 def load(source: str | Path) -> ctypes.CDLL:
-    """The library of the C file `source`, loaded once per process (module docstring); CLibraryUnavailable if it
-    can be neither found nor compiled."""
+    """The library of the C file `source`, loaded once per process (module docstring).
+
+    CLibraryUnavailable if it can be neither found nor compiled.
+
+    Args:
+        source: the C file.
+    """
     library = _loaded.get(source)          # by the path as given (a module constant): no file system call
     if library is None:
         library = _loaded[source] = _load(Path(source))
@@ -106,9 +121,14 @@ def _load(source: Path) -> ctypes.CDLL:
 
 
 def library_file(source: str | Path) -> Path:
-    """The library of the C file `source`: beside it, else in the cache folder, where it is compiled if absent
-    (or where the compilation `start_compiling` began is awaited). CLibraryUnavailable if it cannot be compiled;
-    OSError if the cache folder cannot be written."""
+    """The library of the C file `source`: beside it, else in the cache folder, where it is compiled if absent.
+
+    Or where the compilation `start_compiling` began is awaited. CLibraryUnavailable if it cannot be compiled;
+    OSError if the cache folder cannot be written.
+
+    Args:
+        source: the C file.
+    """
     source = Path(source).resolve()
     found = _found(source)
     if found is not None:
@@ -118,9 +138,14 @@ def library_file(source: str | Path) -> Path:
 
 
 def start_compiling(source: str | Path) -> None:
-    """Begin compiling the C file `source` into the cache folder in the background, unless its library is found,
-    so that the compiler runs while the caller does other work (the FMU build); the next `library_file` or
-    `load` of it waits for it and reports its errors."""
+    """Begin compiling the C file `source` into the cache folder in the background, unless its library is found.
+
+    So the compiler runs while the caller does other work (the FMU build); the next `library_file` or `load` of it
+    waits for it and reports its errors.
+
+    Args:
+        source: the C file.
+    """
     source = Path(source).resolve()
     if source in _compiling or _found(source) is not None:
         return
@@ -141,8 +166,14 @@ def _abandon_compilations() -> None:
 
 
 def compile_into(source: str | Path, folder: str | Path) -> Path:
-    """Compile the C file `source` into `folder`/`library_name(source)` (atomically) and return that path;
-    CLibraryUnavailable without a compiler or when the compilation fails."""
+    """Compile the C file `source` into `folder`/`library_name(source)` (atomically) and return that path.
+
+    CLibraryUnavailable without a compiler or when the compilation fails.
+
+    Args:
+        source: the C file.
+        folder: where the library is written.
+    """
     return _Compilation(Path(source), Path(folder)).wait()
 
 

@@ -63,19 +63,31 @@ INTEGRATORS = ("rk4", "generalized-alpha")
 
 
 def fidelity(name: str) -> Fidelity:
-    """The Fidelity of structure.fidelity `name`; SceneError naming the key for an unknown one."""
+    """The Fidelity of structure.fidelity `name`; SceneError naming the key for an unknown one.
+
+    Args:
+        name: the fidelity's name, e.g. "rigid".
+    """
     if name not in FIDELITIES:
         raise SceneError("structure.fidelity", name, f"one of {', '.join(map(repr, FIDELITIES))}")
     return FIDELITIES[name]
 
 
 def aero_model(name: str) -> AeroModel:
-    """The AeroModel of aero.model `name`; SceneError naming the key for an unknown one."""
+    """The AeroModel of aero.model `name`; SceneError naming the key for an unknown one.
+
+    Args:
+        name: the aero model's name, e.g. "uvlm-free".
+    """
     if name not in AERO_MODELS:
         raise SceneError("aero.model", name, f"one of {', '.join(map(repr, AERO_MODELS))}")
     return AERO_MODELS[name]
 
 
 def fidelity_names(which) -> str:
-    """'rigid or flexible': the names of the fidelities f for which `which(f)` holds, for messages."""
+    """'rigid or flexible': the names of the fidelities f for which `which(f)` holds, for messages.
+
+    Args:
+        which: a predicate on a Fidelity.
+    """
     return " or ".join(f.name for f in FIDELITIES.values() if which(f))

@@ -19,8 +19,13 @@ REQUIREMENTS = "requirements.txt"
 
 
 def missing_packages(requirements: Path) -> list[str]:
-    """The distributions named in `requirements` (pip's format, one per line) that cannot be imported (their
-    import name is the distribution's with '-' as '_')."""
+    """The distributions named in `requirements` that cannot be imported.
+
+    Their import name is the distribution's with '-' as '_'.
+
+    Args:
+        requirements: a requirements file (pip's format, one per line).
+    """
     names = [re.split(r"[\s=<>!~;\[]", line.strip(), maxsplit=1)[0]
              for line in requirements.read_text(encoding="utf-8").splitlines()
              if line.strip() and not line.lstrip().startswith("#")]

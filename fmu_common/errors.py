@@ -8,6 +8,11 @@ class SceneError(ValueError):
 
     Carries the dotted key, the offending value and what is allowed, so that the
     command line can tell the user exactly what to change before anything runs.
+
+    Args:
+        key: the dotted scene key.
+        value: the offending value.
+        allowed: what is allowed, in words.
     """
 
     def __init__(self, key: str, value, allowed: str):
@@ -22,7 +27,10 @@ class InputError(ValueError):
 class SolverDiverged(RuntimeError):
     """The state left the physical range (NaN, inf, constraint or Newton failure).
 
-    `time` is the last time reached (s); `hint` suggests what to change.
+    Args:
+        time: the last time reached, s.
+        reason: what failed.
+        hint: what to change.
     """
 
     def __init__(self, time: float, reason: str, hint: str):
@@ -31,7 +39,13 @@ class SolverDiverged(RuntimeError):
 
 
 def reject_unknown_keys(table: dict, prefix: str, allowed) -> None:
-    """Raise SceneError for the first key of `table` not in `allowed`; `prefix` is the table's dotted key."""
+    """Raise SceneError for the first key of `table` not in `allowed`.
+
+    Args:
+        table: the table given.
+        prefix: the table's dotted key.
+        allowed: the keys it may have.
+    """
     allowed = sorted(allowed) if isinstance(allowed, (set, frozenset)) else list(allowed)
     for key, value in table.items():
         if key not in allowed:
@@ -41,8 +55,14 @@ def reject_unknown_keys(table: dict, prefix: str, allowed) -> None:
 
 
 def checked_input(name: str, value, n: int, time: float):
-    """`value` as a float array of shape (n,); InputError naming the first NaN/inf entry (1-based, the FMI
-    variable name) or a wrong size. `time` (s) is where the unit stands, for the message."""
+    """`value` as a float array of shape (n,); InputError naming the first NaN/inf entry or a wrong size.
+
+    Args:
+        name: the FMI variable name (entries named 1-based).
+        value: the input's values.
+        n: their expected number.
+        time: where the unit stands, s, for the message.
+    """
     value = np.asarray(value, dtype=float)
     if value.shape != (n,):
         raise InputError(f"{name} has shape {value.shape}, the topology has {n} coordinates")

@@ -84,7 +84,12 @@ DIVERGED_CATEGORY = "wingsim.diverged"
 
 
 def read_scene(resources: str | None, label: str) -> dict:
-    """The resolved scene stored as `scene.json` in the resources folder (a path or a file:// URI)."""
+    """The resolved scene stored as `scene.json` in the resources folder.
+
+    Args:
+        resources: the resources folder, a path or a file:// URI.
+        label: the unit's label, for errors.
+    """
     if not resources:
         raise FileNotFoundError(f"{label}: no resources folder given, so no scene.json to read")
     folder = resources[len("file://"):] if resources.startswith("file://") else resources
@@ -252,7 +257,11 @@ class SolverSlave(Fmi2Slave):
         assert var.value_reference == v.value_reference, "value references must follow the layout"
 
     def to_xml(self, model_options: dict | None = None):
-        """pythonfmu's model description plus the UnitDefinitions of every declared unit."""
+        """pythonfmu's model description plus the UnitDefinitions of every declared unit.
+
+        Args:
+            model_options: pythonfmu's model options; None: none.
+        """
         root = super().to_xml({} if model_options is None else model_options)
         at = next(i for i, c in enumerate(list(root)) if c.tag == "CoSimulation") + 1
         root.insert(at, unit_definitions(v.unit for v in self.vars.values() if getattr(v, "unit", None)))
@@ -260,7 +269,14 @@ class SolverSlave(Fmi2Slave):
 
     # ---- logging --------------------------------------------------------------------------------
     def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None, debug=None):
-        """Log for the host, '%' doubled (pythonfmu passes the text to the FMI logger as a printf format)."""
+        """Log for the host, '%' doubled (pythonfmu passes the text to the FMI logger as a printf format).
+
+        Args:
+            msg: the message.
+            status: its FMI status.
+            category: its log category; None: pythonfmu's default.
+            debug: ignored (pythonfmu's signature).
+        """
         super().log(msg.replace("%", "%%"), status, category)
 
     def _error(self, msg: str) -> None:
@@ -497,9 +513,15 @@ class SolverSlave(Fmi2Slave):
             real[where] = value(reading, items)
 
     def do_step(self, current_time, step_size):
-        """fmi2DoStep: refused (logged, False) out of phase, for a step size or a communication point it cannot
-        take (`_step_refused`) or a non-finite input; else the solver advances to current_time + step_size
-        with the inputs held over the step."""
+        """fmi2DoStep: the solver advances to current_time + step_size with the inputs held over the step.
+
+        Refused (logged, False) out of phase, for a step size or a communication point it cannot take (`_step_refused`)
+        or a non-finite input.
+
+        Args:
+            current_time: the communication point, s.
+            step_size: s.
+        """
         if self._step_refused(current_time, step_size):
             return False
         for block in self.input_blocks:

@@ -22,9 +22,15 @@ _NUMPY_GLOBALS = frozenset((module, name) for module in ("numpy.core.multiarray"
 
 
 class StateUnpickler(pickle.Unpickler):
-    """Unpickles a unit state and nothing else: the only globals it resolves are numpy's array and dtype
-    constructors and the dataclasses of `packages` (the units' solver packages, already imported), so bytes
-    that are not our state raise UnpicklingError instead of running code."""
+    """Unpickles a unit state and nothing else.
+
+    The only globals it resolves are numpy's array and dtype constructors and the dataclasses of `packages`, so
+    bytes that are not our state raise UnpicklingError instead of running code.
+
+    Args:
+        file: the binary file to read.
+        packages: the units' solver packages, already imported.
+    """
 
     def __init__(self, file, packages):
         super().__init__(file)
@@ -47,9 +53,14 @@ class StateUnpickler(pickle.Unpickler):
 
 
 class ClassOrInstanceMethod:
-    """A method called as f(cls, instance, *args) whether it is looked up on an instance or on the class
-    (instance None): pythonfmu 0.7.0 calls the state (de)serialization on the slave class, the direct
-    backend on the instance."""
+    """A method called as f(cls, instance, *args) whether it is looked up on an instance or on the class.
+
+    On the class, instance is None: pythonfmu 0.7.0 calls the state (de)serialization on the slave class, the direct
+    backend on the instance.
+
+    Args:
+        func: the function f.
+    """
 
     def __init__(self, func):
         self.func = func

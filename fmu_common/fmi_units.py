@@ -14,7 +14,13 @@ from pythonfmu import Real
 
 
 class UnitReal(Real):
-    """pythonfmu Real with a declared SI unit (pythonfmu 0.7.0 has no unit attribute)."""
+    """pythonfmu Real with a declared SI unit (pythonfmu 0.7.0 has no unit attribute).
+
+    Args:
+        name: the variable's name.
+        unit: its unit in FMI notation; None: none.
+        **kwargs: pythonfmu Real's.
+    """
 
     def __init__(self, name: str, unit: str | None = None, **kwargs):
         super().__init__(name, **kwargs)
@@ -38,15 +44,26 @@ _SYMBOLS = {
 
 
 def fmi_unit(unit: str) -> str:
-    """A scene schema's unit in the notation of our FMI variables: 'N m/rad' -> 'N.m/rad', 'm/s^2' -> 'm/s2',
-    '-' -> '1'."""
+    """A scene schema's unit in the notation of our FMI variables.
+
+    'N m/rad' -> 'N.m/rad', 'm/s^2' -> 'm/s2', '-' -> '1'.
+
+    Args:
+        unit: the schema's unit.
+    """
     return "1" if unit == "-" else ".".join(unit.split()).replace("^", "")
 
 
 def base_unit(unit: str) -> tuple[dict, float] | None:
     """Exponents and factor of a unit string like 'N.m/rad', 'N m s/rad', 'm/s2', 'm/s^2', '1/s'.
 
-    Symbols are separated by spaces, '.' or '*', with at most one '/'; None if not understood.
+    Symbols are separated by spaces, '.' or '*', with at most one '/'.
+
+    Args:
+        unit: the unit string.
+
+    Returns:
+        ({base unit: exponent}, factor), or None if not understood.
     """
     parts = unit.split("/")
     if len(parts) > 2:
@@ -66,8 +83,13 @@ def base_unit(unit: str) -> tuple[dict, float] | None:
 
 
 def unit_definitions(units: Iterable[str]) -> Element:
-    """The <UnitDefinitions> element of `units` (each once, sorted), each with its <BaseUnit> where
-    `base_unit` understands it."""
+    """The <UnitDefinitions> element of `units` (each once, sorted).
+
+    Each with its <BaseUnit> where `base_unit` understands it.
+
+    Args:
+        units: unit strings in FMI notation.
+    """
     defs = Element("UnitDefinitions")
     for unit in sorted(set(units)):
         node = SubElement(defs, "Unit", name=unit)

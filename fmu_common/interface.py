@@ -42,22 +42,42 @@ _PLACEHOLDER = re.compile(r"<[^<>]+>")
 
 
 def fmi_name(name: str) -> str:
-    """FMI structured name for a dotted name: parts that are neither identifiers nor array elements
-    (`direction[1]`) are quoted ('outer wing')."""
+    """FMI structured name for a dotted name.
+
+    Parts that are neither identifiers nor array elements (`direction[1]`) are quoted ('outer wing').
+
+    Args:
+        name: the dotted name.
+    """
     return ".".join(p if _BNAME.fullmatch(p) else "'" + p.replace("'", "_") + "'" for p in name.split("."))
 
 
 def coordinate_description(topology, k: int) -> tuple[str, str, str]:
-    """(node name, component label like 'r_x[z]', vector 'r' | 'r_x' | 'r_y') of 0-based coordinate k (per
-    node r, r_x, r_y in the global frame, Otsuka et al. 2019, Eq. 3)."""
+    """What the 0-based coordinate k is (per node r, r_x, r_y in the global frame).
+
+    Otsuka et al. 2019, Eq. 3
+
+    Args:
+        topology: the unit's topology.
+        k: index into E.
+
+    Returns:
+        (node name, component label like 'r_x[z]', vector 'r' | 'r_x' | 'r_y').
+    """
     vec, axis = _COMPONENTS[k % 9]
     return topology.node_names[k // 9], f"{vec}[{axis}]", vec
 
 
 class Reading:
-    """The solver's outputs at one publication (construction, each step, new parameters): each query a row
-    reads (a function solver -> value, e.g. one calling `solver.monitors()`) is made once, however many rows
-    read it. `start_time` is the FMI start time (s), the origin of the unit's times (solver time + start)."""
+    """The solver's outputs at one publication (construction, each step, new parameters).
+
+    Each query a row reads (a function solver -> value, e.g. one calling `solver.monitors()`) is made once, however
+    many rows read it.
+
+    Args:
+        solver: the unit's solver.
+        start_time: the FMI start time, s: the origin of the unit's times (solver time + start).
+    """
 
     __slots__ = ("solver", "start_time", "_done")
 
@@ -65,7 +85,11 @@ class Reading:
         self.solver, self.start_time, self._done = solver, float(start_time), {}
 
     def once(self, query: Callable[[Any], Any]) -> Any:
-        """query(solver), computed at the first call of this reading."""
+        """query(solver), computed at the first call of this reading.
+
+        Args:
+            query: a function solver -> value.
+        """
         try:
             return self._done[query]
         except KeyError:
@@ -95,7 +119,11 @@ class Block:
             raise ValueError(f"block {self.name}: an output block needs a value and no start, an input no value")
 
     def names(self, n: int) -> list[str]:
-        """`name[1]` .. `name[n]`."""
+        """`name[1]` .. `name[n]`.
+
+        Args:
+            n: the block's length.
+        """
         return [f"{self.name}[{k}]" for k in range(1, n + 1)]
 
 
@@ -159,7 +187,11 @@ class Output:
             raise ValueError(f"output {label}: a row without one description of all its variables needs a doc")
 
     def names_of(self, item: str | None = None) -> tuple[str, ...]:
-        """The FMI names of an item's variables (of the one variable, for a row without items)."""
+        """The FMI names of an item's variables (of the one variable, for a row without items).
+
+        Args:
+            item: the item; None for a row without items.
+        """
         if self.items is None:
             return tuple(fmi_name(n) for n in self.names)
         return tuple(fmi_name(n.replace(self.items.placeholder, item)) for n in self.names)
@@ -172,11 +204,20 @@ class Output:
         return found[0]
 
     def unit_of(self, name: str) -> str:
-        """The unit of the variable `name` (as the solver names it, before fmi_name)."""
+        """The unit of the variable `name`.
+
+        Args:
+            name: the variable's name as the solver names it, before fmi_name.
+        """
         return self.unit if isinstance(self.unit, str) else self._per_name("unit", self.unit, name)
 
     def description_of(self, name: str, item: str | None) -> str:
-        """The description of the variable `name` of `item`, from the row (not from `describe`)."""
+        """The description of the variable `name` of `item`, from the row (not from `describe`).
+
+        Args:
+            name: the variable's name as the solver names it.
+            item: its item; None for a row without items.
+        """
         if not isinstance(self.description, str):
             return self._per_name("description", self.description, name)
         return self.description if item is None else self.description.replace(self.items.placeholder, item)
@@ -241,8 +282,14 @@ class Laid:
         return isinstance(self.row, Output) or (isinstance(self.row, Block) and self.row.causality == OUTPUT)
 
     def read(self, reading: Reading):
-        """The values of an output block or row from `reading`, one per variable in layout order (a float for a
-        row of one variable)."""
+        """The values of an output block or row from `reading`, one per variable in layout order.
+
+        Args:
+            reading: the Reading.
+
+        Returns:
+            a list, or a float for a row of one variable.
+        """
         return self.row.value(reading, self.items)
 
 
@@ -261,16 +308,26 @@ class Layout:
         return tuple(v for v in self.variables if v.type == "Real")
 
     def where(self, row_type: type) -> slice:
-        """The value references of the (one) row of `row_type`: the parameters' slice."""
+        """The value references of the (one) row of `row_type`: the parameters' slice.
+
+        Args:
+            row_type: the row's class, e.g. Parameters.
+        """
         (found,) = [laid.where for laid in self.rows if isinstance(laid.row, row_type)]
         return found
 
 
 def layout(table: Interface, solver, spec) -> Layout:
-    """The variables of `table` for `solver` (built from the unit's `spec`, fmu_common.specs), with contiguous value
-    references from 0 in the table's order, and their start values: the solver's outputs now (a `Reading` at
-    start time 0), the inputs' starts, the parameters' defaults. Raises ValueError naming the row whose
-    values do not match its variables."""
+    """The variables of `table` for `solver`, with contiguous value references from 0 in the table's order.
+
+    Their start values are the solver's outputs now (a `Reading` at start time 0), the inputs' starts, the
+    parameters' defaults. Raises ValueError naming the row whose values do not match its variables.
+
+    Args:
+        table: the unit's Interface.
+        solver: the unit's solver, built from `spec`.
+        spec: the unit's spec (fmu_common.specs).
+    """
     topology = solver.topology
     n = int(topology.n_coordinates)
     reading = Reading(solver)

@@ -70,7 +70,11 @@ def _ratio_check(key: str, value: float, numerator: float, numerator_key: str, l
 
 
 def wing_panels(scene: dict) -> int:
-    """Bound panels of the whole wing: bodies x chordwise x spanwise (strips for strip theory); 0 without aero."""
+    """Bound panels of the whole wing: bodies x chordwise x spanwise (strips for strip theory); 0 without aero.
+
+    Args:
+        scene: the resolved scene.
+    """
     aero, bodies = scene["aero"], len(scene["structure"]["bodies"])
     model = aero_model(aero["model"])
     if not model.builds_unit:
@@ -80,22 +84,35 @@ def wing_panels(scene: dict) -> int:
 
 
 def body_elements(structure: dict, body: dict) -> int:
-    """Elements of the resolved `body` of the resolved `structure` table: its own `elements` if given, else
-    elements_per_body for a deformable fidelity (`fmu_common.choices.Fidelity`) and one for a rigid or
-    prescribed body (Otsuka et al. 2019, Sec. IV)."""
+    """Elements of a body: its own `elements` if given, else elements_per_body for a deformable fidelity.
+
+    One for a rigid or prescribed body (Otsuka et al. 2019, Sec. IV; `fmu_common.choices.Fidelity`).
+
+    Args:
+        structure: the resolved `structure` table.
+        body: one of its resolved bodies.
+    """
     if body.get("elements") is not None:
         return body["elements"]
     return structure["elements_per_body"] if fidelity(structure["fidelity"]).deformable else 1
 
 
 def structure_coordinates(scene: dict) -> int:
-    """Exchanged coordinates: 9 per node, elements + 1 nodes per body."""
+    """Exchanged coordinates: 9 per node, elements + 1 nodes per body.
+
+    Args:
+        scene: the resolved scene.
+    """
     structure = scene["structure"]
     return 9 * sum(body_elements(structure, body) + 1 for body in structure["bodies"])
 
 
 def communication_steps(scene: dict) -> int:
-    """Samples of the run: one per communication step and the one at t = 0."""
+    """Samples of the run: one per communication step and the one at t = 0.
+
+    Args:
+        scene: the resolved scene.
+    """
     return int(scene["time"]["stop"] / scene["coupling"]["step"]) + 1
 
 
@@ -112,6 +129,9 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     shed wake: 4 numbers per corner (position, circulation) of at most MAX_WAKE_ROWS rows, in about 8 copies
     (states saved for implicit coupling, the velocities of a free wake). The factors were measured on the
     shipped scenes refined (structure: 50 and 100 elements per body; aero: 1024 and 2048 panels).
+
+    Args:
+        scene: the resolved scene.
     """
     steps = communication_steps(scene)
     hinges = sum(1 for j in scene["structure"]["joints"] if j["type"] == "revolute")
@@ -138,20 +158,34 @@ _STEP_SLACK = 1e-9      # relative: an interval within rounding of aero.step (or
 
 
 def substep_count(interval: float, step) -> int:
-    """Number k of equal aero steps over a communication interval (s) for the internal aero step `step`
-    (s; None: 1): ceil(interval / step), with a 1e-9 relative slack so that rounding never adds a step."""
+    """Number k of equal aero steps over a communication interval: ceil(interval / step).
+
+    With a 1e-9 relative slack so that rounding never adds a step.
+
+    Args:
+        interval: the communication interval, s.
+        step: the internal aero step, s; None: 1 step.
+    """
     if step is None or not interval > step * (1 + _STEP_SLACK):
         return 1
     return math.ceil(interval / step - _STEP_SLACK)
 
 
 def aero_steps_per_communication(scene: dict) -> int:
-    """Aero steps in one communication step (`substep_count` of coupling.step)."""
+    """Aero steps in one communication step (`substep_count` of coupling.step).
+
+    Args:
+        scene: the resolved scene.
+    """
     return substep_count(scene["coupling"]["step"], scene["aero"]["step"])
 
 
 def check_sizes(scene: dict) -> None:
-    """SceneError naming the key when the resolved scene exceeds a size bound (module docstring)."""
+    """SceneError naming the key when the resolved scene exceeds a size bound (module docstring).
+
+    Args:
+        scene: the resolved scene.
+    """
     coupling = scene["coupling"]
     _ratio_check("structure.step", scene["structure"]["step"], coupling["step"], "coupling.step",
                  MAX_STEPS_PER_COMMUNICATION, "internal structure steps per communication step")

@@ -453,9 +453,14 @@ SCENE = Table({
 # --- resolving --------------------------------------------------------------------------------------
 
 def resolve_scene(raw: dict, default_name: str) -> dict:
-    """The resolved scene of the raw scene `raw` (a TOML table, overrides applied): checked against SCENE,
-    every default filled (`default_name` for `name`), then the size bounds checked. Raises SceneError at the
-    first bad key. `raw` is not modified; resolving a resolved scene returns it unchanged."""
+    """The resolved scene of the raw scene: checked against SCENE, every default filled, the size bounds checked.
+
+    Raises SceneError at the first bad key. `raw` is not modified; resolving a resolved scene returns it unchanged.
+
+    Args:
+        raw: the raw scene, a TOML table with the overrides applied.
+        default_name: the scene's `name` when not given.
+    """
     raw = copy.deepcopy(raw)
     if not isinstance(raw, dict):
         raise SceneError("<top level>", raw, "a TOML table")
@@ -472,17 +477,30 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
 
 
 def without_tunables(scene: dict) -> dict:
-    """The resolved scene with the value of every tunable key blanked (`fmu_common.schema.TUNABLE`): what an
-    FMU's build depends on. Two scenes that differ only in tunable keys run on the same FMUs, which the master
-    gives the tunable values as parameters."""
+    """The resolved scene with the value of every tunable key blanked (`fmu_common.schema.TUNABLE`).
+
+    What an FMU's build depends on. Two scenes that differ only in tunable keys run on the same FMUs, which the
+    master gives the tunable values as parameters.
+
+    Args:
+        scene: the resolved scene.
+    """
     return SCENE.blanked(scene)
 
 
 def tunable_parameters(scene: dict, section: str) -> dict[str, tuple[float, str, str]]:
-    """{FMI parameter name: (value, unit, description)} of the tunable keys of the resolved scene in `section`
-    ("structure": the structure unit's; "flow": the aero unit's), in schema order. A parameter is named by
-    its dotted key (`structure.joints.fold.stiffness`), a vector's components by `key[1]` .. `key[3]`
-    (x, y, z); the unit is the key's, in FMI's notation (`fmu_common.fmi_units.fmi_unit`)."""
+    """The tunable keys of the resolved scene in `section`, in schema order.
+
+    A parameter is named by its dotted key (`structure.joints.fold.stiffness`), a vector's components by
+    `key[1]` .. `key[3]` (x, y, z); the unit is the key's, in FMI's notation (`fmu_common.fmi_units.fmi_unit`).
+
+    Args:
+        scene: the resolved scene.
+        section: "structure" (the structure unit's) or "flow" (the aero unit's).
+
+    Returns:
+        {FMI parameter name: (value, unit, description)}.
+    """
     out = {}
     for key, declaration, value in SCENE.tunables("", scene):
         if key.split(".")[0] != section:
@@ -515,15 +533,24 @@ def _body_of(scene: dict, key: str, name: str) -> dict:
 
 
 def joint_parents(scene: dict) -> dict[str, str]:
-    """child body -> parent body of every joint that joins two bodies."""
+    """child body -> parent body of every joint that joins two bodies.
+
+    Args:
+        scene: the resolved scene.
+    """
     return {j["child"]: j["parent"] for j in scene["structure"]["joints"]
             if j["type"] in PARENT_JOINTS and j["parent"] is not None}
 
 
 def fill_derived_defaults(scene: dict) -> None:
-    """Fill, in place, the defaults that depend on another table (the `Absent` texts of SCENE say which). A
-    jointed child's frame is its parent's tip frame turned by the joint (`fmu_common.topology`): its
-    chord_axis stays None unless given, and the topology checks a given one."""
+    """Fill, in place, the defaults that depend on another table (the `Absent` texts of SCENE say which).
+
+    A jointed child's frame is its parent's tip frame turned by the joint (`fmu_common.topology`): its chord_axis
+    stays None unless given, and the topology checks a given one.
+
+    Args:
+        scene: the resolved scene, changed in place.
+    """
     structure = scene["structure"]
     children = joint_parents(scene)
     for body in structure["bodies"]:

@@ -50,7 +50,11 @@ class Absent:
 
 
 def is_number(value: Any) -> bool:
-    """True for a finite int or float that is not a bool (an int beyond the float range is not finite)."""
+    """True for a finite int or float that is not a bool (an int beyond the float range is not finite).
+
+    Args:
+        value: any value.
+    """
     if not isinstance(value, (int, float)) or isinstance(value, bool):
         return False
     try:
@@ -69,7 +73,12 @@ def is_name(value: Any) -> bool:
 
 
 def item_label(index: int, item: Any) -> str:
-    """How an item of an array of tables is named in a dotted key: its `name` if valid, else its index."""
+    """How an item of an array of tables is named in a dotted key: its `name` if valid, else its index.
+
+    Args:
+        index: the item's 0-based index.
+        item: the item as given.
+    """
     name = item.get("name") if isinstance(item, dict) else None
     return name if is_name(name) else str(index)
 
@@ -92,12 +101,21 @@ class Key:
     type_name = "value"
 
     def tunables(self, key: str, value: Any):
-        """(dotted key, declaration, value) of the tunable keys in `value` resolved at `key`."""
+        """(dotted key, declaration, value) of the tunable keys in `value` resolved at `key`.
+
+        Args:
+            key: the dotted key.
+            value: its resolved value.
+        """
         if self.tunable and value is not None:
             yield key, self, value
 
     def blanked(self, value: Any) -> Any:
-        """`value` with the values of its tunable keys replaced by TUNABLE."""
+        """`value` with the values of its tunable keys replaced by TUNABLE.
+
+        Args:
+            value: the resolved value.
+        """
         return TUNABLE if self.tunable else value
 
     def allowed(self) -> str:
@@ -114,7 +132,12 @@ class Key:
         raise NotImplementedError
 
     def resolve(self, key: str, value: Any) -> Any:
-        """The resolved value of `key` (None: not given)."""
+        """The resolved value of `key`; SceneError naming it for a value the key does not accept.
+
+        Args:
+            key: the dotted key.
+            value: the value given; None: not given.
+        """
         if value is None:
             if self.default is REQUIRED:
                 raise SceneError(key, MISSING, "required; " + self.allowed())
@@ -277,7 +300,12 @@ class Table:
         return f"a table with keys {', '.join(self.keys)}"
 
     def resolve(self, key: str, value: Any) -> dict:
-        """The resolved table; a table not given is an empty one (its defaults; its required keys missing)."""
+        """The resolved table; a table not given is an empty one (its defaults; its required keys missing).
+
+        Args:
+            key: the table's dotted key ("" at the top level).
+            value: the table given; None: not given.
+        """
         value = {} if value is None else value
         if not isinstance(value, dict):
             where = f"a table [{key}]" if key else "a TOML table"

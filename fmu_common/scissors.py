@@ -29,8 +29,14 @@ ENDS = (("start_lower", "b", 0), ("start_upper", "a", 0), ("end_upper", "a", -1)
 
 
 def bar_elements(structure: dict, chain: dict) -> int:
-    """Elements per bar: the chain's elements_per_bar, else 2 for rigid and prescribed bars and
-    structure.elements_per_body rounded up to even for deformable ones (the mid-length pivot must be a node)."""
+    """Elements per bar: the chain's elements_per_bar, else 2 for rigid and prescribed bars.
+
+    For deformable ones structure.elements_per_body rounded up to even (the mid-length pivot must be a node).
+
+    Args:
+        structure: the resolved `structure` table.
+        chain: one of its resolved scissor chains.
+    """
     if chain["elements_per_bar"] is not None:
         return chain["elements_per_bar"]
     if not fidelity(structure["fidelity"]).deformable:
@@ -39,7 +45,12 @@ def bar_elements(structure: dict, chain: dict) -> int:
 
 
 def chain_tables(structure: dict, chain: dict) -> tuple[list[dict], list[dict], list[dict]]:
-    """(bodies, joints, probes) of the resolved chain table, as raw scene tables."""
+    """(bodies, joints, probes) of the resolved chain table, as raw scene tables.
+
+    Args:
+        structure: the resolved `structure` table.
+        chain: one of its resolved scissor chains.
+    """
     name, n, L = chain["name"], chain["count"], chain["bar_length"]
     d = np.asarray(chain["direction"], float) / np.linalg.norm(chain["direction"])
     h = np.asarray(chain["height_axis"], float) / np.linalg.norm(chain["height_axis"])
@@ -85,10 +96,16 @@ def chain_tables(structure: dict, chain: dict) -> tuple[list[dict], list[dict], 
 
 
 def expand_scissors(scene: dict, resolve_item) -> None:
-    """Append, in place, the bodies, joints and probes of every chain of `structure.scissors` to the resolved
-    scene; `resolve_item(section, key, raw)` resolves one raw table of the scene's array `section`
-    ("bodies", "joints", "probes"). A scene resolved before already holds them (unchanged: nothing is added);
-    a name that one of its tables already uses otherwise is a SceneError naming the chain."""
+    """Append, in place, the bodies, joints and probes of every chain of `structure.scissors` to the resolved scene.
+
+    A scene resolved before already holds them (unchanged: nothing is added); a name that one of its tables already
+    uses otherwise is a SceneError naming the chain.
+
+    Args:
+        scene: the resolved scene, changed in place.
+        resolve_item: `resolve_item(section, key, raw)` resolves one raw table of the scene's array `section`
+            ("bodies", "joints", "probes").
+    """
     structure = scene["structure"]
     for index, chain in enumerate(structure["scissors"]):
         key = f"structure.scissors.{item_label(index, chain)}"

@@ -13,8 +13,13 @@ import numpy as np
 def hermite(xi, length):
     """Span shape functions and their x-derivatives at xi = x / l.
 
-    Returns (N, dN, ddN, L) with N, dN, ddN of shape (..., 4) for (r^A, r_x^A, r^B, r_x^B) and
-    L of shape (..., 2) for (r_y^A, r_y^B). `length` broadcasts against xi.
+    Args:
+        xi: x / l, dimensionless, any shape.
+        length: l, m, broadcast against xi.
+
+    Returns:
+        (N, dN, ddN, L): N, dN = dN/dx, ddN = d2N/dx2 of shape (..., 4) for (r^A, r_x^A, r^B, r_x^B) and L of shape
+        (..., 2) for (r_y^A, r_y^B).
     """
     xi, length = np.broadcast_arrays(np.asarray(xi, dtype=float), np.asarray(length, dtype=float))
     l, x2, x3 = length, xi**2, xi**3
@@ -26,9 +31,19 @@ def hermite(xi, length):
 
 
 def shape_row(x, y, length):
-    """Scalar shape row s(x, y) of Otsuka et al. 2019, Eq. 2, shape (..., 6); S(x, y) = kron(s, I_3).
+    """Scalar shape row s(x, y); S(x, y) = kron(s, I_3).
 
-    Ordering follows e: [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B]. x, y in metres.
+    Otsuka et al. 2019, Eq. 2
+
+    Ordering follows e: [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B].
+
+    Args:
+        x: position along the element, m.
+        y: position along the chord, m.
+        length: l, the element length, m.
+
+    Returns:
+        (..., 6).
     """
     N, _, _, L = hermite(np.asarray(x) / length, length)
     y = np.asarray(y, dtype=float)[..., None]

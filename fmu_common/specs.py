@@ -92,7 +92,11 @@ class StructureUnitSpec:
 
     @classmethod
     def from_scene(cls, scene: dict) -> "StructureUnitSpec":
-        """The structure unit's spec of a resolved scene."""
+        """The structure unit's spec of a resolved scene.
+
+        Args:
+            scene: the resolved scene.
+        """
         probes = tuple(ProbeSpec(f"probes.{item_label(i, p)}", p["name"], p["body"], p["span"], p["chord"])
                        for i, p in enumerate(scene["probes"]))
         gauges = tuple(StrainGaugeSpec(f"strain_gauges.{item_label(i, g)}", g["name"], g["body"], g["span"],
@@ -116,7 +120,11 @@ class AeroUnitSpec:
 
     @classmethod
     def from_scene(cls, scene: dict) -> "AeroUnitSpec":
-        """The aero unit's spec of a resolved scene."""
+        """The aero unit's spec of a resolved scene.
+
+        Args:
+            scene: the resolved scene.
+        """
         flow, aero = scene["flow"], scene["aero"]
         return cls(TimeSpec(scene["time"]["stop"]), CouplingSpec(scene["coupling"]["step"]),
                    FlowSpec(flow["speed"], flow["density"], tuple(flow["direction"])),

@@ -40,7 +40,11 @@ class Body:
     chord_axis: np.ndarray = None
 
     def chord_offset(self, chord_fraction):
-        """y (m) of the point at `chord_fraction` of the chord from the leading edge."""
+        """y (m) of the point at `chord_fraction` of the chord from the leading edge.
+
+        Args:
+            chord_fraction: 0 at the leading edge, 1 at the trailing edge.
+        """
         return (chord_fraction - self.axis_position) * self.chord
 
 
@@ -66,7 +70,15 @@ class JointLine:
     initial_angle: float
 
     def child_frame(self, parent_frame: np.ndarray, angle: float | None = None) -> np.ndarray:
-        """F_child (3, 3) for the parent's tip frame (3, 3) and the fold angle (rad; None: the initial)."""
+        """F_child for the parent's tip frame and the fold angle.
+
+        Args:
+            parent_frame: (3, 3) the parent's tip frame, global frame.
+            angle: the fold angle, rad; None: the initial.
+
+        Returns:
+            (3, 3) global frame.
+        """
         theta = self.initial_angle if angle is None else angle
         turn = rotation_about(self.axis, theta) if self.kind == "revolute" else np.eye(3)
         return parent_frame @ turn @ self.orientation
@@ -89,8 +101,14 @@ class Topology:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_spec(cls, structure: StructureSpec):
-        """The topology of a scene's structure table (fmu_common.wing_spec); raises SceneError naming the key
-        for a relation between tables the schema does not check (joints' bodies, joint tree)."""
+        """The topology of a scene's structure table.
+
+        Raises SceneError naming the key for a relation between tables the schema does not check (joints' bodies,
+        joint tree).
+
+        Args:
+            structure: the structure table (fmu_common.wing_spec.StructureSpec).
+        """
         top = cls()
         top.fidelity = structure.fidelity
         bodies = {body.name: body for body in structure.bodies}
@@ -223,7 +241,16 @@ class Topology:
         return np.concatenate([v.ravel() for v in self.node_initial])
 
     def locate(self, body_name, span, chord_fraction):
-        """(element index, x (m), y (m)) of a material point given by span (m) and chord fraction."""
+        """The element and element coordinates of a material point.
+
+        Args:
+            body_name: the body's name.
+            span: distance from the body's root, m.
+            chord_fraction: 0 at the leading edge, 1 at the trailing edge.
+
+        Returns:
+            (element index, x (m), y (m)).
+        """
         body = self.bodies[body_name]
         n_el = len(body.elements)
         l_el = body.length / n_el
@@ -231,10 +258,23 @@ class Topology:
         return body.elements[k], span - k * l_el, body.chord_offset(chord_fraction)
 
     def point_rows(self, body, span, chord_fraction=0.0):
-        """Scalar shape rows (4, 3 n_nodes) of the material point at `span` (m) and `chord_fraction` of
-        `body`, acting on X = E.reshape(-1, 3) (Otsuka et al. 2019, Eq. 2, S = kron(s, I_3)): rows @ X gives
-        its position r(x, y) (m), and on the reference line at that span r' (-), r'' (1/m) along the span
-        and r_y (-)."""
+        """Scalar shape rows of the material point at `span` and `chord_fraction` of `body`.
+
+        They act on X = E.reshape(-1, 3).
+
+        Otsuka et al. 2019, Eq. 2 (S = kron(s, I_3))
+
+        rows @ X gives its position r(x, y) (m), and on the reference line at that span r' (-), r'' (1/m) along the
+        span and r_y (-).
+
+        Args:
+            body: the body's name.
+            span: distance from the body's root, m.
+            chord_fraction: 0 at the leading edge, 1 at the trailing edge.
+
+        Returns:
+            (4, 3 n_nodes).
+        """
         k, x, y = self.locate(body, span, chord_fraction)
         a, b = self.element_nodes[k]
         length = self.bodies[body].length / len(self.bodies[body].elements)
@@ -248,7 +288,17 @@ class Topology:
         return out
 
     def point_position(self, e, body, span, chord_fraction):
-        """Global position (m) of the material point at `span` (m) and `chord_fraction` of `body`."""
+        """Global position of the material point at `span` and `chord_fraction` of `body`.
+
+        Args:
+            e: (n,) exchanged coordinates, m and 1, global frame.
+            body: the body's name.
+            span: distance from the body's root, m.
+            chord_fraction: 0 at the leading edge, 1 at the trailing edge.
+
+        Returns:
+            (3,) m, global frame.
+        """
         return self.point_rows(body, span, chord_fraction)[0] @ np.asarray(e, dtype=float).reshape(-1, 3)
 
     @property

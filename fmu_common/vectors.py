@@ -4,7 +4,12 @@ import numpy as np
 
 
 def cross(a, b):
-    """Cross product on the last axis; complex-safe and much faster than np.cross on small arrays."""
+    """Cross product on the last axis; complex-safe and much faster than np.cross on small arrays.
+
+    Args:
+        a: (..., 3).
+        b: (..., 3).
+    """
     same = a.shape == b.shape and a.dtype == b.dtype
     out = np.empty_like(a) if same else np.empty(np.broadcast(a, b).shape, dtype=np.result_type(a, b))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -16,7 +21,14 @@ def cross(a, b):
 
 
 def skew(v):
-    """[v]_x (..., 3, 3) of vectors v (..., 3): [v]_x u = v x u."""
+    """[v]_x of vectors v: [v]_x u = v x u.
+
+    Args:
+        v: (..., 3).
+
+    Returns:
+        (..., 3, 3).
+    """
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 3))
     out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
@@ -25,20 +37,44 @@ def skew(v):
 
 
 def rotation_about(axis, angle):
-    """Rotation matrix for `angle` (rad) about the unit vector `axis` (Rodrigues)."""
+    """Rotation matrix for `angle` about the unit vector `axis` (Rodrigues).
+
+    Args:
+        axis: (3,) unit vector.
+        angle: rad.
+
+    Returns:
+        (3, 3).
+    """
     k = skew(axis)
     return rodrigues(k, k @ k, np.sin(angle), np.cos(angle))
 
 
 def rodrigues(k, k2, sine, cosine):
-    """R = I + sin(theta) K + (1 - cos(theta)) K^2 (3, 3) from K = [axis]x and K^2 of a unit axis and the sine and
-    cosine of the angle: the rotation about a fixed axis whose K, K^2 are built once (motion.py)."""
+    """R = I + sin(theta) K + (1 - cos(theta)) K^2 of a unit axis.
+
+    The rotation about a fixed axis whose K, K^2 are built once (motion.py).
+
+    Args:
+        k: (3, 3) K = [axis]x.
+        k2: (3, 3) K^2.
+        sine: sin(theta).
+        cosine: cos(theta).
+
+    Returns:
+        (3, 3).
+    """
     return np.eye(3) + sine * k + (1 - cosine) * k2
 
 
 def perpendiculars(axis):
-    """(p_1, p_2): unit vectors with (p_1, p_2, axis) a right-handed orthonormal triad for a unit axis (3,); p_1
-    from the frame direction least along the axis (for the chord: p_1 = span, p_2 = -normal)."""
+    """(p_1, p_2): unit vectors with (p_1, p_2, axis) a right-handed orthonormal triad.
+
+    p_1 from the frame direction least along the axis (for the chord: p_1 = span, p_2 = -normal).
+
+    Args:
+        axis: (3,) unit vector.
+    """
     axis = np.asarray(axis, dtype=float)
     k = int(np.argmin(np.abs(axis)))
     p1 = np.eye(3)[k] - axis[k] * axis

@@ -221,7 +221,12 @@ class UniversalSpec(ParentJointSpec):
 
 
 def joint_spec(key: str, table: dict) -> JointSpec:
-    """The JointSpec of the resolved joint table at dotted key `key`."""
+    """The JointSpec of the resolved joint table.
+
+    Args:
+        key: the table's dotted key.
+        table: the resolved joint table.
+    """
     kind = table["type"]
     if kind == "clamp":
         return ClampSpec(key, table["body"])
@@ -330,7 +335,11 @@ class StructureSpec:
 
     @classmethod
     def from_scene(cls, scene: dict) -> "StructureSpec":
-        """The spec of the resolved scene's `structure` table and its `[load]` case."""
+        """The spec of the resolved scene's `structure` table and its `[load]` case.
+
+        Args:
+            scene: the resolved scene.
+        """
         structure = scene["structure"]
         bodies = []
         for i, body in enumerate(structure["bodies"]):

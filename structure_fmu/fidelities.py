@@ -39,7 +39,7 @@ class StructuralModel(Protocol):
         """q at t = 0.
 
         Returns:
-            (n_q,) generalized coordinates, SI (m, 1 or rad per coordinate).
+            (n_q,) generalized coordinates, SI units.
         """
 
     def coordinates(self, q, dq, t) -> tuple:

@@ -7,11 +7,10 @@ The checker parses the sources with `ast` (nothing is imported) and names file:l
   method that overrides a documented method of a base class (or a Protocol it inherits) of the same packages:
   pdoc shows the base's docstring for it;
 - an `Args:` section naming a parameter that is not in the signature, or omitting one of it (self, cls, *args
-  and **kwargs aside). A class documents the parameters of its `__init__` in its own docstring unless
-  `__init__` has one;
+  and **kwargs aside), or with an entry that is not `name: description`. A class documents the parameters of
+  its `__init__` in its own docstring unless `__init__` has one;
 - a function (or a class through its `__init__`) with parameters besides self and cls whose docstring has no
-  `Args:` section. This rule holds for the modules of CONVERTED only: a ratchet, the list only grows, until it
-  holds every module of the three packages.
+  `Args:` section.
 """
 from __future__ import annotations
 
@@ -26,53 +25,7 @@ from repository import ROOT
 
 PACKAGES = ("structure_fmu", "aero_fmu", "fmu_common")
 
-CONVERTED: set[str] = {
-    "aero_fmu/__init__.py",
-    "aero_fmu/aero_slave.py",
-    "aero_fmu/biot_savart.py",
-    "aero_fmu/factorization.py",
-    "aero_fmu/interface.py",
-    "aero_fmu/lattice.py",
-    "aero_fmu/loads.py",
-    "aero_fmu/models.py",
-    "aero_fmu/rigid.py",
-    "aero_fmu/solver.py",
-    "aero_fmu/strip.py",
-    "aero_fmu/uvlm.py",
-    "aero_fmu/vlm.py",
-    "aero_fmu/wake.py",
-    "fmu_common/__init__.py",
-    "fmu_common/compiled.py",
-    "fmu_common/threads.py",
-    "structure_fmu/__init__.py",
-    "structure_fmu/constraints.py",
-    "structure_fmu/damping.py",
-    "structure_fmu/element.py",
-    "structure_fmu/fidelities.py",
-    "structure_fmu/integrators.py",
-    "structure_fmu/interface.py",
-    "structure_fmu/iteration_lu.py",
-    "structure_fmu/joint_monitors.py",
-    "structure_fmu/joint_rows.py",
-    "structure_fmu/joints.py",
-    "structure_fmu/model.py",
-    "structure_fmu/modes.py",
-    "structure_fmu/motion.py",
-    "structure_fmu/pins.py",
-    "structure_fmu/section.py",
-    "structure_fmu/sensors.py",
-    "structure_fmu/slots.py",
-    "structure_fmu/solver.py",
-    "structure_fmu/strain_kinematics.py",
-    "structure_fmu/strain_model.py",
-    "structure_fmu/structure_slave.py",
-    "structure_fmu/topology.py",
-}
-"""Modules (paths from the repository root) whose functions with parameters all have an `Args:` section. It
-only grows; the goal is every module of PACKAGES."""
-
 _ENTRY = re.compile(r"^\*{0,2}(?P<name>\w+)\s*(\([^)]*\))?\s*:")
-_SECTION = re.compile(r"^[A-Z][A-Za-z ]+:\s*$")
 _IGNORED = {"self", "cls"}
 
 
@@ -169,14 +122,14 @@ def _inherits_doc(bases: list[str], method: str, index: dict[str, list[_Class]],
     return False
 
 
-def check_source(source: str, filename: str, index: dict[str, list[_Class]], converted: bool) -> list[str]:
+def check_source(source: str, filename: str, index: dict[str, list[_Class]], require_args: bool = True) -> list[str]:
     """The faults of one module's source, each "file:line object: what is wrong".
 
     Args:
         source: the module's Python source.
         filename: its path as the faults name it.
         index: the classes of the packages (class_index), for the docstrings a method inherits.
-        converted: whether the module is in CONVERTED, where a function with parameters needs `Args:`.
+        require_args: whether a function with parameters needs an `Args:` section (the last rule above).
     """
     faults = []
 
@@ -217,7 +170,7 @@ def check_source(source: str, filename: str, index: dict[str, list[_Class]], con
             fault(node, name, "no docstring")
             return
         is_property = bool(decorators & {"property", "functools.cached_property", "cached_property"})
-        check_args(node, name, doc, None if is_property else node, converted)
+        check_args(node, name, doc, None if is_property else node, require_args)
 
     def visit_class(node, name):
         doc = ast.get_docstring(node)
@@ -228,9 +181,9 @@ def check_source(source: str, filename: str, index: dict[str, list[_Class]], con
             if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 if item.name == "__init__":
                     if not ast.get_docstring(item):
-                        check_args(node, name, doc, item, converted)
+                        check_args(node, name, doc, item, require_args)
                     else:
-                        check_args(item, f"{name}.__init__", ast.get_docstring(item), item, converted)
+                        check_args(item, f"{name}.__init__", ast.get_docstring(item), item, require_args)
                 elif not item.name.startswith("_"):
                     visit_function(item, f"{name}.{item.name}", bases)
             elif isinstance(item, ast.ClassDef) and not item.name.startswith("_"):
@@ -255,13 +208,8 @@ def _sources() -> dict[str, str]:
 def test_docstrings_follow_the_skeleton():
     sources = _sources()
     index = class_index(sources)
-    faults = [f for name, source in sources.items() for f in check_source(source, name, index, name in CONVERTED)]
+    faults = [f for name, source in sources.items() for f in check_source(source, name, index)]
     assert not faults, f"{len(faults)} docstring faults:\n" + "\n".join(faults)
-
-
-def test_converted_modules_exist():
-    missing = sorted(CONVERTED - set(_sources()))
-    assert not missing, f"CONVERTED names modules that do not exist: {missing}"
 
 
 _EXAMPLE = '''
@@ -313,12 +261,28 @@ def without_args(x):
 
 def no_parameters():
     """Nothing to document."""
+
+
+def _private(x):
+    return x
+
+
+class Made:
+    """Documents its __init__'s parameters.
+
+    Args:
+        a: one.
+        b: not a parameter.
+    """
+
+    def __init__(self, a):
+        self.a = a
 '''
 
 
-@pytest.mark.parametrize("converted", [False, True])
-def test_the_checker_finds_each_fault(converted):
-    faults = check_source(_EXAMPLE, "example.py", class_index({"example.py": _EXAMPLE}), converted)
+@pytest.mark.parametrize("require_args", [False, True])
+def test_the_checker_finds_each_fault(require_args):
+    faults = check_source(_EXAMPLE, "example.py", class_index({"example.py": _EXAMPLE}), require_args)
     text = "\n".join(faults)
     assert "Child.step" not in text                 # inherits Base.step's docstring
     assert re.search(r"example.py:\d+ Child.other: no docstring", text)
@@ -326,9 +290,10 @@ def test_the_checker_finds_each_fault(converted):
     assert re.search(r"example.py:\d+ wrong_name: Args: names 'y', not a parameter", text)
     assert re.search(r"example.py:\d+ wrong_name: Args: omits parameter 'x'", text)
     assert re.search(r"example.py:\d+ omitted: Args: omits parameter 'z'", text)
-    assert "no_parameters" not in text
-    assert bool(re.search(r"example.py:\d+ without_args: no Args: section for x", text)) == converted
-    assert len(faults) == 5 + converted, text
+    assert "no_parameters" not in text and "_private" not in text
+    assert re.search(r"example.py:\d+ Made: Args: names 'b', not a parameter", text)
+    assert bool(re.search(r"example.py:\d+ without_args: no Args: section for x", text)) == require_args
+    assert len(faults) == 6 + require_args, text
 
 
 def test_args_section_reads_entries():
