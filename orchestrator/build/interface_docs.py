@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from fmu_common.interface import COORDINATE_UNITS, DISCRETE, INPUT, QUANTITIES, Block, Interface, Output, fmi_name
+from orchestrator.scene.docs import write_or_check
 from orchestrator.scene.load import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -153,16 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare with docs/fmu.md instead of writing it")
     args = parser.parse_args(argv)
-    current = OUTPUT.read_text(encoding="utf-8")
-    text = generate(current)
-    if args.check:
-        if current != text:
-            print(f"{OUTPUT}'s variable tables differ from the units' tables: run python -m "
-                  "orchestrator.build.interface_docs", file=sys.stderr)
-            return 1
-        return 0
-    OUTPUT.write_text(text, encoding="utf-8")
-    return 0
+    return write_or_check(OUTPUT, generate(OUTPUT.read_text(encoding="utf-8")), args.check,
+                          "the units' interface tables", "orchestrator.build.interface_docs")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fmu_common.fmi_slave import SCENE_RESOURCE
-from orchestrator.run.port import (ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, UnitKind, reported_divergence,
+from orchestrator.run.port import (ERROR_STATUS, KINDS, LogEntry, UnitError, UnitKind, reported_divergence,
                                    warnings_and_errors)
 
 
@@ -56,12 +56,6 @@ class DirectPort:
 
     def value_references(self) -> dict[str, int]:
         return {v.name: vr for vr, v in self._slave.vars.items()}
-
-    def scalar_outputs(self) -> list[str]:
-        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
-        from pythonfmu import Fmi2Causality, Real
-        return [v.name for _, v in sorted(self._slave.vars.items()) if isinstance(v, Real)
-                and v.causality == Fmi2Causality.output and not INDEXED.match(v.name)]
 
     def reader(self, vrs: list[int]):
         vrs = list(vrs)

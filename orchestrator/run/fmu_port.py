@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fmu_common.scene_schema import without_tunables
-from orchestrator.run.port import (ERROR_STATUS, INDEXED, KINDS, LogEntry, UnitError, reported_divergence,
+from orchestrator.run.port import (ERROR_STATUS, KINDS, LogEntry, UnitError, reported_divergence,
                                    warnings_and_errors)
 
 
@@ -72,8 +72,6 @@ class FmuPort:
             self.close()
             raise
         self._vr = {v.name: v.valueReference for v in md.modelVariables}
-        self._scalar_outputs = [v.name for v in md.modelVariables if v.causality == "output"
-                                and v.type == "Real" and not INDEXED.match(v.name)]
 
         def logger(env, inst, status, category, message):
             # The FMU's printf-style message arrives unformatted: fmpy's formatting proxy (addLoggerProxy) is
@@ -147,10 +145,6 @@ class FmuPort:
 
     def value_references(self) -> dict[str, int]:
         return dict(self._vr)
-
-    def scalar_outputs(self) -> list[str]:
-        """Names of the Real outputs that are not indexed blocks, in value-reference order."""
-        return list(self._scalar_outputs)
 
     def reader(self, vrs: list[int]):
         from fmpy.fmi2 import fmi2Real, fmi2ValueReference

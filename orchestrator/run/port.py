@@ -93,9 +93,6 @@ class Port(Protocol):
     def value_references(self) -> dict[str, int]:
         """{variable name: value reference} of every variable."""
 
-    def scalar_outputs(self) -> list[str]:
-        """Names of the Real outputs, in value-reference order."""
-
     def reader(self, vrs: list[int]) -> Callable[[], np.ndarray]:
         """A function returning the Real values of `vrs` as a fresh array."""
 

@@ -133,18 +133,23 @@ def generate() -> str:
     return text.replace("{{ reference }}\n", reference()).replace("{{ bounds }}\n", bounds())
 
 
+def write_or_check(path: Path, text: str, check: bool, source: str, command: str) -> int:
+    """Write the generated `text` to `path` (exit code 0), or with `check` compare it with the file: 1, saying that
+    it differs from `source` and which `command` regenerates it, when it does."""
+    if not check:
+        path.write_text(text, encoding="utf-8")
+        return 0
+    if path.read_text(encoding="utf-8") != text:
+        print(f"{path} differs from {source}: run python -m {command}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare with docs/scenes.md instead of writing it")
     args = parser.parse_args(argv)
-    text = generate()
-    if args.check:
-        if OUTPUT.read_text(encoding="utf-8") != text:
-            print(f"{OUTPUT} differs from the schema: run python -m orchestrator.scene.docs", file=sys.stderr)
-            return 1
-        return 0
-    OUTPUT.write_text(text, encoding="utf-8")
-    return 0
+    return write_or_check(OUTPUT, generate(), args.check, "the schema", "orchestrator.scene.docs")
 
 
 if __name__ == "__main__":
