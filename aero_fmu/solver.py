@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmu_common.errors import InputError, SceneError, SolverDiverged, checked_input
+from fmu_common.scene_schema import parameter_values
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
 from fmu_common.specs import AeroUnitSpec
@@ -89,13 +90,7 @@ class AeroSolver:
         if not aero.model.builds_unit:
             raise SceneError("aero.model", aero.model.name, "an aero model: \"none\" builds no aero unit")
         self.step = aero.step
-        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
-        for name, value in (parameters or {}).items():
-            if name not in values:
-                raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not np.isfinite(value):
-                raise SceneError(name, value, "a finite number")
-            values[name] = float(value)
+        values = parameter_values(self.tunable_parameters(spec), parameters)
         for name in ("flow.speed", "flow.density"):
             if values[name] < 0:
                 raise SceneError(name, values[name], "a value >= 0")

@@ -30,7 +30,7 @@ from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MA
 from .scissors import expand_scissors
 from .fmi_units import fmi_unit
 from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, Table, Tables, Text, Variants,
-                     Vector, item_label)
+                     Vector, is_number, item_label)
 
 ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
 ACCELERATIONS = ("aitken", "iqn-ils")
@@ -512,6 +512,29 @@ def tunable_parameters(scene: dict, section: str) -> dict[str, tuple[float, str,
         else:
             out[key] = (float(value), unit, declaration.doc)
     return out
+
+
+def parameter_values(declared: dict[str, tuple[float, str, str]], given: dict | None) -> dict[str, float]:
+    """The values a solver runs with: the declared tunable parameters' defaults, replaced by those `given`.
+
+    Args:
+        declared: {name: (default, unit, description)}, as `tunable_parameters` returns them.
+        given: {name: value} set by a host, SI units; None: none.
+
+    Returns:
+        {name: value} of every declared parameter, floats.
+
+    Raises:
+        SceneError: a given name that is not declared, or a value that is not a finite real number.
+    """
+    values = {name: float(default) for name, (default, _, _) in declared.items()}
+    for name, value in (given or {}).items():
+        if name not in values:
+            raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
+        if not is_number(value) and not (isinstance(value, np.floating) and np.isfinite(value)):
+            raise SceneError(name, value, "a finite number")
+        values[name] = float(value)
+    return values
 
 
 def _resolve_item(section: str, key: str, raw: dict) -> dict:

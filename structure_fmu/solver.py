@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from fmu_common.errors import SceneError, SolverDiverged, checked_input
+from fmu_common.scene_schema import parameter_values
 from fmu_common.specs import StructureUnitSpec
 
 from .fidelities import model_class
@@ -29,13 +30,7 @@ class StructureSolver:
         self.topology = StructureTopology.from_spec(spec.structure)
         self.sensors = Sensors.from_spec(spec, self.topology)
         structure = spec.structure
-        values = {name: default[0] for name, default in self.tunable_parameters(spec).items()}
-        for name, value in (parameters or {}).items():
-            if name not in values:
-                raise SceneError(name, value, f"one of the tunable parameters {sorted(values)}")
-            if not np.isfinite(value):
-                raise SceneError(name, value, "a finite number")
-            values[name] = float(value)
+        values = parameter_values(self.tunable_parameters(spec), parameters)
         self.parameters = values
         if values["structure.step"] <= 0:
             raise SceneError("structure.step", values["structure.step"], "a time step > 0 (s)")
