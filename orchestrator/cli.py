@@ -1,14 +1,19 @@
 """The ``wingsim`` command line (docs/architecture.md); ``python -m orchestrator`` is the same.
 
-- ``wingsim build SCENE [--out DIR] [--standalone [--win64]]``: build the scene's FMUs into DIR (default
-  ``fmus/<scene>/``; ``--standalone``: FMUs that carry their Python runtime, default ``fmus/<scene>-standalone/``;
-  ``--win64``: with binaries and a runtime for 64-bit Windows too).
+- ``wingsim build SCENE [--out DIR] [--set KEY=VALUE ...] [--unit structure|aero] [--standalone [--win64]]``:
+  build the scene's FMUs, or only the one unit, into DIR (default: the folder ``run`` uses, ``fmu_dir``;
+  ``--standalone``: FMUs that carry their Python runtime; ``--win64``: with binaries and a runtime for 64-bit
+  Windows too).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
   run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
-- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--standalone [--win64]]``: build the FMUs if needed
-  (into the folder ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as one FMU,
-  ``DIR/wing.fmu`` (default ``export/<scene>/``, ``export/<scene>-standalone/`` with ``--standalone``).
+- ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--aero FMU] [--standalone [--win64]]``: build the
+  FMUs if needed (into the folder ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as
+  one FMU, ``DIR/wing.fmu``; ``--aero``: with that aero unit FMU (built for the same structure, e.g. by
+  ``build --set aero.model=strip --unit aero``) in place of the scene's own, whose structure FMU is used as it
+  is. Default DIR ``export/<scene>/`` for the scene as its file writes it, ``export/<scene>-<variant>/`` for a
+  variant (``export_dir``), so that no variant overwrites another's files; ``-standalone`` appended with
+  ``--standalone``.
 - ``wingsim sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--set KEY=VALUE ...] [--out DIR]
   [--backend direct|fmu] [--jobs N] [--scheduler ADDRESS] [--plots]``: every combination of the grid
   values, one run folder each under ``DIR/runs/`` and one row per run in ``DIR/sweep.csv`` (default
@@ -52,6 +57,7 @@ DIGEST_CHARS = 12
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 STANDALONE_HELP = ("FMUs that carry their Python runtime and run it in a worker process of their own: they need "
                    "no Python on the machine that runs them (docs/fmu.md)")
+SET_HELP = "override a dotted scene key, e.g. --set flow.speed=20 (repeatable)"
 WIN64_HELP = ("with --standalone: binaries and a Python runtime for 64-bit Windows too (cross-compiled with mingw-w64; "
               "the first such build downloads the Windows packages; docs/fmu.md)")
 
@@ -91,7 +97,14 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Build the FMUs a scene needs.")
     build.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
     build.add_argument("--out", type=Path, metavar="DIR",
-                       help="output folder (default: fmus/<scene name>/, fmus/<scene name>-standalone/)")
+                       help="output folder (default: the folder `run` uses: fmus/<scene name>/ for the scene as its "
+                            "file writes it, fmus/<scene name>-<digest>/ for a --set variant; -standalone appended "
+                            "with --standalone)")
+    build.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help=SET_HELP)
+    build.add_argument("--unit", choices=("structure", "aero"), action="append", dest="units", metavar="UNIT",
+                       help="build only this unit's FMU: structure or aero (repeatable; default: every unit the "
+                            "scene needs)")
     build.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
     build.add_argument("--win64", action="store_true", help=WIN64_HELP)
     build.set_defaults(func=cmd_build)
@@ -102,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
     run.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<scene name>/)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
+                     help=SET_HELP)
     run.add_argument("--backend", choices=("fmu", "direct"), default="fmu",
                      help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
     run.add_argument("--standalone", action="store_true", help=STANDALONE_HELP + " (with --backend fmu)")
@@ -122,7 +135,11 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
     export.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: export/<scene name>/)")
     export.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a dotted scene key, e.g. --set flow.speed=20 (repeatable)")
+                        help=SET_HELP)
+    export.add_argument("--aero", type=Path, metavar="FMU",
+                        help="couple this aero unit FMU (built for the same structure, e.g. by wingsim build SCENE "
+                             "--set aero.model=strip --unit aero) instead of the scene's own; the structure FMU is "
+                             "the scene's, built only if needed")
     export.add_argument("--standalone", action="store_true", help=STANDALONE_HELP)
     export.add_argument("--win64", action="store_true", help=WIN64_HELP)
     export.set_defaults(func=cmd_export)
@@ -174,10 +191,10 @@ def cmd_build(args: argparse.Namespace) -> int:
     from orchestrator.output.results import check_out_dir
     from orchestrator.scene.load import load_scene
 
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, args.overrides)
     _require_standalone(args.standalone, args.win64)
-    out = check_out_dir(args.out or fmu_dir(scene, scene, args.standalone))
-    for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64):
+    out = check_out_dir(args.out or fmu_dir(scene, _file_scene(args, scene), args.standalone))
+    for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64, units=args.units):
         if args.standalone:
             from orchestrator.build.standalone import describe
 
@@ -227,8 +244,51 @@ def fmu_dir(scene: dict, file_scene: dict | None, standalone: bool = False) -> P
     return FMU_ROOT / (f"{name}-standalone" if standalone else name)
 
 
-def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64: bool = False):
-    """None when the FMUs are ready, else a failed RunResult saying why the build failed.
+def export_dir(scene: dict, overrides: list[str], aero: Path | None, standalone: bool) -> Path:
+    """The folder `export` writes into by default: ``export/<scene>/`` for the scene as its file writes it with
+    its own units, ``export/<scene>-<variant>/`` otherwise, the variant the first DIGEST_CHARS hex digits of the
+    SHA-256 of the resolved scene and of the swapped aero FMU's bytes (so that two variants never share a folder,
+    and exporting one variant again replaces its own files); ``-standalone`` appended for standalone FMUs."""
+    import hashlib
+    import json
+
+    name = scene["name"]
+    if overrides or aero is not None:
+        digest = hashlib.sha256(json.dumps(scene, sort_keys=True).encode())
+        if aero is not None:
+            digest.update(aero.read_bytes())
+        name += f"-{digest.hexdigest()[:DIGEST_CHARS]}"
+    return EXPORT_ROOT / (f"{name}-standalone" if standalone else name)
+
+
+def swapped_aero(path: Path | None, standalone: bool) -> Path | None:
+    """The aero FMU given with ``export --aero``, checked before anything is built: a file that is an aero unit
+    FMU built by wingsim, standalone when ``--standalone`` is given (the package would not run without Python
+    otherwise). SceneError naming ``--aero`` (exit 2) if not; None without ``--aero``."""
+    import json
+    import zipfile
+
+    from orchestrator.build.fmus import BUILD_INFO_RESOURCE, read_resource
+
+    if path is None:
+        return None
+    try:
+        info = json.loads(read_resource(path, BUILD_INFO_RESOURCE))
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as err:
+        raise SceneError("--aero", str(path), f"an aero unit FMU built by wingsim ({type(err).__name__}: {err})") \
+            from None
+    if info.get("unit") != "aero":
+        raise SceneError("--aero", str(path), f"an aero unit FMU: this is wingsim's {info.get('unit')} unit")
+    if standalone and not info.get("standalone"):
+        raise SceneError("--aero", str(path), "a standalone aero FMU with --standalone: build it with wingsim "
+                                              "build SCENE --standalone --unit aero ...")
+    return path
+
+
+def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64: bool = False,
+                     units: list[str] | None = None):
+    """None when the FMUs (every one the scene needs, or those of `units`) are ready, else a failed RunResult
+    saying why the build failed.
 
     The FMUs are rebuilt when one is missing or was built from another scene (``--set`` included; but for
     its tunable keys) or other sources (``orchestrator.build.fmus.fmus_up_to_date`` compares digests embedded
@@ -240,11 +300,11 @@ def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64
     start = time.perf_counter()
     try:
         with build_lock(fmu_dir):   # a concurrent run of the same folder builds it, this one waits
-            if fmus_up_to_date(scene, fmu_dir, standalone, win64):
+            if fmus_up_to_date(scene, fmu_dir, standalone, win64, units):
                 return None
             kind = "standalone FMUs" + (" with win64 binaries" if win64 else "") if standalone else "FMUs"
             print(f"building the {kind} of {scene['name']} into {fmu_dir} ...", file=sys.stderr)
-            fmus = build_fmus(scene, fmu_dir, standalone=standalone, win64=win64)
+            fmus = build_fmus(scene, fmu_dir, standalone=standalone, win64=win64, units=units)
     except SceneError:
         raise
     except Exception as err:
@@ -316,13 +376,14 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     _require_standalone(args.standalone, args.win64)
-    out = check_out_dir(args.out or EXPORT_ROOT / (scene["name"] + ("-standalone" if args.standalone else "")))
+    aero = swapped_aero(args.aero, args.standalone)
+    out = check_out_dir(args.out or export_dir(scene, args.overrides, aero, args.standalone))
     folder = fmu_dir(scene, _file_scene(args, scene), args.standalone)
-    failed = _build_if_needed(scene, folder, args.standalone, args.win64)
+    failed = _build_if_needed(scene, folder, args.standalone, args.win64, ["structure"] if aero else None)
     if failed is not None:
         print(f"error: {failed.message}", file=sys.stderr)
         return interrupt_exit_code() or 1
-    system = coupled_system(scene, folder)
+    system = coupled_system(scene, folder, aero=aero, variant=args.overrides)
     print(write_ssp(system, out / f"{scene['name']}.ssp"))
     try:
         print(write_container(system, out / CONTAINER_FILE))

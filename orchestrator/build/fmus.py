@@ -53,9 +53,11 @@ def units_needed(scene: dict) -> list[str]:
     return ["structure", "aero"] if aero_model(scene["aero"]["model"]).builds_unit else ["structure"]
 
 
-def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> list[Path]:
-    """Build every FMU the scene needs into `out_dir`; returns their paths (structure first). `standalone`:
-    FMUs that carry their runtime (module docstring); `win64` (with `standalone` only): with win64 binaries too.
+def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False,
+               units: list[str] | None = None) -> list[Path]:
+    """Build every FMU the scene needs into `out_dir`, or only those of `units` (kinds, a subset of
+    `units_needed`); returns their paths (structure first). `standalone`: FMUs that carry their runtime (module
+    docstring); `win64` (with `standalone` only): with win64 binaries too.
 
     Raises SceneError (from the structure package) for a bad scene, BuildError if a build fails or, before
     anything is built, when standalone FMUs (or their win64 binaries) cannot be built here
@@ -64,7 +66,7 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
     refused = refusal(standalone, win64)
     if refused is not None:
         raise BuildError(refused[1])
-    kinds = units_needed(scene)
+    kinds = _kinds(scene, units)
     for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
         for _, source in sources(kind):
             if source.suffix == ".c":
@@ -118,11 +120,12 @@ def refusal(standalone: bool, win64: bool) -> tuple[str, str] | None:
     return None
 
 
-def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False) -> bool:
-    """True if every FMU the scene needs exists in `out_dir`, of the kind asked for, built from this scene (but
-    for its tunable keys, which the master sets as parameters: `build_digest`) and these sources (an FMU with
-    win64 binaries serves where none are asked for)."""
-    for kind in units_needed(scene):
+def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64: bool = False,
+                    units: list[str] | None = None) -> bool:
+    """True if every FMU the scene needs (or each of `units`) exists in `out_dir`, of the kind asked for, built
+    from this scene (but for its tunable keys, which the master sets as parameters: `build_digest`) and these
+    sources (an FMU with win64 binaries serves where none are asked for)."""
+    for kind in _kinds(scene, units):
         fmu = Path(out_dir) / UNITS[kind][0]
         try:
             info = json.loads(read_resource(fmu, BUILD_INFO_RESOURCE))
@@ -131,6 +134,19 @@ def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64:
         except (OSError, KeyError, ValueError, zipfile.BadZipFile, BuildError):
             return False
     return True
+
+
+def _kinds(scene: dict, units: list[str] | None) -> list[str]:
+    """`units` in build order (structure first), each one the scene needs; all it needs for None. SceneError
+    naming ``--unit`` for a unit the scene does not build."""
+    needed = units_needed(scene)
+    if units is None:
+        return needed
+    for kind in units:
+        if kind not in needed:
+            raise SceneError("--unit", kind, f"a unit the scene builds ({', '.join(needed)}): aero.model = "
+                                             f"{scene['aero']['model']!r} builds no {kind} unit")
+    return [kind for kind in needed if kind in units]
 
 
 def read_resource(fmu: Path, name: str) -> str:

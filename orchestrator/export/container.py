@@ -78,7 +78,8 @@ def _container_description(system: System, public: list, parameters: list):
     coupling = (f", coupled inside (Jacobi, internal step {system.step:g} s, any communication step)"
                 if system.connections else f" (internal step {system.step:g} s, any communication step)")
     description = ModelDescription(
-        fmiVersion="2.0", modelName=system.name, instantiationToken=str(uuid.uuid5(uuid.NAMESPACE_URL,
+        fmiVersion="2.0", modelName=f"{system.name}: {' + '.join(c.model_description.modelName for c in system.components)}",
+        instantiationToken=str(uuid.uuid5(uuid.NAMESPACE_URL,
                                                                                    f"wingsim:{guids}")),
         description=f"{system.description or system.name}: the {units} units of wingsim in one FMU{coupling}",
         generationTool="wingsim (orchestrator/export/container.c)",

@@ -15,10 +15,18 @@
 - the Units of the FMUs' UnitDefinitions;
 - a DefaultExperiment (startTime 0, stopTime ``time.stop``) whose annotation of type
   ``com.opensimulationplatform`` gives the communication step (``osp:FixedStepAlgorithm baseStepSize``,
-  s): SSP 1.0 has no attribute for a step, and this annotation is the one libcosim reads.
+  s): SSP 1.0 has no attribute for a step, and this annotation is the one libcosim reads;
+- on the System, an annotation of type ``org.openmodelica`` with the same step for OMSimulator's fixed-step
+  master (``oms:FixedStepMaster``, "oms-ma"): OMSimulator cannot give a root system a type without it.
 
-Every namespace is declared on the root element with the prefixes ssd, ssc, ssv and osp: libcosim's
-parser matches elements by these literal prefixes.
+SSP 1.0 gives a step to no tool, so each tool that needs one gets its own annotation; every tool ignores the
+others'. Every namespace is declared on the root element with the prefixes ssd, ssc, ssv, osp and oms:
+libcosim's parser matches elements by these literal prefixes.
+
+The elements are named ``structure_unit`` and ``aero_unit`` (`element_name`), not after the units' kinds: the
+parameters are named by their dotted scene keys (``structure.step``, ``structure.joints.fold.stiffness``), and
+OMSimulator resolves a parameter ``structure.step`` bound on an element named ``structure`` as that element's
+variable ``step``.
 """
 from __future__ import annotations
 
@@ -35,8 +43,11 @@ NAMESPACES = {
     "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
 OSP_ANNOTATION = "com.opensimulationplatform"
+OMS_ANNOTATION = "org.openmodelica"
+OMS_TOLERANCE = "0.0001"   # OMSimulator's default; its fixed-step master without algebraic loops never uses it
 BASE_UNIT_EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
@@ -54,9 +65,15 @@ def _number(value) -> str:
     return repr(float(value))
 
 
+def element_name(component: str) -> str:
+    """The SSD element of a component ("structure" or "aero"): ``structure_unit``, ``aero_unit`` (module
+    docstring: no parameter name starts with it)."""
+    return f"{component}_unit"
+
+
 def component_source(name: str) -> str:
     """Where a component's FMU lies in the package, relative to the SSD."""
-    return f"resources/{name}.fmu"
+    return f"resources/{element_name(name)}.fmu"
 
 
 def system_structure(system: System) -> bytes:
@@ -73,8 +90,12 @@ def system_structure(system: System) -> bytes:
     if system.connections:
         connections = _sub(node, "ssd:Connections")
         for c in system.connections:
-            _sub(connections, "ssd:Connection", startElement=c.start, startConnector=c.variable,
-                 endElement=c.end, endConnector=c.variable)
+            _sub(connections, "ssd:Connection", startElement=element_name(c.start), startConnector=c.variable,
+                 endElement=element_name(c.end), endConnector=c.variable)
+    oms = _sub(_sub(_sub(_sub(node, "ssd:Annotations"), "ssc:Annotation", type=OMS_ANNOTATION), "oms:Annotations"),
+               "oms:SimulationInformation")
+    _sub(oms, "oms:FixedStepMaster", description="oms-ma", stepSize=_number(system.step),
+         absoluteTolerance=OMS_TOLERANCE, relativeTolerance=OMS_TOLERANCE)
     _units(root, system.unit_definitions)
     experiment = _sub(root, "ssd:DefaultExperiment", startTime=_number(system.start_time),
                       stopTime=_number(system.stop_time))
@@ -86,7 +107,7 @@ def system_structure(system: System) -> bytes:
 
 def _component(elements: ET.Element, component, connected_inputs: set, system_name: str) -> None:
     """The Component element: its connectors and its parameter binding."""
-    element = _sub(elements, "ssd:Component", name=component.name, type="application/x-fmu-sharedlibrary",
+    element = _sub(elements, "ssd:Component", name=element_name(component.name), type="application/x-fmu-sharedlibrary",
                    source=component_source(component.name), implementation="CoSimulation")
     connectors = _sub(element, "ssd:Connectors")
     # unconnected inputs are left out (SSP requires only connected ones): they keep their start values
@@ -99,7 +120,7 @@ def _component(elements: ET.Element, component, connected_inputs: set, system_na
     if component.parameters:
         binding = _sub(_sub(element, "ssd:ParameterBindings"), "ssd:ParameterBinding")
         parameter_set = _sub(_sub(binding, "ssd:ParameterValues"), "ssv:ParameterSet", version=SSP_VERSION,
-                             name=f"{system_name} {component.name}")
+                             name=f"{system_name} {element_name(component.name)}")
         parameters = _sub(parameter_set, "ssv:Parameters")
         for v in component.parameters:
             _sub(_sub(parameters, "ssv:Parameter", name=v.name), "ssv:Real", value=_number(component.value(v)))

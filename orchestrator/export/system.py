@@ -2,7 +2,7 @@
 
 `coupled_system(scene, fmu_dir)` reads the model descriptions of the scene's FMUs (built by
 ``orchestrator.build.fmus`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and
-``aero`` for an aero scene), every coupling connection (``e[k]`` and ``de[k]`` from the structure's output
+``aero`` for an aero scene or the aero unit FMU swapped in by ``wingsim export --aero``), every coupling connection (``e[k]`` and ``de[k]`` from the structure's output
 to the aero unit's input, ``Q[k]`` from the aero unit's output to the structure's input, k = 1..n,
 docs/architecture.md), each component's parameters with the scene's values (its tunable keys, which may
 differ from the values the FMUs were built with: ``orchestrator.build.fmus.build_digest``), the outputs a
@@ -18,7 +18,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from orchestrator.build.fmus import units_needed
 from orchestrator.build.sources import UNITS
@@ -127,20 +127,33 @@ def _base(unit) -> tuple | None:
                                                                         "factor", "offset"))
 
 
-def coupled_system(scene: dict, fmu_dir: Path) -> System:
+def coupled_system(scene: dict, fmu_dir: Path, aero: Path | None = None, variant: Sequence[str] = ()) -> System:
     """The `System` of the scene's FMUs in ``fmu_dir`` (built from ``scene``; see ``orchestrator.build.fmus``).
 
-    Raises IncompatibleFMUs when the FMUs cannot be connected: a different number of coupling variables, or
-    different structural topologies (``topology_hash``).
+    Args:
+        scene: the resolved scene (``--set`` overrides applied).
+        fmu_dir: the folder of its FMUs.
+        aero: an aero unit FMU to couple instead of ``fmu_dir``'s (``wingsim export --aero``), its parameters
+            set to the scene's values; None: the scene's own (none for a structure-only scene).
+        variant: the ``--set`` overrides the scene was resolved with, named in the description.
+
+    Returns:
+        The system, described by what its units say they are (their model names) and by the variant.
+
+    Raises:
+        IncompatibleFMUs: the FMUs cannot be connected (a different number of coupling variables, different
+            structural topologies, ``topology_hash``) or an FMU lacks a parameter of the scene's tunable keys.
     """
     from fmpy import read_model_description
 
     from fmu_common.interface import fmi_name
     from orchestrator.run.units import scene_parameters
 
+    paths = {kind: Path(fmu_dir) / UNITS[kind][0] for kind in units_needed(scene)}
+    if aero is not None:
+        paths["aero"] = Path(aero)
     components = []
-    for kind in units_needed(scene):
-        path = Path(fmu_dir) / UNITS[kind][0]
+    for kind, path in paths.items():
         values = {fmi_name(name): value for name, value in scene_parameters(kind, scene).items()}
         component = Component(kind, path, read_model_description(str(path)), values)
         missing = sorted(set(values) - {v.name for v in component.parameters})
@@ -148,18 +161,29 @@ def coupled_system(scene: dict, fmu_dir: Path) -> System:
             raise IncompatibleFMUs(f"{path} has no parameter {missing[0]} of the scene's tunable keys: rebuild it "
                                    "(wingsim build SCENE)")
         components.append(component)
-    system = System(scene["name"], scene["description"], components, start_time=0.0,
+    system = System(scene["name"], _description(scene, components, variant, aero), components, start_time=0.0,
                     stop_time=float(scene["time"]["stop"]), step=float(scene["coupling"]["step"]))
     if len(components) == 2:
         system.connections = _connections(*components)
     return system
 
 
+def _description(scene: dict, components: list[Component], variant: Sequence[str], aero: Path | None) -> str:
+    """What the system is: the scene's own description for the scene as its file writes it with its own units;
+    for a variant, the overrides and the swapped aero FMU instead (the file's text may name another model or
+    speed); then each unit's model name (its fidelity, model and lattice)."""
+    changes = list(variant) + ([f"aero unit {aero.name} from {aero.parent}"] if aero is not None else [])
+    head = f"{scene['name']} with {', '.join(changes)}" if changes else scene["description"] or scene["name"]
+    units = "; ".join(f"{c.name}: {c.model_description.modelName}" for c in components)
+    return f"{head} ({units})"
+
+
 def _connections(structure: Component, aero: Component) -> list[Connection]:
     hashes = structure.constant("topology_hash"), aero.constant("topology_hash")
     if hashes[0] != hashes[1]:
         raise IncompatibleFMUs(f"{structure.fmu} and {aero.fmu} carry different structural topologies (topology_hash "
-                           f"{hashes[0]} vs {hashes[1]}): rebuild both from one scene (wingsim build SCENE)")
+                               f"{hashes[0]} vs {hashes[1]}): build the aero unit for this structure, from the same "
+                               "scene (wingsim build SCENE [--set aero.model=...] --unit aero)")
     by_name = {c.name: c for c in (structure, aero)}
     connections = []
     n = len(structure.block("e", "output"))

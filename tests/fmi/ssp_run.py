@@ -14,7 +14,7 @@ The stop time and the communication step are read from the package's SystemStruc
 Prints ``deployment_time_s=<value>`` (the structure's output ``latch_time_fold`` at the end), with libcosim
 ``time_s=<value>`` (the time reached), with fmpy ``steps=<count>`` (the steps taken); with libcosim also
 ``<PARAMETER>=<value>`` for each named parameter of the structure or aero component as libcosim holds it at
-the end. Exit code 1 with the error on a failure.
+the end, and ``<element>.<output>=<value>`` for every Real output of every component at the end. Exit code 1 with the error on a failure.
 Run as a separate process: libcosim may crash at interpreter exit after a failure (docs/fmu.md, libcosim), so the
 script leaves by os._exit once its answer is printed.
 """
@@ -38,6 +38,7 @@ def experiment(ssp: str) -> tuple[float, float]:
 
 
 def run_libcosim(ssp: str, stop: float, step: float, parameters: list[str]) -> None:
+    from libcosimpy.CosimEnums import CosimVariableCausality, CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
@@ -54,10 +55,16 @@ def run_libcosim(ssp: str, stop: float, step: float, parameters: list[str]) -> N
             raise SystemExit(f"libcosim step failed at t = {k * step:g} s")
     reached = execution.status().current_time * 1e-9
     print(f"time_s={reached!r}")
-    structure, latch = refs[("structure", "latch_time_fold")]
-    print(f"deployment_time_s={float(observer.last_real_values(structure, [latch])[0])!r}")
+    for unit, i in index.items():
+        for v in execution.slave_variables(i):
+            if (CosimVariableCausality(v.causality), CosimVariableType(v.type)) == (CosimVariableCausality.OUTPUT,
+                                                                                 CosimVariableType.REAL):
+                print(f"{unit}.{v.name.decode()}={float(observer.last_real_values(i, [v.reference])[0])!r}")
+    if ("structure_unit", "latch_time_fold") in refs:
+        structure, latch = refs[("structure_unit", "latch_time_fold")]
+        print(f"deployment_time_s={float(observer.last_real_values(structure, [latch])[0])!r}")
     for name in parameters:
-        unit, vr = next(refs[(u, name)] for u in ("structure", "aero") if (u, name) in refs)
+        unit, vr = next(refs[(u, name)] for u in ("structure_unit", "aero_unit") if (u, name) in refs)
         print(f"{name}={float(observer.last_real_values(unit, [vr])[0])!r}")
     del execution
 
@@ -69,7 +76,7 @@ def run_fmpy(ssp: str, stop: float, step: float) -> None:
 
     result = simulate_ssp(ssp, stop_time=stop, step_size=step, parameter_set=parameter_set_for_fmpy(ssp))
     print(f"steps={len(result)}")   # one row per step: the time it started from, the outputs it ended with
-    print(f"deployment_time_s={float(result['structure.latch_time_fold'][-1])!r}")
+    print(f"deployment_time_s={float(result['structure_unit.latch_time_fold'][-1])!r}")
 
 
 if __name__ == "__main__":

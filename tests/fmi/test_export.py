@@ -95,9 +95,9 @@ def run_tool(tool: str, ssp: Path, *parameters: str) -> dict[str, float]:
 # ---- the package ----------------------------------------------------------------------------------------
 def test_the_package_holds_the_system_structure_and_both_fmus(coupled):
     with zipfile.ZipFile(coupled["ssp"]) as z:
-        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/aero.fmu", "resources/structure.fmu"]
+        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/aero_unit.fmu", "resources/structure_unit.fmu"]
         for kind in ("structure", "aero"):   # the FMUs `run` uses, unchanged
-            assert z.read(f"resources/{kind}.fmu") == (coupled["fmus"] / f"{kind}.fmu").read_bytes()
+            assert z.read(f"resources/{kind}_unit.fmu") == (coupled["fmus"] / f"{kind}.fmu").read_bytes()
 
 
 def test_the_ssd_validates_against_the_ssp_schema(coupled):
@@ -113,15 +113,15 @@ def test_the_ssd_validates_against_the_ssp_schema(coupled):
     # and fmpy reads it with its own validation
     from fmpy.ssp.ssd import find_components, get_connections, read_ssd
     ssd = read_ssd(str(coupled["ssp"]))
-    assert [c.name for c in find_components(ssd.system)] == ["structure", "aero"]
+    assert [c.name for c in find_components(ssd.system)] == ["structure_unit", "aero_unit"]
     n = Topology.from_spec(StructureSpec.from_scene(load_scene(SCENE))).n_coordinates
     assert len(get_connections(ssd.system)) == 3 * n
 
 
 def test_every_coupling_connection_and_nothing_else(coupled):
     n = Topology.from_spec(StructureSpec.from_scene(load_scene(SCENE))).n_coordinates
-    expected = {("structure", f"{b}[{k}]", "aero", f"{b}[{k}]") for b in ("e", "de") for k in range(1, n + 1)}
-    expected |= {("aero", f"Q[{k}]", "structure", f"Q[{k}]") for k in range(1, n + 1)}
+    expected = {("structure_unit", f"{b}[{k}]", "aero_unit", f"{b}[{k}]") for b in ("e", "de") for k in range(1, n + 1)}
+    expected |= {("aero_unit", f"Q[{k}]", "structure_unit", f"Q[{k}]") for k in range(1, n + 1)}
     connections = [(c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))
                    for c in ssd_of(coupled["ssp"]).findall("ssd:System/ssd:Connections/ssd:Connection", NS)]
     assert len(connections) == len(expected) == 3 * n
@@ -146,12 +146,12 @@ def test_parameters_carry_the_scene_values_and_the_experiment_its_times(coupled)
         assert set(values) == declared and declared   # every parameter connector bound, and only those
         bound[component.get("name")] = values
     fold = next(j for j in hinge_joints(scene) if j["name"] == "fold")
-    assert {k: bound["structure"][f"structure.joints.fold.{k}"] for k in ("stiffness", "damping", "torque")} == \
+    assert {k: bound["structure_unit"][f"structure.joints.fold.{k}"] for k in ("stiffness", "damping", "torque")} == \
         {k: fold[k] for k in ("stiffness", "damping", "torque")}
-    assert [bound["structure"][f"structure.gravity[{i}]"] for i in (1, 2, 3)] == scene["structure"]["gravity"]
-    assert bound["structure"]["structure.step"] == scene["structure"]["step"]
-    assert bound["aero"]["flow.speed"] == scene["flow"]["speed"] == 10.0
-    assert bound["aero"]["flow.density"] == scene["flow"]["density"]
+    assert [bound["structure_unit"][f"structure.gravity[{i}]"] for i in (1, 2, 3)] == scene["structure"]["gravity"]
+    assert bound["structure_unit"]["structure.step"] == scene["structure"]["step"]
+    assert bound["aero_unit"]["flow.speed"] == scene["flow"]["speed"] == 10.0
+    assert bound["aero_unit"]["flow.density"] == scene["flow"]["density"]
     experiment = root.find("ssd:DefaultExperiment", NS)
     assert (float(experiment.get("startTime")), float(experiment.get("stopTime"))) == (0.0, scene["time"]["stop"])
     step = experiment.find("ssd:Annotations/ssc:Annotation[@type='com.opensimulationplatform']/osp:Algorithm/"
@@ -161,12 +161,12 @@ def test_parameters_carry_the_scene_values_and_the_experiment_its_times(coupled)
 
 def test_a_structure_only_scene_is_the_structure_alone(still_air):
     root = ssd_of(still_air["ssp"])
-    assert [c.get("name") for c in root.findall("ssd:System/ssd:Elements/ssd:Component", NS)] == ["structure"]
+    assert [c.get("name") for c in root.findall("ssd:System/ssd:Elements/ssd:Component", NS)] == ["structure_unit"]
     assert root.find("ssd:System/ssd:Connections", NS) is None
     # Q is held at its start value 0, as `wingsim run` holds it: no input connectors left dangling
     assert root.findall(".//ssd:Connector[@kind='input']", NS) == []
     with zipfile.ZipFile(still_air["ssp"]) as z:
-        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/structure.fmu"]
+        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/structure_unit.fmu"]
 
 
 def test_bad_input_exits_2_before_anything_is_built(tmp_path, monkeypatch, capsys):
@@ -372,7 +372,7 @@ def test_a_tunable_variant_is_exported_on_the_same_fmus_with_its_own_parameter_v
     with zipfile.ZipFile(variant["ssp"]) as z:
         bound = float(etree.fromstring(z.read("SystemStructure.ssd")).find(
             f".//ssv:Parameter[@name='{torque}']/ssv:Real", NS).get("value"))
-        fmus = {kind: z.read(f"resources/{kind}.fmu") for kind in ("structure", "aero")}
+        fmus = {kind: z.read(f"resources/{kind}_unit.fmu") for kind in ("structure", "aero")}
     assert bound == 0.05
     assert fmus == {kind: (coupled["fmus"] / f"{kind}.fmu").read_bytes() for kind in ("structure", "aero")}
     # the reference: wingsim's master, Jacobi coupled as the container, on FMUs built from the variant's scene

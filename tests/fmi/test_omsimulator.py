@@ -1,0 +1,186 @@
+"""OpenModelica's OMSimulator (a C++ FMI/SSP host, ``../shared/tools/omsimulator/``) runs what `wingsim export`
+writes, as exported: from its command line under an empty environment (as a system tool starts it) and through
+its Python API, and the aero unit of another fidelity swaps into the package with one command.
+
+The reference is libcosim on the same package (tests/fmi/ssp_run.py): both step every unit from the outputs of
+the last communication point, then exchange (Jacobi), from the same start (each exchanges the initial outputs
+during initialization), so the same FMUs doing the same arithmetic end with the same outputs; OMSimulator's
+result file holds 12 significant digits, RTOL is far above that and far below any change of the physics.
+Neither tool finds an algebraic loop: no output of either unit depends directly on an input (their model
+descriptions declare ``dependencies=""``), which OMSimulator's log shows.
+"""
+from __future__ import annotations
+
+import csv
+import os
+import re
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.run.master import run_scene
+from orchestrator.scene.load import load_scene
+from repository import OMSIMULATOR, SCENES
+from subprocesses import wingsim
+
+SSP_RUN = Path(__file__).with_name("ssp_run.py")
+API_RUN = Path(__file__).with_name("omsimulator_run.py")
+RTOL = 1e-9
+ATOL = 1e-15   # outputs that are zero up to round-off (a constraint residual of 1e-16) compare absolutely
+ALGEBRAIC_LOOP = re.compile(r"Alg\. loop", re.I)
+AERO_SCENES = sorted(p.stem for p in SCENES.glob("*.toml") if load_scene(p)["aero"]["model"] != "none")
+
+
+@pytest.fixture(scope="session")
+def omsimulator() -> Path:
+    """OMSimulator's executable; the test is skipped where it is not installed."""
+    binary = OMSIMULATOR / "bin" / "OMSimulator"
+    if not binary.is_file():
+        pytest.skip(f"OMSimulator is not installed at {binary}")
+    return binary
+
+
+def export(folder: Path, scene: str, *args: str) -> Path:
+    """`wingsim export` of scenes/<scene>.toml in `folder` (its default output folders); the package's path."""
+    out = wingsim("export", SCENES / f"{scene}.toml", *args, cwd=folder)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return folder / next(line for line in out.stdout.split() if line.endswith(".ssp"))
+
+
+def by_element(columns: dict[str, float], elements=("structure_unit", "aero_unit")) -> dict[str, float]:
+    """{"<element>.<variable>": value} from result columns named "<model>[.<system>].<element>.<variable>"."""
+    named = {}
+    for column, value in columns.items():
+        for element in elements:
+            head, found, variable = column.partition(f".{element}.")
+            if found:
+                named[f"{element}.{variable}"] = value
+    return named
+
+
+def last_row(result: Path) -> dict[str, float]:
+    """The last row of an OMSimulator CSV result file, by element and variable (non-numeric columns left out)."""
+    with result.open(newline="") as handle:
+        rows = list(csv.DictReader(handle, skipinitialspace=True))
+    assert rows, f"{result} holds no rows"
+    values = {}
+    for name, text in rows[-1].items():
+        try:
+            values[name.strip()] = float(text)
+        except ValueError:
+            pass
+    return {"time": values.pop("time"), **by_element(values)}
+
+
+def run_cli(omsimulator: Path, ssp: Path, stop: float, folder: Path) -> tuple[str, dict[str, float]]:
+    """OMSimulator's command line on `ssp` to `stop` (s) with an empty environment; (its log, the last row)."""
+    result = folder / f"{ssp.stem}_oms.csv"
+    out = subprocess.run(["env", "-i", str(omsimulator), f"--stopTime={stop!r}", f"--resultFile={result}", str(ssp)],
+                         cwd=folder, capture_output=True, text=True, timeout=1800)
+    log = out.stdout + out.stderr
+    assert out.returncode == 0 and not re.search(r"^error:", log, re.M), log
+    return log, last_row(result)
+
+
+def run_libcosim(ssp: Path, *parameters: str) -> dict[str, float]:
+    """libcosim on `ssp` to its stop time: every Real output at the end, by element, and `parameters`."""
+    out = subprocess.run([sys.executable, str(SSP_RUN), "libcosim", str(ssp), *parameters], capture_output=True,
+                         text=True, timeout=1800)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return {k: float(v) for k, v in re.findall(r"^(\S+)=(\S+)$", out.stdout, re.M)}
+
+
+def assert_same_outputs(oms: dict[str, float], cosim: dict[str, float]) -> None:
+    """Every output libcosim reports is in OMSimulator's result and equal to RTOL."""
+    outputs = {k: v for k, v in cosim.items() if k.startswith(("structure_unit.", "aero_unit."))}
+    assert len(outputs) > 10 and set(outputs) <= set(oms), sorted(set(outputs) - set(oms))[:5]
+    names = sorted(outputs)
+    a, b = np.array([oms[k] for k in names]), np.array([outputs[k] for k in names])
+    off = ~np.isclose(a, b, rtol=RTOL, atol=ATOL)
+    assert not off.any(), [(names[i], a[i], b[i]) for i in np.flatnonzero(off)[:5]]
+
+
+def stop_time(ssp: Path) -> float:
+    from lxml import etree
+
+    with zipfile.ZipFile(ssp) as z:
+        root = etree.fromstring(z.read("SystemStructure.ssd"))
+    return float(root.find("{http://ssp-standard.org/SSP1/SystemStructureDescription}DefaultExperiment")
+                 .get("stopTime"))
+
+
+@pytest.fixture(scope="module")
+def deploy_rigid(tmp_path_factory) -> Path:
+    return export(tmp_path_factory.mktemp("oms_deploy_rigid"), "deploy_rigid")
+
+
+@pytest.fixture(scope="module")
+def libcosim_deploy_rigid(deploy_rigid) -> dict[str, float]:
+    return run_libcosim(deploy_rigid, "structure.joints.fold.torque", "flow.speed")
+
+
+def test_the_command_line_runs_the_package_as_libcosim_does_with_no_algebraic_loop(omsimulator, deploy_rigid,
+                                                                                   libcosim_deploy_rigid, tmp_path):
+    log, oms = run_cli(omsimulator, deploy_rigid, stop_time(deploy_rigid), tmp_path)
+    assert not ALGEBRAIC_LOOP.search(log), log
+    assert oms["time"] == pytest.approx(0.3, abs=1e-12)
+    assert_same_outputs(oms, libcosim_deploy_rigid)
+    assert 0.15 < oms["structure_unit.latch_time_fold"] < 0.25   # it deployed within the run
+
+
+def test_the_python_api_runs_the_package_as_libcosim_does(omsimulator, deploy_rigid, libcosim_deploy_rigid,
+                                                          tmp_path):
+    result = tmp_path / "api.csv"
+    env = {**os.environ, "PYTHONPATH": str(OMSIMULATOR / "lib")}
+    out = subprocess.run([sys.executable, str(API_RUN), str(deploy_rigid), repr(stop_time(deploy_rigid)),
+                          str(result), "structure.joints.fold.torque", "flow.speed"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
+    log = out.stdout + out.stderr
+    assert out.returncode == 0 and not re.search(r"^error:", log, re.M), log
+    assert not ALGEBRAIC_LOOP.search(log), log
+    # the parameter bindings reached the units under their dotted names, beside elements of other names
+    bound = {k: float(v) for k, v in re.findall(r"^(\S+)=(\S+)$", out.stdout, re.M)}
+    assert bound == {"structure_unit.structure.joints.fold.torque": 0.043, "aero_unit.flow.speed": 10.0}
+    assert_same_outputs(last_row(result), libcosim_deploy_rigid)
+
+
+def test_the_strip_aero_unit_swaps_into_the_package_without_rebuilding_the_structure(omsimulator, deploy_rigid,
+                                                                                      tmp_path):
+    folder = deploy_rigid.parents[2]           # where deploy_rigid was exported: fmus/ and export/ inside
+    structure = folder / "fmus" / "deploy_rigid" / "structure.fmu"
+    before = structure.stat().st_mtime_ns, structure.read_bytes()
+    built = wingsim("build", SCENES / "deploy_rigid.toml", "--set", "aero.model=strip", "--unit", "aero", cwd=folder)
+    assert built.returncode == 0, built.stdout + built.stderr
+    (aero,) = [folder / line for line in built.stdout.split()]
+    assert aero.name == "aero.fmu" and not (aero.parent / "structure.fmu").exists()   # only the unit asked for
+    swapped = export(folder, "deploy_rigid", "--aero", str(aero))
+    assert swapped.parent != deploy_rigid.parent and deploy_rigid.is_file()   # its own folder: nothing overwritten
+    assert (structure.stat().st_mtime_ns, structure.read_bytes()) == before
+    with zipfile.ZipFile(swapped) as z:
+        assert z.read("resources/structure_unit.fmu") == before[1]
+        assert z.read("resources/aero_unit.fmu") == aero.read_bytes()
+        ssd = z.read("SystemStructure.ssd").decode()
+    assert "strip" in ssd and "uvlm-flat" not in ssd   # the package says which aero model it couples
+
+    log, oms = run_cli(omsimulator, swapped, stop_time(swapped), tmp_path)
+    assert not ALGEBRAIC_LOOP.search(log), log
+    # the reference: wingsim's master, Jacobi coupled as OMSimulator, with the strip model set in the scene
+    reference = run_scene(load_scene(SCENES / "deploy_rigid.toml", ["aero.model=strip", "coupling.algorithm=jacobi"]),
+                          backend="direct")
+    assert reference.status == "ok", reference.message
+    assert oms["structure_unit.latch_time_fold"] == pytest.approx(reference.latch_times["fold"], rel=RTOL)
+    uvlm = run_cli(omsimulator, deploy_rigid, stop_time(deploy_rigid), tmp_path)[1]
+    assert abs(oms["structure_unit.latch_time_fold"] - uvlm["structure_unit.latch_time_fold"]) > 1e-3   # swapped
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", [s for s in AERO_SCENES if s != "deploy_rigid"])
+def test_every_aero_scene_runs_in_omsimulator_as_in_libcosim(omsimulator, scene, tmp_path):
+    ssp = export(tmp_path, scene)
+    log, oms = run_cli(omsimulator, ssp, stop_time(ssp), tmp_path)
+    assert not ALGEBRAIC_LOOP.search(log), log
+    assert_same_outputs(oms, run_libcosim(ssp))
