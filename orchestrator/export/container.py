@@ -75,10 +75,11 @@ def _container_description(system: System, public: list, parameters: list):
         variable.valueReference = vr
     guids = "|".join(c.model_description.guid for c in system.components)
     units = " and ".join(c.name for c in system.components)
+    unit_names = " + ".join(c.model_description.modelName for c in system.components)   # what each unit says it is
     coupling = (f", coupled inside (Jacobi, internal step {system.step:g} s, any communication step)"
                 if system.connections else f" (internal step {system.step:g} s, any communication step)")
     description = ModelDescription(
-        fmiVersion="2.0", modelName=f"{system.name}: {' + '.join(c.model_description.modelName for c in system.components)}",
+        fmiVersion="2.0", modelName=f"{system.name}: {unit_names}",
         instantiationToken=str(uuid.uuid5(uuid.NAMESPACE_URL,
                                                                                    f"wingsim:{guids}")),
         description=f"{system.description or system.name}: the {units} units of wingsim in one FMU{coupling}",

@@ -14,7 +14,8 @@ The stop time and the communication step are read from the package's SystemStruc
 Prints ``deployment_time_s=<value>`` (the structure's output ``latch_time_fold`` at the end), with libcosim
 ``time_s=<value>`` (the time reached), with fmpy ``steps=<count>`` (the steps taken); with libcosim also
 ``<PARAMETER>=<value>`` for each named parameter of the structure or aero component as libcosim holds it at
-the end, and ``<element>.<output>=<value>`` for every Real output of every component at the end. Exit code 1 with the error on a failure.
+the end, and ``<element>.<output>=<value>`` for every Real output of every component at the end. Exit code 1 with
+the error on a failure.
 Run as a separate process: libcosim may crash at interpreter exit after a failure (docs/fmu.md, libcosim), so the
 script leaves by os._exit once its answer is printed.
 """

@@ -95,7 +95,8 @@ def run_tool(tool: str, ssp: Path, *parameters: str) -> dict[str, float]:
 # ---- the package ----------------------------------------------------------------------------------------
 def test_the_package_holds_the_system_structure_and_both_fmus(coupled):
     with zipfile.ZipFile(coupled["ssp"]) as z:
-        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/aero_unit.fmu", "resources/structure_unit.fmu"]
+        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/aero_unit.fmu",
+                                        "resources/structure_unit.fmu"]
         for kind in ("structure", "aero"):   # the FMUs `run` uses, unchanged
             assert z.read(f"resources/{kind}_unit.fmu") == (coupled["fmus"] / f"{kind}.fmu").read_bytes()
 
