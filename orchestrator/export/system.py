@@ -1,15 +1,15 @@
 """The coupled system as another tool sees it: the built FMUs, their connections and their public variables.
 
 `coupled_system(scene, fmu_dir)` reads the model descriptions of the scene's FMUs (built by
-``orchestrator.build.fmus`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and
-``aero`` for an aero scene or the aero unit FMU swapped in by ``wingsim export --aero``), every coupling
-connection (``e[k]`` and ``de[k]`` from the structure's output to the aero unit's input, ``Q[k]`` from the
-aero unit's output to the structure's input, k = 1..n, docs/architecture.md), each component's parameters
-with the scene's values (its tunable keys, which may differ from the values the FMUs were built with:
-``orchestrator.build.fmus.build_digest``), the outputs a user reads (every Real output that is not a coupling variable: fold angles, latch times, probes, CL, lift,
-...), and the experiment (start 0, stop ``time.stop``, communication step ``coupling.step``, s). A
-structure-only scene is the structure alone, its Q inputs held at their start value 0, as ``wingsim run``
-holds them.
+``orchestrator.build.fmus`` into ``fmu_dir``) and returns a `System`: the components (``structure``, and ``aero``
+for an aero scene or the aero unit FMU swapped in by ``wingsim export --aero``), every coupling connection
+(``e[k]`` and ``de[k]`` from the structure's output to the aero unit's input, ``Q[k]`` from the aero unit's output
+to the structure's input, k = 1..n, docs/architecture.md), each component's parameters with the scene's values (its
+tunable keys, which may differ from the values the FMUs were built with: ``orchestrator.build.fmus.build_digest``),
+the outputs a user reads (every Real output that is not a coupling variable: fold angles, latch times, probes, CL,
+lift, ...), and the experiment (start 0, stop ``time.stop``, communication step ``coupling.step``, s). A
+structure-only scene is the structure alone, its Q inputs held at their start value 0, as ``wingsim run`` holds
+them.
 
 ``orchestrator.export.ssp`` writes this as an SSP package, ``orchestrator.export.container`` as one FMU.
 """
