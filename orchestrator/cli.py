@@ -187,12 +187,13 @@ def _start_compiling_kernels() -> None:
 
 def cmd_build(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
-    from orchestrator.build.fmus import build_fmus
+    from orchestrator.build.fmus import build_fmus, units_to_build
     from orchestrator.output.results import check_out_dir
     from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     _require_standalone(args.standalone, args.win64)
+    units_to_build(scene, args.units)   # a unit the scene does not build: SceneError before anything is written
     out = check_out_dir(args.out or fmu_dir(scene, _file_scene(args, scene), args.standalone))
     for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64, units=args.units):
         if args.standalone:

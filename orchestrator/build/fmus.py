@@ -66,7 +66,7 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
     refused = refusal(standalone, win64)
     if refused is not None:
         raise BuildError(refused[1])
-    kinds = _kinds(scene, units)
+    kinds = units_to_build(scene, units)
     for kind in kinds:  # the C kernels compile (once per machine) while the scene is checked and the units built
         for _, source in sources(kind):
             if source.suffix == ".c":
@@ -125,7 +125,7 @@ def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64:
     """True if every FMU the scene needs (or each of `units`) exists in `out_dir`, of the kind asked for, built
     from this scene (but for its tunable keys, which the master sets as parameters: `build_digest`) and these
     sources (an FMU with win64 binaries serves where none are asked for)."""
-    for kind in _kinds(scene, units):
+    for kind in units_to_build(scene, units):
         fmu = Path(out_dir) / UNITS[kind][0]
         try:
             info = json.loads(read_resource(fmu, BUILD_INFO_RESOURCE))
@@ -136,7 +136,7 @@ def fmus_up_to_date(scene: dict, out_dir: Path, standalone: bool = False, win64:
     return True
 
 
-def _kinds(scene: dict, units: list[str] | None) -> list[str]:
+def units_to_build(scene: dict, units: list[str] | None) -> list[str]:
     """`units` in build order (structure first), each one the scene needs; all it needs for None. SceneError
     naming ``--unit`` for a unit the scene does not build."""
     needed = units_needed(scene)

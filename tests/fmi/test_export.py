@@ -182,6 +182,55 @@ def test_bad_input_exits_2_before_anything_is_built(tmp_path, monkeypatch, capsy
     assert not (tmp_path / "fmus").exists()
 
 
+def test_each_variant_is_exported_into_its_own_folder_and_says_what_it_is(coupled):
+    # without --out: export/<scene>/ for the scene as its file writes it, export/<scene>-<digest>/ for a variant
+    folder = coupled["fmus"].parents[1]
+    default = wingsim("export", SCENE, cwd=folder)
+    assert default.returncode == 0, default.stderr
+    first = [folder / line for line in default.stdout.split()]
+    assert [p.parent.relative_to(folder) for p in first] == [Path("export/deploy_rigid")] * 2
+    written = {p: p.read_bytes() for p in first}
+    variants = []
+    for speed in ("12", "14"):
+        out = wingsim("export", SCENE, "--set", f"flow.speed={speed}", cwd=folder)
+        assert out.returncode == 0, out.stderr
+        ssp, container = [folder / line for line in out.stdout.split()]
+        assert ssp.parent == container.parent and ssp.parent.name.startswith("deploy_rigid-")
+        variants.append(ssp.parent)
+        description = ssd_of(ssp).find("ssd:System", NS).get("description")
+        # the override, not the scene file's text (which says 10 m/s)
+        assert f"flow.speed={speed}" in description and "10 m/s" not in description
+        assert ssd_of(ssp).find(".//ssv:Parameter[@name='flow.speed']/ssv:Real", NS).get("value") == f"{speed}.0"
+    assert len(set(variants)) == 2 and first[0].parent not in variants
+    assert {p: p.read_bytes() for p in first} == written   # no variant overwrote the scene's own export
+    assert "10 m/s" in ssd_of(first[0]).find("ssd:System", NS).get("description")
+
+
+def test_a_unit_the_scene_does_not_build_or_a_foreign_aero_fmu_is_refused_naming_the_option(coupled, tmp_path):
+    out = wingsim("build", SCENE, "--set", "aero.model=none", "--unit", "aero", cwd=tmp_path)
+    assert out.returncode == 2 and "--unit" in out.stderr and not (tmp_path / "fmus").exists(), out.stderr
+    structure = coupled["fmus"] / "structure.fmu"
+    out = wingsim("export", SCENE, "--aero", structure, cwd=tmp_path)
+    assert out.returncode == 2 and "--aero" in out.stderr and "structure unit" in out.stderr, out.stderr
+    out = wingsim("export", SCENE, "--aero", tmp_path / "missing.fmu", cwd=tmp_path)
+    assert out.returncode == 2 and "--aero" in out.stderr and "missing.fmu" in out.stderr, out.stderr
+    assert not (tmp_path / "fmus").exists() and not (tmp_path / "export").exists()
+
+
+def test_an_aero_unit_of_another_geometry_is_not_swapped_in(coupled, tmp_path):
+    built = wingsim("build", SCENE, "--set", "structure.bodies.outer.length=0.2", "--unit", "aero", cwd=tmp_path)
+    assert built.returncode == 0, built.stderr
+    (aero,) = [tmp_path / line for line in built.stdout.split()]
+    out = wingsim("export", SCENE, "--aero", aero, cwd=tmp_path)
+    assert out.returncode == 1, out.stdout + out.stderr
+    # both FMUs and both topologies named
+    structure_hash = Topology.from_spec(StructureSpec.from_scene(load_scene(SCENE))).topology_hash
+    other = load_scene(SCENE, ["structure.bodies.outer.length=0.2"])
+    other_hash = Topology.from_spec(StructureSpec.from_scene(other)).topology_hash
+    assert structure_hash != other_hash
+    assert all(str(x) in out.stderr for x in (structure_hash, other_hash, aero.name, "structure.fmu")), out.stderr
+
+
 # ---- the package in other tools -------------------------------------------------------------------------
 def test_libcosim_runs_the_package_to_the_jacobi_deployment_time(coupled, jacobi, tmp_path):
     cosim = run_tool("libcosim", coupled["ssp"], "structure.joints.fold.torque", "flow.speed")
