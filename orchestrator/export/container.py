@@ -91,7 +91,9 @@ def _container_description(system: System, public: list, parameters: list):
                                                          for c in system.components)),
         unitDefinitions=system.unit_definitions,
         modelVariables=[time] + outputs + params)
-    description.outputs = [Unknown(variable=v) for v in outputs]
+    # outputs change only in fmi2DoStep (it has no inputs); at initialization they are calculated from the
+    # parameters, which the InitialUnknowns' default dependencies (every parameter) say
+    description.outputs = [Unknown(variable=v, dependencies=[]) for v in outputs]
     description.initialUnknowns = [Unknown(variable=v) for v in outputs]
     return description, outputs, params
 
