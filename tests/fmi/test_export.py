@@ -314,6 +314,9 @@ def test_the_container_exposes_the_units_outputs_and_parameters(coupled):
     assert cs.modelIdentifier == "wing"
     assert cs.canHandleVariableCommunicationStepSize and cs.fixedInternalStepSize is None
     assert not cs.canGetAndSetFMUstate and not cs.canSerializeFMUstate
+    # it has no inputs: no output depends directly on one, which it declares; its model name names both units'
+    assert md.outputs and all(u.dependencies == [] for u in md.outputs)
+    assert all(unit.modelName in md.modelName for unit in units.values())
 
 
 def test_the_container_holds_its_binary_and_the_unit_fmus_unpacked_whole(coupled):
