@@ -184,3 +184,11 @@ def test_every_aero_scene_runs_in_omsimulator_as_in_libcosim(omsimulator, scene,
     log, oms = run_cli(omsimulator, ssp, stop_time(ssp), tmp_path)
     assert not ALGEBRAIC_LOOP.search(log), log
     assert_same_outputs(oms, run_libcosim(ssp))
+
+
+def test_a_structure_only_package_runs_as_wingsim_runs_it(omsimulator, tmp_path):
+    ssp = export(tmp_path, "deploy_rigid", "--set", "aero.model=none")
+    log, oms = run_cli(omsimulator, ssp, stop_time(ssp), tmp_path)
+    reference = run_scene(load_scene(SCENES / "deploy_rigid.toml", ["aero.model=none"]), backend="direct")
+    assert reference.status == "ok", reference.message
+    assert oms["structure_unit.latch_time_fold"] == pytest.approx(reference.latch_times["fold"], rel=RTOL)
