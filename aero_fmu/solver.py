@@ -14,9 +14,19 @@ steps use e, de interpolated linearly in time from the inputs of the previous ad
 first advance), the last one the inputs themselves. Those previous inputs are part of the saved state
 (`AeroState`). Without aero.step every advance is one model step, exactly as before the key existed.
 
+Pairing check (aero_fmu.pairing): the first advance (from a model state not started: after construction,
+or after restoring a state saved before the first advance, so an implicit coupling's repeated first step is
+checked each time) refuses an e whose node positions are not this unit's initial ones, within
+1e-3 x the sum of the body lengths, plus 2 |de_r| (t_end - time) for the motion a correct structure may
+already have made, plus the pose a prescribed pitch gives at t = 0: a structure unit of another wing
+geometry, paired by a tool that does not compare `topology_hash`. Later advances are not checked (a
+flexible wing may deform far from its initial shape).
+
 Errors: SceneError (bad scene value or parameter, naming it), InputError (e or de of the wrong size or
 with NaN/inf, naming the first bad entry by its FMI name e[k], de[k], 1-based; t_end before the current
-time), SolverDiverged (a singular influence matrix from degenerate panels, or a non-finite result).
+time; at the first advance, an e of another wing geometry: the message names this unit's scene, lattice,
+reference length and topology_hash, the node that is off with both positions, the distance and the
+tolerance), SolverDiverged (a singular influence matrix from degenerate panels, or a non-finite result).
 """
 from dataclasses import dataclass
 
@@ -29,6 +39,7 @@ from fmu_common.scene_bounds import substep_count
 from fmu_common.specs import AeroUnitSpec
 
 from .models import build_model
+from .pairing import PairingCheck
 from .wake import MAX_WAKE_ROWS
 
 _HINT = "check the wing geometry (zero-area or coincident panels) and the aero time step"
@@ -105,6 +116,15 @@ class AeroSolver:
         self.model = build_model(self.topology, aero, max_wake_rows)
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
+        self.pairing = PairingCheck(self.topology, spec.structure, self._description(spec))
+
+    def _description(self, spec: AeroUnitSpec) -> str:
+        """This unit in words for the pairing check's message: scene, model, bodies, nodes, panels."""
+        bodies = list(self.topology.bodies)
+        lattice = self.model.lattice
+        return (f"scene {spec.name!r}, {spec.aero.model.name} lattice of {len(bodies)} "
+                f"bod{'y' if len(bodies) == 1 else 'ies'} ({', '.join(bodies)}), {self.topology.n_nodes} nodes, "
+                f"{lattice.n_panels} panels")
 
     @staticmethod
     def tunable_parameters(spec: AeroUnitSpec) -> dict:
@@ -134,8 +154,9 @@ class AeroSolver:
     def advance(self, t_end: float, e, de) -> None:
         """The aero state at t_end for the coordinates and rates at t_end (docs/aero_api.md).
 
-        One model step, or with aero.step k substeps on interpolated inputs (module docstring). On an error the state is
-        unchanged.
+        One model step, or with aero.step k substeps on interpolated inputs (module docstring). The first advance
+        (from a state not started) first checks that e comes from a structure of this unit's wing geometry
+        (aero_fmu.pairing, module docstring). On an error the state is unchanged.
 
         Args:
             t_end: time to reach, s.
@@ -149,6 +170,8 @@ class AeroSolver:
             raise InputError(f"t_end = {t_end} s is before the aero time {self.state.time} s: restore a saved "
                              "state (set_state) to repeat a step")
         t, t_end = self.state.time, max(t_end, self.state.time)
+        if not self.state.started:
+            self.pairing.check(e, de, t_end - t, t)
         k = substep_count(t_end - t, self.step)
         state = self.state
         for s, e_s, de_s in interpolated_inputs(self.inputs, e, de, k):

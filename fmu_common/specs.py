@@ -108,7 +108,8 @@ class StructureUnitSpec:
 
 @dataclass(frozen=True)
 class AeroUnitSpec:
-    """What the aero unit reads: time, coupling, flow, the aero table and the structure table (for the topology)."""
+    """What the aero unit reads: time, coupling, flow, the aero table, the structure table (for the topology) and
+    the scene's name (for its messages)."""
 
     time: TimeSpec
     coupling: CouplingSpec
@@ -117,6 +118,7 @@ class AeroUnitSpec:
     structure: StructureSpec
     parameters: tuple[tuple[str, tuple[float, str, str]], ...]   # (name, (default, unit, description)) of the
     # flow table's tunable keys (fmu_common.scene_schema.tunable_parameters), the unit's FMI parameters
+    name: str = ""      # the scene's name, to say which unit refused a structure (aero_fmu.pairing)
 
     @classmethod
     def from_scene(cls, scene: dict) -> "AeroUnitSpec":
@@ -130,4 +132,5 @@ class AeroUnitSpec:
                    FlowSpec(flow["speed"], flow["density"], tuple(flow["direction"])),
                    AeroSpec(aero_model(aero["model"]), aero["chordwise_panels"], aero["spanwise_panels"],
                             aero["wake_length"], aero["step"], aero["span_correction"]),
-                   StructureSpec.from_scene(scene), tuple(tunable_parameters(scene, "flow").items()))
+                   StructureSpec.from_scene(scene), tuple(tunable_parameters(scene, "flow").items()),
+                   str(scene.get("name", "")))

@@ -255,6 +255,59 @@ def test_units_of_different_topology_are_refused_before_the_run(scene, fmu_dir, 
     assert Topology.from_spec(StructureSpec.from_scene(scene)).topology_hash in result.message
 
 
+def test_the_aero_fmu_refuses_the_coordinates_of_another_wing_at_its_first_step(scene, fmu_dir, tmp_path):
+    """A host that compares no topology_hash hands the aero FMU (heaving wing, span 1000 m) the initial e of a
+    structure of span 500 m: fmi2DoStep answers fmi2Error (fmi2Discard through pythonfmu's own binary, which has
+    no error status for a step), the log at error status names this unit's scene and hash, the node that is off
+    with both positions, and the unit lives on: the right e is then accepted (aero_fmu.pairing)."""
+    from fmpy.fmi1 import FMICallException, calloc, free
+    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    from orchestrator.build import native_binary
+
+    own = Topology.from_spec(StructureSpec.from_scene(scene))
+    other = Topology.from_spec(StructureSpec.from_scene(heave_scene("structure.bodies.wing.length=500.0")))
+    assert other.n_coordinates == own.n_coordinates
+    log = []
+
+    def logger(env, instance, status, category, message):
+        log.append((int(status), (message or b"").decode("utf-8", "replace")))
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    with zipfile.ZipFile(fmu_dir / "aero.fmu") as z:
+        z.extractall(tmp_path / "aero")
+    md = read_model_description(str(tmp_path / "aero" / "modelDescription.xml"))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    e_refs = [vr[f"e[{k}]"] for k in range(1, own.n_coordinates + 1)]
+    aero = FMU2Slave(guid=md.guid, unzipDirectory=str(tmp_path / "aero"),
+                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="aero")
+    aero.instantiate(callbacks=callbacks)
+    aero.setupExperiment(startTime=0.0)
+    aero.enterInitializationMode()
+    aero.exitInitializationMode()
+    aero.setReal(e_refs, other.initial_coordinates().tolist())
+    mark = len(log)
+    with pytest.raises(FMICallException) as refused:
+        aero.doStep(0.0, H)
+    assert refused.value.status == (3 if native_binary.unavailable_reason() is None else 2)
+    errors = [text for status, text in log[mark:] if status == 3]
+    assert len(errors) == 1, log[mark:]
+    text = errors[0]
+    tip = 9 * own.node_names.index("wing.1")
+    assert "aero unit rejected its input" in text and "node wing.1" in text
+    assert "(" + ", ".join(f"{v:.6g}" for v in own.initial_coordinates()[tip:tip + 3]) + ")" in text
+    assert "(" + ", ".join(f"{v:.6g}" for v in other.initial_coordinates()[tip:tip + 3]) + ")" in text
+    assert "scene 'heaving_wing'" in text and own.topology_hash in text and "1000 m" in text
+    assert aero.getReal([vr["wake_panels"]]) == [0.0]              # state unchanged: no step taken
+    aero.setReal(e_refs, own.initial_coordinates().tolist())
+    aero.doStep(0.0, H)                                            # the right structure's e: accepted
+    assert not [text for status, text in log[mark + 1:] if status >= 2]
+    aero.terminate()
+    aero.freeInstance()
+
+
 def test_check_connection_compares_hash_and_size():
     unit = lambda h, n: types.SimpleNamespace(topology_hash=h, n=n, label=f"unit {h}")
     check_connection(unit("abc", 18), unit("abc", 18))
