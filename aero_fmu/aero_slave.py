@@ -40,7 +40,6 @@ class AeroSlave(SolverSlave):
     """The aero unit's FMI 2.0 co-simulation slave over AeroSolver."""
 
     author = "wingsim"
-    description = "Aero unit: UVLM (flat, prescribed or free wake) or strip theory on the ANCF wing (wingsim)"
     label = AERO.unit
     model_name = "aero"
     solver_class = AeroSolver

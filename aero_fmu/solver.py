@@ -122,7 +122,7 @@ class AeroSolver:
         """This unit in words for the pairing check's message: scene, model, bodies, nodes, panels."""
         bodies = list(self.topology.bodies)
         lattice = self.model.lattice
-        return (f"scene {spec.name!r}, {spec.aero.model.name} lattice of {len(bodies)} "
+        return (f"scene {spec.scene.name!r}, {spec.aero.model.name} lattice of {len(bodies)} "
                 f"bod{'y' if len(bodies) == 1 else 'ies'} ({', '.join(bodies)}), {self.topology.n_nodes} nodes, "
                 f"{lattice.n_panels} panels")
 

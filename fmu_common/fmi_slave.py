@@ -171,8 +171,10 @@ _VARIABILITY = {"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variab
 
 
 class SolverSlave(Fmi2Slave):
-    """Abstract slave over a solver. Subclasses set `label`, `model_name`, `solver_class`, `spec_class` (the
-    unit's spec, fmu_common.specs) and `interface` (the unit's table); construction reads the scene, converts it
+    """Abstract slave over a solver. Subclasses set `label`, `model_name` (the modelIdentifier, the FMU binary's
+    name), `solver_class`, `spec_class` (the unit's spec, fmu_common.specs, whose `fmi_model_name` and
+    `fmi_description` give the model description's modelName and description) and `interface` (the unit's
+    table); construction reads the scene, converts it
     to the spec once, builds the solver, lays the table out (`layout`: the value
     buffer `_real`, the parameters' slice `sl_par`, the input blocks `do_step` checks and hands to the solver's
     `advance(t_end, *inputs)`) and registers every variable; `_publish` copies the solver's outputs into the
@@ -257,14 +259,42 @@ class SolverSlave(Fmi2Slave):
         assert var.value_reference == v.value_reference, "value references must follow the layout"
 
     def to_xml(self, model_options: dict | None = None):
-        """pythonfmu's model description plus the UnitDefinitions of every declared unit.
+        """pythonfmu's model description, made truthful and self-describing.
+
+        Added to what pythonfmu writes:
+          * modelName and description say what this FMU is (the spec's `fmi_model_name`, `fmi_description`:
+            scene, fidelity or aero model, integrator, lattice); the modelIdentifier, the binary's name, stays
+            `model_name`;
+          * the UnitDefinitions of every declared unit;
+          * `dependencies=""` on every ModelStructure/Outputs/Unknown. Without the attribute FMI 2.0 reads
+            "depends directly on every input", and a system tool then sees an algebraic loop between the
+            structure and the aero unit; in truth no output depends directly on an input: outputs change only
+            in fmi2DoStep (and, at initialization, with the scene and the parameters).
+        No InitialUnknowns: FMI 2.0 lists there the outputs with initial "approx" or "calculated" and the
+        calculated parameters (and states, which a co-simulation FMU without Derivatives has none of); every
+        output here is initial "exact" and no variable is a calculated parameter (a build with one fails,
+        naming it, until its dependencies are declared here).
 
         Args:
             model_options: pythonfmu's model options; None: none.
+
+        Returns:
+            the root element, fmiModelDescription.
         """
         root = super().to_xml({} if model_options is None else model_options)
+        root.set("modelName", self.spec.fmi_model_name())
+        root.set("description", self.spec.fmi_description())
         at = next(i for i, c in enumerate(list(root)) if c.tag == "CoSimulation") + 1
         root.insert(at, unit_definitions(v.unit for v in self.vars.values() if getattr(v, "unit", None)))
+        for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
+            unknown.set("dependencies", "")
+        initial_unknowns = [v.name for v in self.vars.values()
+                            if (v.causality == Fmi2Causality.output and v.initial in (Fmi2Initial.approx,
+                                                                                      Fmi2Initial.calculated))
+                            or v.causality == Fmi2Causality.calculatedParameter]
+        if initial_unknowns:
+            raise ValueError(f"{self.label}: {', '.join(initial_unknowns)} would be InitialUnknowns of the model "
+                             "description, whose dependencies SolverSlave.to_xml does not declare")
         return root
 
     # ---- logging --------------------------------------------------------------------------------

@@ -16,6 +16,36 @@ from .wing_spec import StructureSpec, Vector
 
 
 @dataclass(frozen=True)
+class SceneSpec:
+    """The scene's `name` and its free-text `description`: with the unit's choices they name an FMU in its
+    model description (`StructureUnitSpec.fmi_model_name`, `AeroUnitSpec.fmi_model_name`)."""
+
+    name: str
+    description: str
+
+    @classmethod
+    def from_scene(cls, scene: dict) -> "SceneSpec":
+        """The name and description of a resolved scene.
+
+        Args:
+            scene: the resolved scene.
+        """
+        return cls(scene["name"], scene["description"])
+
+    def described(self, unit: str) -> str:
+        """'<unit>. Scene <name>: <description>', or '<unit>. Scene <name>' where the scene has no description.
+
+        Args:
+            unit: what the unit is and how it is configured, e.g. "Structure unit (wingsim): rigid fidelity".
+
+        Returns:
+            the text of an FMU's description attribute.
+        """
+        text = f"{unit}. Scene {self.name}"
+        return f"{text}: {self.description}" if self.description.strip() else text
+
+
+@dataclass(frozen=True)
 class TimeSpec:
     """`time`: the end time stop (s)."""
 
@@ -80,7 +110,8 @@ class StrainGaugeSpec:
 
 @dataclass(frozen=True)
 class StructureUnitSpec:
-    """What the structure unit reads: time, coupling, the structure table, probes and strain gauges."""
+    """What the structure unit reads: time, coupling, the structure table, probes and strain gauges, and the
+    scene's name and description (which name its FMU)."""
 
     time: TimeSpec
     coupling: CouplingSpec
@@ -89,6 +120,7 @@ class StructureUnitSpec:
     strain_gauges: tuple[StrainGaugeSpec, ...]
     parameters: tuple[tuple[str, tuple[float, str, str]], ...]   # (name, (default, unit, description)) of the
     # structure table's tunable keys (fmu_common.scene_schema.tunable_parameters), the unit's FMI parameters
+    scene: SceneSpec
 
     @classmethod
     def from_scene(cls, scene: dict) -> "StructureUnitSpec":
@@ -103,13 +135,41 @@ class StructureUnitSpec:
                                        g["surface_distance"]) for i, g in enumerate(scene["strain_gauges"]))
         return cls(TimeSpec(scene["time"]["stop"]), CouplingSpec(scene["coupling"]["step"]),
                    StructureSpec.from_scene(scene), probes, gauges,
-                   tuple(tunable_parameters(scene, "structure").items()))
+                   tuple(tunable_parameters(scene, "structure").items()), SceneSpec.from_scene(scene))
+
+    def fmi_model_name(self) -> str:
+        """The FMU's modelName, '<scene> structure (<fidelity>)', e.g. 'deploy_rigid structure (rigid)'.
+
+        The modelIdentifier (the binary's name) stays the slave's `model_name`, "structure".
+
+        Returns:
+            the modelName attribute of the model description.
+        """
+        return f"{self.scene.name} structure ({self.structure.fidelity.name})"
+
+    def fmi_description(self) -> str:
+        """The FMU's description: the unit, its fidelity, the integrator and internal step (none runs for a
+        prescribed fidelity), the bodies and their elements, then the scene's name and description.
+
+        Returns:
+            the description attribute of the model description.
+        """
+        structure = self.structure
+        if structure.fidelity.moved_by_law:
+            solver = "every body moved rigidly by structure.motion, no integrator"
+        else:
+            solver = f"{structure.integrator} integrator (internal step {structure.step:g} s)"
+        bodies = len(structure.bodies)
+        elements = sum(body.elements for body in structure.bodies)
+        return self.scene.described(
+            f"Structure unit (wingsim): {structure.fidelity.name} fidelity, {solver}, {bodies} "
+            f"bod{'y' if bodies == 1 else 'ies'} with {elements} element{'' if elements == 1 else 's'} in all")
 
 
 @dataclass(frozen=True)
 class AeroUnitSpec:
-    """What the aero unit reads: time, coupling, flow, the aero table, the structure table (for the topology) and
-    the scene's name (for its messages)."""
+    """What the aero unit reads: time, coupling, flow, the aero table and the structure table (for the topology),
+    and the scene's name and description (which name its FMU)."""
 
     time: TimeSpec
     coupling: CouplingSpec
@@ -118,7 +178,7 @@ class AeroUnitSpec:
     structure: StructureSpec
     parameters: tuple[tuple[str, tuple[float, str, str]], ...]   # (name, (default, unit, description)) of the
     # flow table's tunable keys (fmu_common.scene_schema.tunable_parameters), the unit's FMI parameters
-    name: str = ""      # the scene's name, to say which unit refused a structure (aero_fmu.pairing)
+    scene: SceneSpec
 
     @classmethod
     def from_scene(cls, scene: dict) -> "AeroUnitSpec":
@@ -133,4 +193,32 @@ class AeroUnitSpec:
                    AeroSpec(aero_model(aero["model"]), aero["chordwise_panels"], aero["spanwise_panels"],
                             aero["wake_length"], aero["step"], aero["span_correction"]),
                    StructureSpec.from_scene(scene), tuple(tunable_parameters(scene, "flow").items()),
-                   str(scene.get("name", "")))
+                   SceneSpec.from_scene(scene))
+
+    def fmi_model_name(self) -> str:
+        """The FMU's modelName, '<scene> aero (<aero model>)', e.g. 'deploy_rigid aero (uvlm-flat)'.
+
+        The modelIdentifier (the binary's name) stays the slave's `model_name`, "aero".
+
+        Returns:
+            the modelName attribute of the model description.
+        """
+        return f"{self.scene.name} aero ({self.aero.model.name})"
+
+    def fmi_description(self) -> str:
+        """The FMU's description: the unit, its aero model, the lattice (M x N vortex rings, chordwise x spanwise,
+        per body, and the wake length; strip theory: N strips per body and the span correction), the structure's
+        fidelity it reads, then the scene's name and description.
+
+        Returns:
+            the description attribute of the model description.
+        """
+        aero, bodies = self.aero, len(self.structure.bodies)
+        per_body = "per body" if bodies == 1 else f"per body on {bodies} bodies"
+        if aero.model.chordwise:
+            lattice = (f"lattice of {aero.chordwise_panels} x {aero.spanwise_panels} panels (chordwise x spanwise) "
+                       f"{per_body}, wake length {aero.wake_length:g} chords")
+        else:
+            lattice = f"{aero.spanwise_panels} strips {per_body}, span correction {aero.span_correction}"
+        return self.scene.described(f"Aero unit (wingsim): {aero.model.name} aero model, {lattice}, for the "
+                                    f"{self.structure.fidelity.name} structure")

@@ -43,7 +43,6 @@ class StructureSlave(SolverSlave):
     """The structure unit's FMI 2.0 co-simulation slave over StructureSolver."""
 
     author = "wingsim"
-    description = "Structure unit: ANCF or strain-based wing bodies, joints, actuators and latches (wingsim)"
     label = STRUCTURE.unit
     model_name = "structure"
     solver_class = StructureSolver

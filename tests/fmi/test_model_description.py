@@ -1,8 +1,12 @@
 """The model descriptions a system tool reads: every variable described, every Real with a unit that
 UnitDefinitions defines (SI base units checked against their definitions), a DefaultExperiment from the
-scene, no problems for fmpy's validation; pythonfmu installed at the version pyproject pins."""
+scene, a ModelStructure that declares no direct dependency of an output on an input and the InitialUnknowns
+FMI 2.0 asks for, a modelName and description that say which scene, fidelity and aero model the FMU is, no
+problems for fmpy's validation; pythonfmu installed at the version pyproject pins."""
 import math
 import tomllib
+import zipfile
+import xml.etree.ElementTree as ET
 
 import pytest
 from fmpy import read_model_description
@@ -53,6 +57,85 @@ def test_default_experiment_is_the_scenes(built):
         assert float(experiment.startTime) == 0.0
         assert float(experiment.stopTime) == scene["time"]["stop"]
         assert float(experiment.stepSize) == scene["coupling"]["step"]
+
+
+def _root(fmu) -> ET.Element:
+    with zipfile.ZipFile(fmu) as z:
+        return ET.fromstring(z.read("modelDescription.xml"))
+
+
+def _initial(variable: ET.Element) -> str:
+    """A variable's initial as FMI 2.0 defines it, its default where the attribute is absent (Table of
+    causality x variability, section 2.2.7)."""
+    if "initial" in variable.attrib:
+        return variable.get("initial")
+    causality, variability = variable.get("causality", "local"), variable.get("variability", "continuous")
+    if variability == "constant" or causality == "parameter":
+        return "exact"
+    if causality in ("calculatedParameter", "output", "local"):
+        return "calculated"
+    return "none"       # input, independent
+
+
+def test_outputs_depend_on_no_input_and_initial_unknowns_are_the_fmi2_ones(built):
+    """Every output is listed in Outputs with dependencies="" (no direct dependency on an input; without the
+    attribute FMI 2.0 reads "depends on every input"); InitialUnknowns lists exactly the outputs with initial
+    approx or calculated and the calculated parameters (FMI 2.0, section 2.2.8), here none."""
+    for fmu in built[1]:
+        root = _root(fmu)
+        variables = root.findall("ModelVariables/ScalarVariable")
+        outputs = [i for i, v in enumerate(variables, 1) if v.get("causality") == "output"]
+        unknowns = root.findall("ModelStructure/Outputs/Unknown")
+        assert [int(u.get("index")) for u in unknowns] == outputs, fmu.name
+        assert all(u.get("dependencies") == "" for u in unknowns), fmu.name
+        assert all("dependenciesKind" not in u.attrib for u in unknowns), fmu.name
+        required = {i for i, v in enumerate(variables, 1)
+                    if (v.get("causality") == "output" and _initial(v) in ("approx", "calculated"))
+                    or v.get("causality") == "calculatedParameter"}
+        listed = {int(u.get("index")) for u in root.findall("ModelStructure/InitialUnknowns/Unknown")}
+        assert listed == required, fmu.name
+        md = read_model_description(str(fmu))       # as fmpy reads it: an empty list, not "every input"
+        assert all(u.dependencies == [] for u in md.outputs), fmu.name
+
+
+@pytest.fixture(scope="module")
+def variants(built_fmus):
+    """(overrides, {unit: model description root}) of deploy_rigid built as written, with aero.model=strip and
+    with structure.fidelity=flexible."""
+    out = []
+    for overrides in [(), ("aero.model=strip",), ("structure.fidelity=flexible",)]:
+        folder = built_fmus("deploy_rigid", *overrides)
+        out.append((overrides, {unit: _root(folder / f"{unit}.fmu") for unit in ("structure", "aero")}))
+    return out
+
+
+def test_model_name_and_description_say_scene_fidelity_and_aero_model(variants):
+    written = tomllib.loads((SCENES / "deploy_rigid.toml").read_text())
+    aero_models = {(): "uvlm-flat", ("aero.model=strip",): "strip", ("structure.fidelity=flexible",): "uvlm-flat"}
+    fidelities = {(): "rigid", ("aero.model=strip",): "rigid", ("structure.fidelity=flexible",): "flexible"}
+    for overrides, roots in variants:
+        for unit, root in roots.items():
+            name, description = root.get("modelName"), root.get("description")
+            assert root.find("CoSimulation").get("modelIdentifier") == unit, overrides
+            assert name.startswith("deploy_rigid ") and unit in name, (overrides, name)
+            assert f"Scene deploy_rigid: {written['description']}" in description, (overrides, unit)
+            assert unit.capitalize() in description
+        structure, aero = roots["structure"], roots["aero"]
+        assert structure.get("modelName") == f"deploy_rigid structure ({fidelities[overrides]})"
+        assert aero.get("modelName") == f"deploy_rigid aero ({aero_models[overrides]})"
+        assert f"{fidelities[overrides]} fidelity" in structure.get("description")
+        assert f"{written['structure']['integrator']} integrator" in structure.get("description")
+        assert f"{aero_models[overrides]} aero model" in aero.get("description")
+        panels = written["aero"]["chordwise_panels"], written["aero"]["spanwise_panels"]
+        if aero_models[overrides] == "strip":
+            assert f"{panels[1]} strips per body" in aero.get("description")
+        else:
+            assert f"{panels[0]} x {panels[1]} panels (chordwise x spanwise)" in aero.get("description")
+    (_, default), (_, strip), (_, flexible) = variants
+    assert default["aero"].get("modelName") != strip["aero"].get("modelName")
+    assert default["aero"].get("description") != strip["aero"].get("description")
+    assert default["structure"].get("modelName") != flexible["structure"].get("modelName")
+    assert default["structure"].get("description") != flexible["structure"].get("description")
 
 
 def test_fmpy_validation_finds_no_problems(built):
