@@ -64,6 +64,7 @@ import pickle
 import sys
 import traceback
 import weakref
+import xml.etree.ElementTree as ET
 from abc import abstractmethod
 from typing import Callable
 
@@ -75,7 +76,8 @@ from pythonfmu.enums import Fmi2Status
 from .errors import InputError, SolverDiverged
 from .fmi_state import STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler
 from .fmi_units import UnitReal, unit_definitions
-from .interface import INPUT, OUTPUT, Block, Interface, Layout, Output, Parameters, Reading, Variable, layout
+from .interface import (CALCULATED, INPUT, OUTPUT, Block, Interface, Layout, Output, Parameters, Reading, Variable,
+                        layout)
 from .threads import limit_blas_threads
 
 SCENE_RESOURCE = "scene.json"
@@ -252,7 +254,8 @@ class SolverSlave(Fmi2Slave):
             var = String(v.name, getter=lambda: self.topology_hash, **kw)
         else:
             index = v.value_reference
-            var = UnitReal(v.name, unit=v.unit, start=v.start, getter=lambda i=index: float(self._real[i]), **kw)
+            start = None if v.initial == CALCULATED else v.start   # FMI 2.0: a calculated variable has no start
+            var = UnitReal(v.name, unit=v.unit, start=start, getter=lambda i=index: float(self._real[i]), **kw)
             if self._settable[index]:
                 var.setter = lambda value, i=index: self.set_real([i], [value])
         self.register_variable(var, nested=False)
@@ -270,10 +273,12 @@ class SolverSlave(Fmi2Slave):
             "depends directly on every input", and a system tool then sees an algebraic loop between the
             structure and the aero unit; in truth no output depends directly on an input: outputs change only
             in fmi2DoStep (and, at initialization, with the scene and the parameters).
-        No InitialUnknowns: FMI 2.0 lists there the outputs with initial "approx" or "calculated" and the
-        calculated parameters (and states, which a co-simulation FMU without Derivatives has none of); every
-        output here is initial "exact" and no variable is a calculated parameter (a build with one fails,
-        naming it, until its dependencies are declared here).
+          * InitialUnknowns: FMI 2.0 lists there the outputs with initial "approx" or "calculated" and the
+            calculated parameters (and states, which a co-simulation FMU without Derivatives has none of). Here
+            they are the outputs whose table row is initial "calculated" (fmu_common.interface.Output: their
+            value after initialization depends on the parameters a host sets before it), each depending on the
+            parameters, none on an input; a calculated parameter or an "approx" output, which the tables do
+            not declare, fails the build, naming it.
 
         Args:
             model_options: pythonfmu's model options; None: none.
@@ -288,13 +293,21 @@ class SolverSlave(Fmi2Slave):
         root.insert(at, unit_definitions(v.unit for v in self.vars.values() if getattr(v, "unit", None)))
         for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
             unknown.set("dependencies", "")
-        initial_unknowns = [v.name for v in self.vars.values()
-                            if (v.causality == Fmi2Causality.output and v.initial in (Fmi2Initial.approx,
-                                                                                      Fmi2Initial.calculated))
-                            or v.causality == Fmi2Causality.calculatedParameter]
-        if initial_unknowns:
-            raise ValueError(f"{self.label}: {', '.join(initial_unknowns)} would be InitialUnknowns of the model "
+        variables = list(self.vars.values())
+        undeclared = [v.name for v in variables
+                      if (v.causality == Fmi2Causality.output and v.initial == Fmi2Initial.approx)
+                      or v.causality == Fmi2Causality.calculatedParameter]
+        if undeclared:
+            raise ValueError(f"{self.label}: {', '.join(undeclared)} would be InitialUnknowns of the model "
                              "description, whose dependencies SolverSlave.to_xml does not declare")
+        calculated = [i for i, v in enumerate(variables, start=1)
+                      if v.causality == Fmi2Causality.output and v.initial == Fmi2Initial.calculated]
+        if calculated:   # FMI 2.0 order: ModelStructure holds Outputs, Derivatives, InitialUnknowns
+            parameters = " ".join(str(i) for i, v in enumerate(variables, start=1)
+                                  if v.causality == Fmi2Causality.parameter)
+            unknowns = ET.SubElement(root.find("ModelStructure"), "InitialUnknowns")
+            for index in calculated:
+                ET.SubElement(unknowns, "Unknown", index=str(index), dependencies=parameters)
         return root
 
     # ---- logging --------------------------------------------------------------------------------

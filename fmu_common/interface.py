@@ -28,8 +28,10 @@ INPUT, OUTPUT, PARAMETER = "input", "output", "parameter"
 """FMI 2.0 causalities of our variables."""
 CONTINUOUS, DISCRETE, FIXED, CONSTANT = "continuous", "discrete", "fixed", "constant"
 """FMI 2.0 variabilities of our variables."""
-EXACT = "exact"
-"""FMI 2.0 initial of outputs and parameters (an input has none: its start is what the host may override)."""
+EXACT, CALCULATED = "exact", "calculated"
+"""FMI 2.0 initial of outputs and parameters (an input has none: its start is what the host may override): exact,
+the start value is the value after initialization; calculated, the value after initialization depends on the
+parameters a host sets before it (no start value; listed as an InitialUnknown depending on the parameters)."""
 
 QUANTITIES = ("coordinate", "rate", "force")
 """What a block holds per coordinate: the coordinate e, its rate de, or the work-conjugate force Q."""
@@ -161,6 +163,7 @@ class Output:
     describe: Callable[[Any], Mapping[str, str]] | None = None
     pending: float | None = None   # the value that means "none yet", which the master leaves out (per item)
     monitor: bool = False      # a column of wingsim's timeseries.csv (orchestrator.scene.columns)
+    initial: str = EXACT       # CALCULATED where the value at initialization depends on the parameters
 
     def __post_init__(self):
         names = (self.names,) if isinstance(self.names, str) else tuple(self.names)
@@ -177,6 +180,8 @@ class Output:
             raise ValueError(f"output {label}: a per-item row needs the key the master files it under")
         if self.variability not in (CONTINUOUS, DISCRETE):
             raise ValueError(f"output {label}: variability {self.variability!r} (continuous or discrete)")
+        if self.initial not in (EXACT, CALCULATED):
+            raise ValueError(f"output {label}: initial {self.initial!r} (exact or calculated)")
         if self.monitor and self.items is not None:
             raise ValueError(f"output {label}: a monitor (a column of timeseries.csv) is one variable")
         if self.pending is not None and len(names) != 1:
@@ -255,7 +260,8 @@ class Interface:
 
 @dataclass(frozen=True)
 class Variable:
-    """One FMI variable as a unit declares it. Start values are the values the unit holds after construction."""
+    """One FMI variable as a unit declares it. Start values are the values the unit holds after construction (the
+    model description gives none for an initial "calculated" output)."""
 
     name: str
     value_reference: int
@@ -366,7 +372,7 @@ def layout(table: Interface, solver, spec) -> Layout:
             if described is not None and name not in described:
                 raise ValueError(f"{table.unit}: the solver describes no output {name} (row {', '.join(output.names)})")
             text = described[name] if described is not None else output.description_of(name, item)
-            add(fmi_name(name), OUTPUT, output.variability, EXACT, value, output.unit_of(name), text)
+            add(fmi_name(name), OUTPUT, output.variability, output.initial, value, output.unit_of(name), text)
         rows.append(laid)
 
     first = len(variables)

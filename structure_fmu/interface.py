@@ -5,7 +5,7 @@ solver.
 """
 from __future__ import annotations
 
-from fmu_common.interface import (DISCRETE, INPUT, OUTPUT, Block, Interface, Items, Output, Parameters,
+from fmu_common.interface import (CALCULATED, DISCRETE, INPUT, OUTPUT, Block, Interface, Items, Output, Parameters,
                                   Reading)
 
 LATCH_PENDING = -1.0
@@ -82,6 +82,7 @@ STRUCTURE = Interface(
                "r_y)", _fold_angles_of, HINGES,
                key="fold_angles_deg", doc="fold angle of each revolute joint (a hinge)"),
         Output("energy", "J", "energy monitor of the structure solver", _monitor("energy"), monitor=True,
+               initial=CALCULATED,   # its potential energy of gravity and of the actuators' springs and torques
                doc="kinetic plus potential energy of the structure (springs, elastic energy, gravity)"),
         Output("kinetic_energy", "J", "kinetic energy of the structure (1/2 de^T M de)", _monitor("kinetic_energy"),
                monitor=True),
@@ -105,7 +106,8 @@ STRUCTURE = Interface(
                describe=_sensor_descriptions, doc="its global velocity, S(x, y) de"),
         Output(("<probe>_ax", "<probe>_ay", "<probe>_az"), "m/s2", "",
                lambda reading, _: reading.once(_sensor_readings)[2], PROBES, key="probe_accelerations",
-               describe=_sensor_descriptions, doc="its global acceleration, S(x, y) dde, under the Q of the last step"),
+               describe=_sensor_descriptions, initial=CALCULATED,   # gravity, the actuators, at t = 0 too
+               doc="its global acceleration, S(x, y) dde, under the Q of the last step"),
         Output("<gauge>", "1", "",
                lambda reading, _: reading.once(_sensor_readings)[3], GAUGES, key="strains",
                describe=_sensor_descriptions,
