@@ -17,23 +17,24 @@ from .wing_spec import StructureSpec, Vector
 
 @dataclass(frozen=True)
 class SceneSpec:
-    """The scene's `name` and its free-text `description`: with the unit's choices they name an FMU in its
-    model description (`StructureUnitSpec.fmi_model_name`, `AeroUnitSpec.fmi_model_name`)."""
+    """The scene's `name`: with the unit's choices it names an FMU in its model description
+    (`StructureUnitSpec.fmi_model_name`, `AeroUnitSpec.fmi_model_name`). The scene file's free-text description
+    is left out: an FMU built with ``--set`` overrides (another aero model, another speed) would quote a text
+    that describes another variant."""
 
     name: str
-    description: str
 
     @classmethod
     def from_scene(cls, scene: dict) -> "SceneSpec":
-        """The name and description of a resolved scene.
+        """The name of a resolved scene.
 
         Args:
             scene: the resolved scene.
         """
-        return cls(scene["name"], scene["description"])
+        return cls(scene["name"])
 
     def described(self, unit: str) -> str:
-        """'<unit>. Scene <name>: <description>', or '<unit>. Scene <name>' where the scene has no description.
+        """'<unit>. Scene <name>'.
 
         Args:
             unit: what the unit is and how it is configured, e.g. "Structure unit (wingsim): rigid fidelity".
@@ -41,8 +42,7 @@ class SceneSpec:
         Returns:
             the text of an FMU's description attribute.
         """
-        text = f"{unit}. Scene {self.name}"
-        return f"{text}: {self.description}" if self.description.strip() else text
+        return f"{unit}. Scene {self.name}"
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ class StrainGaugeSpec:
 @dataclass(frozen=True)
 class StructureUnitSpec:
     """What the structure unit reads: time, coupling, the structure table, probes and strain gauges, and the
-    scene's name and description (which name its FMU)."""
+    scene's name (which names its FMU)."""
 
     time: TimeSpec
     coupling: CouplingSpec
@@ -149,7 +149,7 @@ class StructureUnitSpec:
 
     def fmi_description(self) -> str:
         """The FMU's description: the unit, its fidelity, the integrator and internal step (none runs for a
-        prescribed fidelity), the bodies and their elements, then the scene's name and description.
+        prescribed fidelity), the bodies and their elements, then the scene's name.
 
         Returns:
             the description attribute of the model description.
@@ -169,7 +169,7 @@ class StructureUnitSpec:
 @dataclass(frozen=True)
 class AeroUnitSpec:
     """What the aero unit reads: time, coupling, flow, the aero table and the structure table (for the topology),
-    and the scene's name and description (which name its FMU)."""
+    and the scene's name (which names its FMU and its messages)."""
 
     time: TimeSpec
     coupling: CouplingSpec
@@ -208,7 +208,7 @@ class AeroUnitSpec:
     def fmi_description(self) -> str:
         """The FMU's description: the unit, its aero model, the lattice (M x N vortex rings, chordwise x spanwise,
         per body, and the wake length; strip theory: N strips per body and the span correction), the structure's
-        fidelity it reads, then the scene's name and description.
+        fidelity it reads, then the scene's name.
 
         Returns:
             the description attribute of the model description.
