@@ -14,6 +14,8 @@ import pytest
 
 from fmi_hosts import assert_clean, assert_replayed_by_fmpy, check
 from orchestrator.build import native_binary
+from orchestrator.scene.load import load_scene
+from repository import SCENES
 pytestmark = pytest.mark.skipif(native_binary.unavailable_reason() is not None,
                                 reason=f"the FMUs keep pythonfmu's binary, which a host without Python cannot load: "
                                        f"{native_binary.unavailable_reason()}")
@@ -47,6 +49,22 @@ def test_deploy_rigid_passes_the_checker_over_its_default_experiment(fmu_checker
     out_csv = tmp_path / "out.csv"
     assert_clean(check(fmu_checker, fmu, out_csv, 1e-3, 0.3))
     assert_replayed_by_fmpy(fmu, out_csv, rows=301)
+
+
+ALL_UNITS = [(path.stem, overrides, unit) for path in sorted(SCENES.glob("*.toml"))
+             for overrides in ([()] + ([("aero.model=strip",), ("aero.model=uvlm-prescribed",)]
+                                       if path.stem == "deploy_rigid" else []))
+             for unit in (["structure", "aero"] if load_scene(path)["aero"]["model"] != "none" else ["structure"])]
+
+
+@pytest.mark.parametrize("scene, overrides, unit", ALL_UNITS,
+                         ids=[f"{s}{''.join('-' + o for o in ov)}-{u}" for s, ov, u in ALL_UNITS])
+def test_every_fmu_of_every_scene_passes_the_checker(fmu_checker, built_fmus, scene, overrides, unit, tmp_path):
+    # the model description of every unit of every shipped scene (each fidelity, aero model, probes, gauges,
+    # joints), and five communication steps of the scene's own step from the start values of its inputs
+    fmu = built_fmus(scene, *overrides) / f"{unit}.fmu"
+    step = load_scene(SCENES / f"{scene}.toml", list(overrides))["coupling"]["step"]
+    assert_clean(check(fmu_checker, fmu, tmp_path / "out.csv", step, 5 * step))
 
 
 def _binaries(fmu: Path) -> set[str]:

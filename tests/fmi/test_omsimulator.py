@@ -23,6 +23,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import fmpy
 import pytest
 
 from orchestrator.run.master import run_scene
@@ -201,6 +202,10 @@ def test_the_strip_aero_unit_swaps_into_the_package_without_rebuilding_the_struc
     assert oms["structure_unit.latch_time_fold"] == pytest.approx(reference.latch_times["fold"], rel=RTOL)
     uvlm = run_cli(omsimulator, deploy_rigid, stop_time(deploy_rigid), tmp_path)[1]
     assert abs(oms["structure_unit.latch_time_fold"] - uvlm["structure_unit.latch_time_fold"]) > 1e-3   # swapped
+    # the same command wrote wing.fmu of the swapped units, which couples as Jacobi too (docs/fmu.md)
+    container = fmpy.simulate_fmu(str(swapped.with_name("wing.fmu")), stop_time=stop_time(swapped))
+    assert container["latch_time_fold"][-1] == pytest.approx(reference.latch_times["fold"], rel=RTOL)
+    assert "(strip)" in fmpy.read_model_description(str(swapped.with_name("wing.fmu"))).modelName
 
 
 @pytest.mark.slow
