@@ -223,3 +223,27 @@ def test_a_structure_only_package_runs_as_wingsim_runs_it(omsimulator, tmp_path)
     reference = run_scene(load_scene(SCENES / "deploy_rigid.toml", ["aero.model=none"]), backend="direct")
     assert reference.status == "ok", reference.message
     assert oms["structure_unit.latch_time_fold"] == pytest.approx(reference.latch_times["fold"], rel=RTOL)
+
+
+def test_an_aero_unit_of_another_geometry_put_into_the_package_by_hand_refuses_the_first_step(
+        omsimulator, deploy_rigid, tmp_path):
+    # a tool that compares no topology_hash (OMSimulator does not) still cannot pair the wrong units: the aero
+    # unit of a wing with a longer outer body, put in the package in place of the scene's own, refuses the
+    # structure's coordinates at its first step, naming its own node and the one it received
+    built = wingsim("build", SCENES / "deploy_rigid.toml", "--set", "structure.bodies.outer.length=0.2", "--unit",
+                    "aero", cwd=tmp_path)
+    assert built.returncode == 0, built.stderr
+    mismatched = tmp_path / "mismatched.ssp"
+    with zipfile.ZipFile(deploy_rigid) as source, zipfile.ZipFile(mismatched, "w") as target:
+        for info in source.infolist():
+            data = source.read(info)
+            if info.filename == "resources/aero_unit.fmu":
+                data = (tmp_path / built.stdout.split()[0]).read_bytes()
+            target.writestr(info, data)
+    out = subprocess.run(["env", "-i", str(omsimulator), "--stopTime=0.3", f"--resultFile={tmp_path / 'm.csv'}",
+                          str(mismatched)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    log = out.stdout + out.stderr
+    refusal = next((line for line in log.splitlines() if line.startswith("error:") and "aero unit" in line), "")
+    assert "do not fit this aero unit's lattice" in refusal and "node outer.1" in refusal, log
+    assert "scene 'deploy_rigid'" in refusal and "0.35 m" in refusal, refusal   # its own wing: 0.15 + 0.2 m
+    assert "fmi2_doStep failed" in log   # it stopped there: no step was taken on the wrong wing
