@@ -8,11 +8,18 @@ constant strains xi = [eps_x, kappa_x, kappa_y, kappa_z] (1, 1/m, 1/m, 1/m; Eq. 
 (Eq. 7): `transfer`. A joint maps the parent's tip node to the child's root node by H_root = C(eta) H_tip
 with C = blockdiag(1, c(eta)) (Eq. 8): `joint_matrix`.
 
-Derivatives come from exponentials of block-triangular matrices (the Frechet derivative of exp): with
-X = ds K and a direction Y, exp([[X, Y], [0, X]]) holds d exp(X + tY)/dt at t = 0 in its upper right block,
-and exp([[X, Y, 0], [0, X, Y], [0, 0, X]]) holds half the second derivative in its corner. Exact to
-round-off, and free of the singularity of closed forms at zero curvature.
+ds K = [[0, ds (1 + eps_x) e_1^T], [0, Omega]] with Omega = [w]_x, w = -ds kappa (3,), so the transfer matrix has
+a closed form (Rodrigues): Phi = [[1, ds (1 + eps_x) e_1^T P], [0, R]] with R = exp(Omega) = I + a Omega + b Omega^2
+and P = sum_k Omega^k / (k + 1)! = I + b Omega + c Omega^2, where a, b, c are the power series
+f_k(s) = sum_n (-s)^n / (2n + k)! (k = 1, 2, 3) in s = |w|^2 = theta^2 (sin(theta)/theta, (1 - cos(theta))/theta^2,
+(theta - sin(theta))/theta^3). Their derivatives along the strains differentiate these polynomials in Omega and the
+series term by term: exact to round-off, with no singularity at zero curvature. An element turning by more than
+pi (theta > pi) takes the general route instead: exponentials of block-triangular matrices (the Frechet derivative
+of exp: exp([[X, Y], [0, X]]) holds d exp(X + tY)/dt at t = 0 in its upper right block, and
+exp([[X, Y, 0], [0, X, Y], [0, 0, X]]) half the second derivative in its corner).
 """
+import math
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -37,8 +44,160 @@ def _generators():
 K0, GENERATORS = _generators()
 
 
+SERIES_TERMS = 20
+"""Terms of the series f_k and their derivatives: below 1e-18 relative at theta = pi."""
+
+THETA_MAX = np.pi
+"""Largest rotation of an element (rad) the series evaluate; beyond it the block-matrix exponential."""
+
+
+def _series_coefficients():
+    """(9, SERIES_TERMS) coefficients of s^n: rows f_k, f_k', f_k'' (d/ds) for k = 1, 2, 3."""
+    n = np.arange(SERIES_TERMS + 2)
+    rows = []
+    for k in (1, 2, 3):
+        c = np.array([(-1.0) ** m / math.factorial(2 * m + k) for m in n])
+        rows += [c[:SERIES_TERMS], (n[1:] * c[1:])[:SERIES_TERMS], (n[2:] * (n[2:] - 1) * c[2:])[:SERIES_TERMS]]
+    return np.array(rows)
+
+
+_SERIES = _series_coefficients()
+
+
+def rotation_series(s):
+    """The scalar functions of the closed-form element exponential and their derivatives in s.
+
+    f_k(s) = sum_n (-s)^n / (2n + k)!: f_1 = sin(theta)/theta, f_2 = (1 - cos(theta))/theta^2,
+    f_3 = (theta - sin(theta))/theta^3 with s = theta^2 (Rodrigues' coefficients of exp and of its integral).
+
+    Args:
+        s: (n,) theta^2, rad^2, at most THETA_MAX^2.
+
+    Returns:
+        (n, 3, 3): [:, k - 1, j] the j-th derivative of f_k in s.
+    """
+    powers = np.asarray(s, dtype=float)[:, None] ** np.arange(SERIES_TERMS)
+    return (powers @ _SERIES.T).reshape(-1, 3, 3)
+
+
+def _rotation_terms(strains, lengths):
+    """(w (n, 3), Omega (n, 3, 3), Omega^2, coefficients (n, 3, 3) of rotation_series) of the elements."""
+    w = -lengths[:, None] * strains[:, 1:]
+    s = np.einsum("ni,ni->n", w, w)
+    Om = skew(w)
+    return w, Om, Om @ Om, rotation_series(s)
+
+
+def _transfer_closed(strains, lengths):
+    """transfer() by the closed form (see the module), for elements with theta <= THETA_MAX."""
+    n = len(strains)
+    w, Om, Om2, f = _rotation_terms(strains, lengths)
+    a, b, c = f[:, 0, 0, None, None], f[:, 1, 0, None, None], f[:, 2, 0, None, None]
+    da, db, dc = f[:, 0, 1, None, None], f[:, 1, 1, None, None], f[:, 2, 1, None, None]
+    eye = np.eye(3)
+    R = eye + a * Om + b * Om2
+    P = eye + b * Om + c * Om2
+    stretch = lengths * (1.0 + strains[:, 0])
+    Phi = np.zeros((n, 4, 4))
+    Phi[:, 0, 0] = 1.0
+    Phi[:, 0, 1:] = stretch[:, None] * P[:, 0]
+    Phi[:, 1:, 1:] = R
+    dPhi = np.zeros((n, STRAINS, 4, 4))
+    dPhi[:, 0, 0, 1:] = lengths[:, None] * P[:, 0]
+    # directions u = dw/dkappa_j = -ds e_j, U = [u]_x, sigma = ds(s)/dkappa_j = 2 w . u
+    U = -lengths[:, None, None, None] * skew(np.eye(3))[None]                     # (n, 3, 3, 3)
+    sigma = (-2.0 * lengths[:, None] * w)[:, :, None, None]                      # (n, 3, 1, 1)
+    sym = U @ Om[:, None] + Om[:, None] @ U
+    a_, b_, c_ = a[:, None], b[:, None], c[:, None]
+    da_, db_, dc_ = da[:, None], db[:, None], dc[:, None]
+    dR = da_ * sigma * Om[:, None] + a_ * U + db_ * sigma * Om2[:, None] + b_ * sym
+    dP = db_ * sigma * Om[:, None] + b_ * U + dc_ * sigma * Om2[:, None] + c_ * sym
+    dPhi[:, 1:, 0, 1:] = stretch[:, None, None] * dP[:, :, 0]
+    dPhi[:, 1:, 1:, 1:] = dR
+    return Phi, dPhi
+
+
+def _transfer_second_closed(strains, rates, lengths):
+    """transfer_second() by the closed form (see the module), for elements with theta <= THETA_MAX."""
+    n = len(strains)
+    w, Om, Om2, f = _rotation_terms(strains, lengths)
+    a, b, c = (f[:, k, 0, None, None] for k in range(3))
+    da, db, dc = (f[:, k, 1, None, None] for k in range(3))
+    d2a, d2b, d2c = (f[:, k, 2, None, None] for k in range(3))
+    u = -lengths[:, None] * rates[:, 1:]
+    U = skew(u)
+    sigma = 2.0 * np.einsum("ni,ni->n", w, u)[:, None, None]
+    tau = 2.0 * np.einsum("ni,ni->n", u, u)[:, None, None]
+    sym, UU = U @ Om + Om @ U, U @ U
+    d2R = ((d2a * sigma**2 + da * tau) * Om + 2.0 * da * sigma * U + (d2b * sigma**2 + db * tau) * Om2
+           + 2.0 * db * sigma * sym + 2.0 * b * UU)
+    dP1 = db * sigma * Om + b * U + dc * sigma * Om2 + c * sym
+    d2P = ((d2b * sigma**2 + db * tau) * Om + 2.0 * db * sigma * U + (d2c * sigma**2 + dc * tau) * Om2
+           + 2.0 * dc * sigma * sym + 2.0 * c * UU)
+    out = np.zeros((n, 4, 4))
+    out[:, 0, 1:] = lengths[:, None] * (2.0 * rates[:, :1] * dP1[:, 0] + (1.0 + strains[:, :1]) * d2P[:, 0])
+    out[:, 1:, 1:] = d2R
+    return out
+
+
+def _large(strains, lengths):
+    """(n,) bool: elements turning by more than THETA_MAX (or not finite), left to the block exponential."""
+    theta2 = np.einsum("ni,ni->n", strains[:, 1:], strains[:, 1:]) * lengths**2
+    return ~(theta2 <= THETA_MAX**2)
+
+
 def transfer(strains, lengths):
     """Element transfer matrices and their derivatives along the strains.
+
+    H_end = Phi H_start, by the closed form of the module's docstring (the block exponential beyond THETA_MAX).
+
+    Otsuka et al. 2022, Eq. 7
+
+    Args:
+        strains: (n, 4) the elements' strains xi.
+        lengths: (n,) m.
+
+    Returns:
+        (Phi (n, 4, 4), dPhi (n, 4, 4, 4)), dPhi[:, p] = d Phi / d xi_p.
+    """
+    strains, lengths = np.asarray(strains, dtype=float), np.asarray(lengths, dtype=float)
+    large = _large(strains, lengths)
+    if not large.any():
+        return _transfer_closed(strains, lengths)
+    Phi, dPhi = np.zeros((len(strains), 4, 4)), np.zeros((len(strains), STRAINS, 4, 4))
+    small = ~large
+    Phi[small], dPhi[small] = _transfer_closed(strains[small], lengths[small])
+    Phi[large], dPhi[large] = transfer_expm(strains[large], lengths[large])
+    return Phi, dPhi
+
+
+def transfer_second(strains, rates, lengths):
+    """d2 Phi/dt2 at zero strain acceleration: the second derivative of exp(ds K(xi)) along the strain rates.
+
+    By the closed form of the module's docstring (the block exponential beyond THETA_MAX).
+
+    Args:
+        strains: (n, 4) the elements' strains xi.
+        rates: (n, 4) their rates, per s.
+        lengths: (n,) m.
+
+    Returns:
+        (n, 4, 4).
+    """
+    strains, rates, lengths = (np.asarray(x, dtype=float) for x in (strains, rates, lengths))
+    large = _large(strains, lengths)
+    if not large.any():
+        return _transfer_second_closed(strains, rates, lengths)
+    out = np.zeros((len(strains), 4, 4))
+    small = ~large
+    out[small] = _transfer_second_closed(strains[small], rates[small], lengths[small])
+    out[large] = transfer_second_expm(strains[large], rates[large], lengths[large])
+    return out
+
+
+def transfer_expm(strains, lengths):
+    """transfer() by block-triangular matrix exponentials (scipy.linalg.expm): any strain, and the reference
+    of the closed form.
 
     H_end = Phi H_start.
 
@@ -65,8 +224,9 @@ def transfer(strains, lengths):
     return Phi, dPhi
 
 
-def transfer_second(strains, rates, lengths):
-    """d2 Phi/dt2 at zero strain acceleration: the second derivative of exp(ds K(xi)) along the strain rates.
+def transfer_second_expm(strains, rates, lengths):
+    """transfer_second() by a block-triangular matrix exponential (scipy.linalg.expm): any strain, and the
+    reference of the closed form.
 
     Args:
         strains: (n, 4) the elements' strains xi.

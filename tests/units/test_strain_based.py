@@ -51,6 +51,37 @@ def test_transfer_derivatives_match_finite_differences():
     assert np.abs(second / h**2 - sk.transfer_second(strains, rates, lengths)).max() < 1e-6
 
 
+@pytest.mark.parametrize("scale", [0.0, 1e-12, 1e-7, 1e-3, 0.1, 1.0, 3.0])
+def test_the_closed_form_transfer_is_the_block_exponential(scale):
+    """The Rodrigues-type closed form of Phi, dPhi/dxi and d2Phi/dt2 against scipy's expm of the block matrices,
+    to 1e-13 relative, from zero strain (and zero curvature with stretch) to rotations beyond pi (the expm route)."""
+    rng = np.random.default_rng(7)
+    strains, rates = scale * rng.standard_normal((40, 4)), rng.standard_normal((40, 4))
+    lengths = rng.uniform(0.01, 1.5, 40)
+    strains[:4, 1:] = 0.0
+    strains[4, 1:] = [sk.THETA_MAX * (1 - 1e-12) / lengths[4], 0.0, 0.0]      # just below the switch
+    strains[5, 1:] = [0.0, sk.THETA_MAX * (1 + 1e-12) / lengths[5], 0.0]      # just above it
+    Phi, dPhi = sk.transfer(strains, lengths)
+    Phi_ref, dPhi_ref = sk.transfer_expm(strains, lengths)
+    second, second_ref = sk.transfer_second(strains, rates, lengths), sk.transfer_second_expm(strains, rates, lengths)
+    for value, reference in ((Phi, Phi_ref), (dPhi, dPhi_ref), (second, second_ref)):
+        assert np.abs(value - reference).max() <= 1e-13 * max(1.0, np.abs(reference).max())
+    if scale < 1:
+        assert not sk._large(strains[6:], lengths[6:]).any()      # the closed form did the work
+
+
+def test_the_rotation_series_are_rodrigues_coefficients():
+    theta = np.array([0.3, 0.5, 2.0, np.pi])      # where the closed forms lose few digits
+    f = sk.rotation_series(theta**2)
+    assert f[:, 0, 0] == pytest.approx(np.sin(theta) / theta, rel=1e-14)
+    assert f[:, 1, 0] == pytest.approx((1 - np.cos(theta)) / theta**2, rel=1e-12)
+    assert f[:, 2, 0] == pytest.approx((theta - np.sin(theta)) / theta**3, rel=1e-9)
+    h = 1e-5                                                  # derivatives in s by central differences
+    for j in (1, 2):
+        fd = (sk.rotation_series(theta**2 + h)[:, :, j - 1] - sk.rotation_series(theta**2 - h)[:, :, j - 1]) / (2 * h)
+        assert np.abs(fd - f[:, :, j]).max() < 1e-9
+
+
 def test_the_revolute_joint_matrix_is_eq_15_for_the_chord_axis():
     theta = 0.4
     c, dc = sk.joint_gradients("revolute", np.array([theta]), np.array([0.0, 1.0, 0.0]), np.eye(3))
