@@ -7,8 +7,9 @@ Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --bac
   1. deploy_rigid, 0.35 s, uvlm-flat at 0, 5, ..., 30 m/s and still air without aero (aero.model = none);
   2. deploy_flexible, 0.3 s, uvlm-flat at 0, 10, 20, 30 m/s and still air; when the scene's
      structure.damping_model is not "deformation", also 0, 10, 20 m/s and still air with it;
-  3. deploy_flexible at 10 m/s with every aero.model.
---quick: rigid at 0, 15, 30 m/s, flexible at 0, 10, 20 m/s, part 3 with strip and uvlm-flat.
+  3. deploy_flexible at 10 m/s with every aero.model;
+  4. deploy_wind_tunnel_2019 (Otsuka et al. 2019, Table 2, PVC), 0.4 s, uvlm-flat at 0, 5, ..., 30 m/s and still air.
+--quick: rigid at 0, 15, 30 m/s, flexible at 0, 10, 20 m/s, part 3 with strip and uvlm-flat, part 4 at 0, 10, 20 m/s.
 The figures of merit are orchestrator.studies.metrics'; the report (templates/deployment.md) defines them.
 """
 import time
@@ -24,7 +25,10 @@ REPORT = Report("deployment", __doc__)
 SPAN = 0.3                                            # m, deployed span (two 0.15 m bodies)
 TIP_TIME = 0.2                                        # s, Otsuka et al. 2022, Sec. 5: tip deflection at 0.2 s
 PAPER_2022 = {0.0: 0.120, 10.0: 0.166, 20.0: 0.198}   # s, Otsuka et al. 2022, Fig. 10: latch at 0, 10, 20 m/s
-STOP = {"deploy_rigid": 0.35, "deploy_flexible": 0.3}  # s, time.stop of each part
+# mm, Otsuka et al. 2019, Sec. VII.B: the minimum of bending_100mm y in Fig. 14, after the bodies align; the text names
+# no speed, the bending falls with speed (Fig. 15), so it is the 0 m/s history's
+PAPER_2019_MIN = {0.0: -28.0}
+STOP = {"deploy_rigid": 0.35, "deploy_flexible": 0.3, "deploy_wind_tunnel_2019": 0.4}  # s, time.stop of each scene
 MODELS = ("strip", "uvlm-flat", "uvlm-prescribed", "uvlm-free", "none")
 COST = {"none": 1, "strip": 1, "uvlm-flat": 1.2, "uvlm-prescribed": 1.5, "uvlm-free": 4}   # relative, rough
 
@@ -65,7 +69,9 @@ def plan(quick):
             2: [Job("deploy_flexible", "uvlm-flat", float(v)) for v in ((0, 10, 20) if quick else (0, 10, 20, 30))]
                + [still("deploy_flexible")] + (variant if other else []),
             3: [still("deploy_flexible") if m == "none" else Job("deploy_flexible", m, 10.0)
-                for m in (("strip", "uvlm-flat") if quick else MODELS)]}
+                for m in (("strip", "uvlm-flat") if quick else MODELS)],
+            4: [Job("deploy_wind_tunnel_2019", "uvlm-flat", float(v)) for v in ((0, 10, 20) if quick else range(0, 31, 5))]
+               + [still("deploy_wind_tunnel_2019")]}
 
 
 def work(job):
@@ -80,9 +86,13 @@ def work(job):
     t, tip_x, tip_y = series.time, series.column("tip_x"), series.column("tip_y")
     strain = summary["strain_gauges"]["strain_20mm"]["peak"]
     y = series.column("bending_100mm_y")
+    deploy = summary["deployment_time_s"]
     return {"status": result.status, "message": result.message, "wall_s": result.wall_time_s,
-            "simulated_s": result.simulated_time_s, "deploy_s": summary["deployment_time_s"],
+            "simulated_s": result.simulated_time_s, "deploy_s": deploy,
             "bend_mm": 1e3 * max(abs(low), abs(high)), "bend_min_mm": 1e3 * low,
+            "bend_min_t": float(t[np.nanargmin(y - y[:1])]),
+            "bend_deploy_mm": None if deploy is None else
+            1e3 * metrics.peak_displacement(series, "bending_100mm", "y", until=deploy),
             "strain_ue": None if strain is None else 1e6 * strain,
             "tip_m": metrics.tip_deflection(t, tip_x, tip_y, TIP_TIME),
             "tip_max_pct": 100 * metrics.largest_after(t, np.hypot(tip_x, tip_y), summary["deployment_time_s"]) / SPAN,
@@ -106,6 +116,16 @@ def rises(rows):
     return {"first": aero[0], "last": aero[-1], "steps": steps.size, "falls": int((steps <= 0).sum())}
 
 
+def falls(rows, key):
+    """The trend of `key` over the aero runs `rows` (speed order): first and last row, the speed steps and how
+    many of them do not lower it; None unless every run has the number."""
+    aero = [r for r in rows if r["model"] != "none"]
+    if len(aero) < 2 or any(r[key] is None for r in aero):
+        return None
+    steps = np.diff([r[key] for r in aero])
+    return {"first": aero[0], "last": aero[-1], "steps": steps.size, "rises": int((steps >= 0).sum())}
+
+
 def after_latch(r):
     """ms from the latch to TIP_TIME, or None."""
     return None if r["deploy_s"] is None else 1e3 * (TIP_TIME - r["deploy_s"])
@@ -114,8 +134,8 @@ def after_latch(r):
 def row(job, result):
     """A run's numbers for the template: the job's fields, the run's figures, status text, % of span."""
     out = {**vars(job), "label": job.label, "status_text": status(result), "ok": result.get("status") == "ok"}
-    out.update({k: result.get(k) for k in ("deploy_s", "bend_mm", "bend_min_mm", "strain_ue", "tip_m", "tip_max_pct",
-                                           "wall_s", "cpu_s", "curves")})
+    out.update({k: result.get(k) for k in ("deploy_s", "bend_mm", "bend_min_mm", "bend_min_t", "bend_deploy_mm",
+                                           "strain_ue", "tip_m", "tip_max_pct", "wall_s", "cpu_s", "curves")})
     out["tip_pct"] = None if out["tip_m"] is None else 100 * out["tip_m"] / SPAN
     out["latched"] = out["deploy_s"] is not None and out["deploy_s"] <= TIP_TIME
     out["uvlm"] = job.model.startswith("uvlm")
@@ -133,7 +153,7 @@ def style(r, by):
 
 
 def plot(parts, default):
-    """deployment_rigid, _flexible, _flexible_peaks and _fidelity.png."""
+    """deployment_rigid, _flexible, _flexible_peaks, _fidelity, _wind_tunnel_2019 and _wind_tunnel_2019_peaks.png."""
     fig, ((a, b),) = REPORT.figure(1, 2, 8.4, 3.4)
     aero = [r for r in parts[1] if r["model"] != "none" and r["deploy_s"] is not None]
     a.plot([r["speed"] for r in aero], [r["deploy_s"] for r in aero], "o-", label="uvlm-flat")
@@ -164,6 +184,16 @@ def plot(parts, default):
     axes[0, 0].set_title("Otsuka et al. 2019, Fig. 15", fontsize=9)
     axes[0, 1].set_title("Otsuka et al. 2022, Fig. 12", fontsize=9)
     REPORT.save(fig, "deployment_flexible_peaks", legend=7)
+    histories([r for r in parts[4] if r["model"] == "none" or r["speed"] in (0.0, 10.0, 20.0)], "speed",
+              "deployment_wind_tunnel_2019", "deploy_wind_tunnel_2019 (Otsuka et al. 2019, Table 2, PVC), uvlm-flat")
+    fig, ((ax,),) = REPORT.figure(1, 1, 4.6, 3.2)    # Otsuka et al. 2019, Fig. 15: bending up to the latch and in all
+    aero = [r for r in parts[4] if r["model"] != "none" and r["ok"]]
+    for key, marker, label in (("bend_deploy_mm", "o-", "during the deployment (Fig. 15's D)"),
+                               ("bend_mm", "s:", "whole run")):
+        ax.plot([r["speed"] for r in aero], [r[key] for r in aero], marker, label=label)
+    ax.set(xlabel="flow speed (m/s)", ylabel="max |bending_100mm y| (mm)")
+    ax.set_title("deploy_wind_tunnel_2019 (Otsuka et al. 2019, Fig. 15)", fontsize=9)
+    REPORT.save(fig, "deployment_wind_tunnel_2019_peaks", legend=7)
 
 
 def histories(rows, by, name, title):
@@ -185,14 +215,16 @@ def main(argv=None):
     args = REPORT.arguments(argv)
     parts = plan(args.quick)
     res = REPORT.run([j for jobs in parts.values() for j in jobs], work,
-                     cost=lambda j: (10 if j.scene == "deploy_flexible" else 1) * COST[j.model],
+                     cost=lambda j: (1 if j.scene == "deploy_rigid" else 10 * STOP[j.scene] / 0.3) * COST[j.model],
                      describe=lambda j, r: f"{r['status']}, deployment {fmt(r['deploy_s'], '.4f')} s")
     rows = {part: [row(j, res[j]) for j in jobs] for part, jobs in parts.items()}
     structure = load("deploy_flexible")["structure"]
     if not args.no_plots:
         plot(rows, structure["damping_model"])
+    scenes = {name: load(name) for name in STOP}
     REPORT.render(parts=rows, runs=len(res), paper=PAPER_2022, tip_time=TIP_TIME, default=structure["damping_model"],
-                  pct=pct, ratio=ratio, rises=rises, after_latch=after_latch, alpha=structure["bodies"][0]["damping"])
+                  pct=pct, ratio=ratio, rises=rises, after_latch=after_latch, alpha=structure["bodies"][0]["damping"],
+                  paper_2019=PAPER_2019_MIN, scenes=scenes, stop=STOP, falls=falls)
     return REPORT.finish([r["label"] for rs in rows.values() for r in rs if not r["ok"]], len(res))
 
 

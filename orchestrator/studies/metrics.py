@@ -5,8 +5,9 @@ Each takes plain arrays or a ``TimeSeries`` and returns SI units unless the name
 
 - ``cl_error_pct``          the lift-coefficient error of Otsuka et al. 2019, Eqs. 28-30
 - ``relative_error_pct``    |value - ref| / |ref|, e.g. the deployment-time error
-- ``displacement_range``    smallest and largest displacement of a probe along one axis (peak bending)
-- ``peak_displacement``     the largest |displacement| of a probe along one axis
+- ``displacement_range``    smallest and largest displacement of a probe along one axis (peak bending),
+                            over the run or up to a time (e.g. the latch: during the deployment)
+- ``peak_displacement``     the largest |displacement| of a probe along one axis, likewise
 - ``tip_deflection``        distance of a point from the undeformed span line (the global z axis)
 - ``converged_from``        the coarsest level of a refinement from which every error is below a limit
 - ``pareto_front``          the runs no other run beats in both cost and error
@@ -48,18 +49,24 @@ def relative_error_pct(value: float | None, ref: float | None) -> float | None:
     return None if value is None or ref is None or ref == 0 else 100.0 * abs(value - ref) / abs(ref)
 
 
-def displacement_range(series, probe: str, axis: str) -> tuple[float, float]:
+def displacement_range(series, probe: str, axis: str, until: float = math.inf) -> tuple[float, float]:
     """(smallest, largest) displacement (m) of ``probe`` along global ``axis`` ("x", "y" or "z") from its
-    first sample, NaN samples ignored (as ``summary.json``'s min/max_displacement)."""
+    first sample, NaN samples ignored (as ``summary.json``'s min/max_displacement), over the samples with
+    t <= ``until`` (s; default the whole run). ``until`` = the latch time gives the range during the
+    deployment (Otsuka et al. 2019, Fig. 15). (NaN, NaN) if no sample is in the window."""
     values = series.column(f"{probe}_{axis}")
-    displacement = values - values[:1]
+    displacement = (values - values[:1])[np.asarray(series.time, dtype=float) <= until + TIME_TOLERANCE]
+    if not np.any(~np.isnan(displacement)):
+        return math.nan, math.nan
     return float(np.nanmin(displacement)), float(np.nanmax(displacement))
 
 
-def peak_displacement(series, probe: str, axis: str) -> float:
-    """Largest |displacement| (m) of ``probe`` along global ``axis`` from its first sample; e.g. the peak
-    bending of Otsuka et al. 2019, Fig. 15: probe bending_100mm, axis "y" (out of the deployed plane)."""
-    return max(abs(v) for v in displacement_range(series, probe, axis))
+def peak_displacement(series, probe: str, axis: str, until: float = math.inf) -> float:
+    """Largest |displacement| (m) of ``probe`` along global ``axis`` from its first sample, over the samples
+    with t <= ``until`` (s; default the whole run); e.g. the peak bending of probe bending_100mm, axis "y"
+    (out of the deployed plane). Otsuka et al. 2019, Fig. 15 plots it during the deployment: ``until`` = the
+    latch time. NaN if no sample is in the window."""
+    return max(abs(v) for v in displacement_range(series, probe, axis, until))
 
 
 def tip_deflection(t, x, y, at: float) -> float:

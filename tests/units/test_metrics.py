@@ -55,6 +55,21 @@ def test_displacement_range_and_peak_from_the_first_sample_ignoring_nan():
     assert metrics.peak_displacement(series, "p", "y") == pytest.approx(0.05)
 
 
+def test_displacement_during_deployment_stops_at_the_latch():
+    """Otsuka et al. 2019, Fig. 15 takes the maximum bending during the deployment, Sec. VII.B's -28 mm comes after
+    the latch. Samples every 0.1 s from 0.5 m; latched at 0.3 s: up to it the displacement is 0, -0.01, -0.02,
+    -0.015 m (range -0.02 ... 0, peak 0.02 m); the -0.03 m at 0.5 s is after it. A latch time one round-off past
+    0.3 still takes the 0.3 s sample; a window before the first sample has none (NaN)."""
+    series = series_with_probe_y([0.5, 0.49, 0.48, 0.485, 0.505, 0.47, 0.51])
+    assert metrics.displacement_range(series, "p", "y", until=0.3) == pytest.approx((-0.02, 0.0))
+    assert metrics.peak_displacement(series, "p", "y", until=0.3) == pytest.approx(0.02)
+    assert metrics.peak_displacement(series, "p", "y", until=0.1 + 0.2) == pytest.approx(0.02)   # 0.30000000000000004
+    assert metrics.peak_displacement(series, "p", "y", until=0.25) == pytest.approx(0.02)
+    assert metrics.peak_displacement(series, "p", "y", until=0.15) == pytest.approx(0.01)
+    assert metrics.peak_displacement(series, "p", "y") == pytest.approx(0.03)               # the whole run
+    assert math.isnan(metrics.peak_displacement(series, "p", "y", until=-0.1))
+
+
 def test_tip_deflection_is_the_distance_from_the_span_axis():
     t = np.array([0.0, 0.1, 0.2, 0.3])
     x, y = 3 * t, 4 * t                                   # distance 5 t
