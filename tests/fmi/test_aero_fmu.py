@@ -173,6 +173,33 @@ def test_fmu_and_direct_backends_give_the_same_CL_and_Q(units):
     assert np.max(np.abs(q_f)) > 0 and np.all(np.isfinite(cl_f))       # the heaving wing is loaded
 
 
+def test_the_aero_fmu_publishes_each_hinge_moment_its_solver_computes(built_fmus):
+    # deploy_rigid's aero FMU (uvlm-flat), fed the folded wing's coordinates in a flow turned out of the chord
+    # (tunable parameters, set before initialization): hinge_moment_fold through fmpy against AeroSolver in-process
+    from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
+
+    scene = load_scene(SCENES / "deploy_rigid.toml")
+    turned = {"flow.direction[2]": 0.1, "flow.direction[3]": 0.05}
+    spec = AeroUnitSpec.from_scene(scene)
+    solver = AeroSolver(spec, {**{k: v[0] for k, v in AeroSolver.tunable_parameters(spec).items()}, **turned})
+    e = solver.topology.initial_coordinates()
+    de = np.zeros_like(e)
+    h = scene["coupling"]["step"]
+    aero = make_unit("aero", scene, "fmu", built_fmus("deploy_rigid"), parameters=turned)
+    try:
+        assert aero.monitors()["hinge_moments"] == {"fold": 0.0}
+        for k in range(3):
+            aero.set_inputs(e, de)
+            aero.do_step(k * h, h)
+            solver.advance(k * h + h, e, de)
+        published = aero.monitors()["hinge_moments"]
+    finally:
+        aero.terminate()
+    assert list(published) == ["fold"] and abs(published["fold"]) > 1e-4
+    assert published["fold"] == pytest.approx(solver.hinge_moments()["fold"], rel=1e-12, abs=1e-15)
+
+
 def test_master_fmu_and_direct_runs_record_the_same_CL(scene, fmu_dir):
     results = {b: run_scene(scene, backend=b, fmu_dir=fmu_dir) for b in ("fmu", "direct")}
     for r in results.values():
