@@ -38,6 +38,7 @@ from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
 from fmu_common.specs import AeroUnitSpec
 
+from .hinge_moments import hinge_lines, hinge_moments
 from .models import build_model
 from .pairing import PairingCheck
 from .wake import MAX_WAKE_ROWS
@@ -117,6 +118,7 @@ class AeroSolver:
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
         self.pairing = PairingCheck(self.topology, spec.structure, self._description(spec))
+        self.hinges = hinge_lines(self.topology, self.model.lattice)     # aero_fmu.hinge_moments
 
     def _description(self, spec: AeroUnitSpec) -> str:
         """This unit in words for the pairing check's message: scene, model, bodies, nodes, panels."""
@@ -201,6 +203,16 @@ class AeroSolver:
         """{"CL", "lift" N, "wake_panels" int, "drag" N, "side_force" N, "CD", "moment_x/_y/_z" N.m}
         (`loads.py`: axes, moments about the global origin); the same keys before the first step."""
         return dict(self.state.loads.outputs)
+
+    def hinge_moments(self) -> dict:
+        """{hinge: aerodynamic moment about its axis, N m} of every revolute joint, in `topology.hinge_names` order:
+        a . sum (x_p - x_h) x F_p over the panels outboard of the hinge, axis a and point x_h at the coordinates of
+        the last advance (aero_fmu.hinge_moments: positive about the axis as declared, the sense in which the fold
+        angle grows, so T_const / M is the deployment torque scale); 0 before the first step."""
+        if self.inputs is None:
+            return {line.name: 0.0 for line in self.hinges}
+        loads = self.state.loads
+        return hinge_moments(self.hinges, self.inputs[0], loads.points, loads.forces)
 
     def panel_forces(self):
         """(points (P, 3) m, forces (P, 3) N) of the last step: the panel forces and where they act."""

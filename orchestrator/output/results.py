@@ -33,7 +33,9 @@ Summary fields (SI units, angles in degrees):
 - ``joint_monitors`` (only for a scene with joints between bodies): per joint monitor column the largest
   |value| over the samples (m for ``_point_mismatch``, - for ``_axis_product`` and ``_axis_error``);
 - ``aero`` (only for a scene with an aero unit): ``model``, ``CL_final``, ``CL_min``, ``CL_max`` (-) and
-  ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet);
+  ``lift_final`` (N) over the samples after t = 0 (at t = 0 no circulation has been shed yet), and for a scene
+  with hinges ``hinge_moments``: per hinge ``final``, ``min``, ``max`` (N m) of the aerodynamic moment about its
+  axis (the aero unit's ``hinge_moment_<hinge>``) over the same samples;
 - ``coupling`` (only for an implicitly coupled aero scene): ``algorithm``, ``acceleration``,
   ``total_iterations`` (over the accepted communication steps), ``max_iterations_used`` (in one step) and
   ``max_residual`` (the largest accepted relative interface residual, -).
@@ -155,9 +157,12 @@ def strain_summary(series: TimeSeries) -> dict[str, dict[str, Any]]:
 
 
 def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
-    """model, CL_final, CL_min, CL_max (-) and lift_final (N) over the samples after the first."""
+    """model, CL_final, CL_min, CL_max (-) and lift_final (N) over the samples after the first; with hinges,
+    hinge_moments {hinge: {final, min, max} N m}."""
     keys = ("CL_final", "CL_min", "CL_max", "lift_final")
     out: dict[str, Any] = {"model": scene["aero"]["model"], **dict.fromkeys(keys)}
+    if series.hinge_moment_names:
+        out["hinge_moments"] = {h: _extremes(series.hinge_moments[1:, i]) for i, h in enumerate(series.hinge_names)}
     if len(series) < 2:
         return out
     cl, lift = series.CL[1:], series.lift[1:]
@@ -166,6 +171,13 @@ def aero_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     if finite.size:
         out.update(CL_min=finite.min(), CL_max=finite.max())
     return out
+
+
+def _extremes(values: np.ndarray) -> dict[str, Any]:
+    """final, min and max of samples (min and max of the finite ones; None where there are none)."""
+    finite = values[np.isfinite(values)]
+    return {"final": values[-1] if values.size else None, "min": finite.min() if finite.size else None,
+            "max": finite.max() if finite.size else None}
 
 
 def coupling_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:

@@ -3,8 +3,8 @@
 Steps the units from t = 0 to ``time.stop`` with the communication step ``coupling.step`` (the last
 step shortened to land on ``time.stop``) and records at every communication point: probe global
 positions (m), fold angles (degrees), energy (J), kinetic energy (J), constraint residual and, with an
-aero unit, the lift coefficient CL (-) and the lift (N). A failure never loses the samples recorded
-before it.
+aero unit, each hinge's aerodynamic moment about its axis (N m), the lift coefficient CL (-) and the lift
+(N). A failure never loses the samples recorded before it.
 
 The run: make the units; with an aero unit, check that both carry the same ``topology_hash``
 (docs/architecture.md; else the run is refused with status "error" before any step); make the coupling
@@ -57,7 +57,7 @@ from orchestrator.run.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.run.progress import Progress
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
 from orchestrator.run.timeseries import TimeSeries
-from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS
+from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, hinge_moment_column
 from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
@@ -167,6 +167,8 @@ def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
     if aero is not None:
         aero_monitors = aero.monitors()
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
+        moments = aero_monitors.get("hinge_moments", {})
+        loads.update({hinge_moment_column(h): moments.get(h, np.nan) for h in series.hinge_names})
     probes, strains = monitors.get("probe_positions", {}), monitors.get("strains", {})
     unread = [p for p in series.probe_names if p not in probes] + [g for g in series.strain_names if g not in strains]
     if unread:

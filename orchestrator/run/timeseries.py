@@ -5,7 +5,8 @@ gauge's surface strain (-, a column named as the gauge), each joint monitor (``<
 ``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a parent), the structure's energy (J),
 its kinetic energy (J), its constraint residual (-) and the work of the point loads and Q on it since t = 0
 (``external_work``, J: energy minus it changes only by damping and driven motions), and, for a scene with an
-aero unit, the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the iterations
+aero unit, each hinge's aerodynamic moment about its axis ``hinge_moment_<hinge>`` (N m), the lift coefficient
+``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the iterations
 ``coupling_iterations`` the master took in the communication step ending at that sample and the relative
 interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those of
 ``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
@@ -18,7 +19,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS
+from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
 
 class TimeSeries:
     """Recorded samples; append during the run, read as numpy arrays afterwards."""
@@ -29,7 +30,8 @@ class TimeSeries:
         self.hinge_names = list(hinge_names)
         self.strain_names = list(strain_names)
         self.joint_names = list(joint_names)
-        self.aero_names = list(AERO_COLUMNS) if aero else []
+        self.hinge_moment_names = [hinge_moment_column(h) for h in self.hinge_names] if aero else []
+        self.aero_names = self.hinge_moment_names + list(AERO_COLUMNS) if aero else []
         self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
         self._rows: list[np.ndarray] = []
         # named column positions (time, probes, hinges, strains, monitors, aero), from the layout of ``columns``
@@ -63,7 +65,8 @@ class TimeSeries:
                     joints: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
         energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN.
-        ``aero``: {"CL": (m,), "lift": (m,)} for a series with the aero columns (a missing one is NaN);
+        ``aero``: {"CL": (m,), "lift": (m,), "hinge_moment_<hinge>": (m,)} for a series with the aero columns (a
+        missing one is NaN);
         ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise; ``strains``:
         {gauge name: (m,)} for a series with strain gauge columns; ``joints`` {joint monitor: (m,)} likewise."""
         strains, joints = strains or {}, joints or {}
@@ -95,9 +98,9 @@ class TimeSeries:
                aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None,
                strains: Mapping[str, float] | None = None, joints: Mapping[str, float] | None = None) -> None:
         """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
-        energies are in J; ``aero`` {"CL": -, "lift": N}, ``coupling`` {"coupling_iterations": -,
-        "coupling_residual": -}, ``strains`` {gauge name: -} and ``joints`` {joint monitor: m or -} (missing
-        values, or no dict, give NaN)."""
+        energies are in J; ``aero`` {"CL": -, "lift": N, "hinge_moment_<hinge>": N m}, ``coupling``
+        {"coupling_iterations": -, "coupling_residual": -}, ``strains`` {gauge name: -} and ``joints`` {joint
+        monitor: m or -} (missing values, or no dict, give NaN)."""
         angles = [fold_angles_deg.get(h, np.nan) for h in self.hinge_names]
         strains, joints = strains or {}, joints or {}
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual,
@@ -174,6 +177,12 @@ class TimeSeries:
     def constraint_residual(self) -> np.ndarray:
         """Constraint residual (as the unit reports it), shape (samples,)."""
         return self.column("constraint_residual")
+
+    @property
+    def hinge_moments(self) -> np.ndarray:
+        """Aerodynamic moment about each hinge's axis, N m, shape (samples, hinges); (samples, 0) without the aero
+        columns."""
+        return self.table()[:, [self._monitor[name] for name in self.hinge_moment_names]]
 
     @property
     def CL(self) -> np.ndarray:

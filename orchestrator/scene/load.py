@@ -36,7 +36,7 @@ from fmu_common.scene_schema import PARENT_JOINTS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import MISSING, is_number
 from orchestrator.scene.overrides import apply_overrides
-from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS
+from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
 from structure_fmu.joint_monitors import monitor_names
 
 __all__ = ["MISSING", "SceneFileError", "read_scene_file", "resolve_scene", "load_scene", "check_physics",
@@ -170,6 +170,7 @@ def _check_gauge_names(scene: dict) -> None:
     """A strain gauge is a column of timeseries.csv: its name must not be another column's."""
     probes = {f"{p['name']}_{axis}" for p in scene["probes"] for axis in "xyz"}
     hinges = {f"fold_angle_{j['name']}" for j in hinge_joints(scene)}
+    hinges |= {hinge_moment_column(j["name"]) for j in hinge_joints(scene)}
     taken = {"time", *probes, *hinges, *MONITOR_COLUMNS, *AERO_COLUMNS, *COUPLING_COLUMNS}
     for gauge in scene["strain_gauges"]:
         if gauge["name"] in taken:
@@ -244,6 +245,7 @@ def _check_sensor_outputs(scene: dict, spec) -> None:
     owner.update({f"{kind}_{h}": f"an output of hinge {h}" for h in hinges for kind in ("fold_angle", "latch_time")})
     owner.update({name: "a parameter of the structure unit" for name in StructureSolver.tunable_parameters(spec)})
     owner.update({name: "a column of timeseries.csv" for name in ("time", *AERO_COLUMNS, *COUPLING_COLUMNS)})
+    owner.update({hinge_moment_column(h): f"a column of timeseries.csv (hinge {h})" for h in hinges})
     sensors = [("probes", "probe", p["name"], sum(probe_output_names(p["name"]), [])) for p in scene["probes"]]
     sensors += [("strain_gauges", "strain gauge", g["name"], [g["name"]]) for g in scene["strain_gauges"]]
     for key, kind, sensor, outputs in sensors:

@@ -144,19 +144,22 @@ def test_failed_run_still_writes_strict_json(scene, tmp_path):
 def test_aero_scene_adds_CL_and_lift_columns_summary_and_plot(scene, tmp_path):
     scene["aero"]["model"] = "uvlm-flat"
     cl, lift = np.array([0.0, 0.5, 0.45, 0.4, 0.41, 0.42]), np.array([0.0, 5.0, 4.5, 4.0, 4.1, 4.2])
+    moment = np.array([0.0, 0.02, -0.01, 0.03, 0.025, 0.015])
     series = TimeSeries.from_arrays(["tip"], ["fold"], TIME, TIP[:, None, :], FOLD[:, None], ENERGY, RESIDUAL,
-                                    kinetic_energy=KINETIC, aero={"CL": cl, "lift": lift})
+                                    kinetic_energy=KINETIC, aero={"CL": cl, "lift": lift, "hinge_moment_fold": moment})
     result = RunResult("ok", "", 1.0, 0.05, scene, series)
     write_results(result, tmp_path)
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0][0] == "time" and rows[0][-2:] == ["CL", "lift"]
+    assert rows[0][0] == "time" and rows[0][-3:] == ["hinge_moment_fold", "CL", "lift"]
     np.testing.assert_allclose(np.array(rows[1:], dtype=float)[:, -2], cl)
+    np.testing.assert_allclose(np.array(rows[1:], dtype=float)[:, -3], moment)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert set(summary) == SUMMARY_FIELDS | {"aero"}
     # over the samples after t = 0: the start (no circulation shed yet) does not count
     assert summary["aero"] == {"model": "uvlm-flat", "CL_final": 0.42, "CL_min": 0.4, "CL_max": 0.5,
-                               "lift_final": 4.2}
+                               "lift_final": 4.2,
+                               "hinge_moments": {"fold": {"final": 0.015, "min": -0.01, "max": 0.03}}}
     written = {p.name for p in write_plots(result, tmp_path)}
     assert "lift_coefficient.png" in written and (tmp_path / "lift_coefficient.png").stat().st_size > 1000
     # a structure-only run in the same folder removes the stale aero plot

@@ -173,6 +173,57 @@ def test_fmu_and_direct_backends_give_the_same_CL_and_Q(units):
     assert np.max(np.abs(q_f)) > 0 and np.all(np.isfinite(cl_f))       # the heaving wing is loaded
 
 
+def test_the_aero_fmu_publishes_each_hinge_moment_its_solver_computes(built_fmus):
+    # deploy_rigid's aero FMU (uvlm-flat), fed the folded wing's coordinates in a flow turned out of the chord
+    # (tunable parameters, set before initialization): hinge_moment_fold through fmpy against AeroSolver in-process
+    from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
+
+    scene = load_scene(SCENES / "deploy_rigid.toml")
+    turned = {"flow.direction[2]": 0.1, "flow.direction[3]": 0.05}
+    spec = AeroUnitSpec.from_scene(scene)
+    solver = AeroSolver(spec, {**{k: v[0] for k, v in AeroSolver.tunable_parameters(spec).items()}, **turned})
+    e = solver.topology.initial_coordinates()
+    de = np.zeros_like(e)
+    h = scene["coupling"]["step"]
+    aero = make_unit("aero", scene, "fmu", built_fmus("deploy_rigid"), parameters=turned)
+    try:
+        assert aero.monitors()["hinge_moments"] == {"fold": 0.0}
+        for k in range(3):
+            aero.set_inputs(e, de)
+            aero.do_step(k * h, h)
+            solver.advance(k * h + h, e, de)
+        published = aero.monitors()["hinge_moments"]
+    finally:
+        aero.terminate()
+    assert list(published) == ["fold"] and abs(published["fold"]) > 1e-4
+    assert published["fold"] == pytest.approx(solver.hinge_moments()["fold"], rel=1e-12, abs=1e-15)
+
+
+def test_a_coupled_run_records_each_hinge_moment_the_aero_unit_publishes():
+    # deploy_rigid, 5 ms, direct backend: the master's column hinge_moment_fold is the aero unit's output, the
+    # aero solver replayed in-process on the recorded inputs gives the same values, and summary.json has them
+    from aero_fmu.solver import AeroSolver
+    from fmu_common.specs import AeroUnitSpec
+    from orchestrator.output.results import summarize
+
+    scene = load_scene(SCENES / "deploy_rigid.toml", ["time.stop=0.005"])
+    result = run_scene(scene, backend="direct")
+    assert result.status == "ok", result.message
+    recorded = result.series.column("hinge_moment_fold")
+    assert result.series.columns[-3:] == ["hinge_moment_fold", "CL", "lift"] and recorded[0] == 0.0
+    solver = AeroSolver(AeroUnitSpec.from_scene(scene))
+    replayed = []
+    inputs = result.aero_inputs
+    for t, h, e, de in zip(inputs.t, inputs.h, inputs.e, inputs.de):
+        solver.advance(t + h, e, de)
+        replayed.append(solver.hinge_moments()["fold"])
+    np.testing.assert_array_equal(recorded[1:], replayed)
+    assert np.max(np.abs(recorded)) > 0            # the folded outer body in the flow is loaded once it moves
+    summary = summarize(result)["aero"]["hinge_moments"]["fold"]
+    assert summary == {"final": recorded[-1], "min": recorded[1:].min(), "max": recorded[1:].max()}
+
+
 def test_master_fmu_and_direct_runs_record_the_same_CL(scene, fmu_dir):
     results = {b: run_scene(scene, backend=b, fmu_dir=fmu_dir) for b in ("fmu", "direct")}
     for r in results.values():

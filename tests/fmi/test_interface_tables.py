@@ -93,8 +93,12 @@ def test_an_output_declared_exact_keeps_its_start_value_whatever_parameters_a_ho
 @pytest.mark.parametrize("model", ["uvlm-flat", "uvlm-prescribed", "strip"])
 def test_the_aero_table_declares_every_output_the_solver_gives_and_no_other(model):
     scene = load_scene(SCENES / "deploy_rigid.toml", [f"aero.model={model}"])
-    produced = AeroSolver(AeroUnitSpec.from_scene(scene)).outputs()
-    assert {n for row in AERO.outputs for n in row.names} == set(produced)
+    solver = AeroSolver(AeroUnitSpec.from_scene(scene))
+    produced = solver.outputs()
+    assert {n for row in AERO.outputs if row.items is None for n in row.names} == set(produced)
+    per_hinge = [row for row in AERO.outputs if row.items is not None]
+    assert [row.names for row in per_hinge] == [("hinge_moment_<hinge>",)]
+    assert list(solver.hinge_moments()) == per_hinge[0].items.of(solver) == ["fold"]
     assert "CM" not in produced      # the aero slave once declared a unit for it: nothing produces it
 
 
@@ -176,8 +180,29 @@ def test_the_aero_unit_reports_what_its_solver_computes():
         unit.terminate()
     solver = _stepped(AeroSolver, scene, steps, h, e0, de0)
     assert np.array_equal(Q, solver.Q)
-    assert m == {name: float(v) for name, v in solver.outputs().items()}
+    assert m == {**{name: float(v) for name, v in solver.outputs().items()}, "hinge_moments": {}}   # no hinge
     assert m["wake_panels"] > 0      # a count the table publishes as Real
+
+
+@pytest.mark.parametrize("model", ["uvlm-flat", "strip"])
+def test_the_aero_unit_reports_the_hinge_moments_its_solver_computes(model):
+    # deploy_rigid's fold hinge at 170 deg in a flow turned out of the chord: a non-zero moment about the hinge
+    scene = load_scene(SCENES / "deploy_rigid.toml", [f"aero.model={model}", "flow.direction=[1.0, 0.1, 0.05]"])
+    h, steps = scene["coupling"]["step"], 2
+    e0 = AeroSolver(AeroUnitSpec.from_scene(scene)).topology.initial_coordinates()
+    de0 = np.zeros_like(e0)
+    unit = make_unit("aero", scene, "direct", None)
+    try:
+        assert unit.monitors()["hinge_moments"] == {"fold": 0.0}     # before the first step
+        for k in range(steps):
+            unit.set_inputs(e0, de0)
+            unit.do_step(k * h, h)
+        m = unit.monitors()
+    finally:
+        unit.terminate()
+    solver = _stepped(AeroSolver, scene, steps, h, e0, de0)
+    assert m["hinge_moments"] == solver.hinge_moments()
+    assert abs(m["hinge_moments"]["fold"]) > 1e-4       # N m: the 0.15 x 0.05 m outer body at 10 m/s
 
 
 def test_a_non_finite_input_is_named_by_its_node_and_component():
