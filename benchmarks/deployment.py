@@ -70,8 +70,8 @@ def plan(quick):
                + [still("deploy_flexible")] + (variant if other else []),
             3: [still("deploy_flexible") if m == "none" else Job("deploy_flexible", m, 10.0)
                 for m in (("strip", "uvlm-flat") if quick else MODELS)],
-            4: [Job("deploy_wind_tunnel_2019", "uvlm-flat", float(v)) for v in ((0, 10, 20) if quick else range(0, 31, 5))]
-               + [still("deploy_wind_tunnel_2019")]}
+            4: [Job("deploy_wind_tunnel_2019", "uvlm-flat", float(v))
+                for v in ((0, 10, 20) if quick else range(0, 31, 5))] + [still("deploy_wind_tunnel_2019")]}
 
 
 def work(job):
@@ -80,7 +80,8 @@ def work(job):
     from orchestrator.output.results import summarize
 
     cpu = time.process_time()
-    result = run_scene(load(job.scene, job.overrides), backend="direct")
+    scene = load(job.scene, job.overrides)
+    result = run_scene(scene, backend="direct")
     series, summary = result.series, summarize(result)
     low, high = metrics.displacement_range(series, "bending_100mm", "y")
     t, tip_x, tip_y = series.time, series.column("tip_x"), series.column("tip_y")
@@ -94,11 +95,22 @@ def work(job):
             "bend_deploy_mm": None if deploy is None else
             1e3 * metrics.peak_displacement(series, "bending_100mm", "y", until=deploy),
             "strain_ue": None if strain is None else 1e6 * strain,
+            "torque_scale": torque_scale(scene, series, deploy),
             "tip_m": metrics.tip_deflection(t, tip_x, tip_y, TIP_TIME),
             "tip_max_pct": 100 * metrics.largest_after(t, np.hypot(tip_x, tip_y), summary["deployment_time_s"]) / SPAN,
             "curves": {"t": t, "fold": series.column("fold_angle_fold"), "bend_mm": 1e3 * (y - y[:1]),
                        "strain_ue": 1e6 * series.column("strain_20mm")},
             "cpu_s": time.process_time() - cpu}
+
+
+def torque_scale(scene, series, deploy):
+    """F = T_const / T_aero of the hinge `fold` during the deployment (up to the latch; Otsuka et al. 2019,
+    Sec. VII.A, Fig. 11b; metrics.deployment_torque_scale), or None: no aero unit, or not latched."""
+    if deploy is None or "hinge_moment_fold" not in series.hinge_moment_names:
+        return None
+    fold = next(j for j in scene["structure"]["joints"] if j["name"] == "fold")
+    value = metrics.deployment_torque_scale(series.time, series.column("hinge_moment_fold"), fold["torque"], deploy)
+    return None if np.isnan(value) else value
 
 
 def pct(value, ref):
@@ -135,7 +147,8 @@ def row(job, result):
     """A run's numbers for the template: the job's fields, the run's figures, status text, % of span."""
     out = {**vars(job), "label": job.label, "status_text": status(result), "ok": result.get("status") == "ok"}
     out.update({k: result.get(k) for k in ("deploy_s", "bend_mm", "bend_min_mm", "bend_min_t", "bend_deploy_mm",
-                                           "strain_ue", "tip_m", "tip_max_pct", "wall_s", "cpu_s", "curves")})
+                                           "strain_ue", "torque_scale", "tip_m", "tip_max_pct", "wall_s", "cpu_s",
+                                           "curves")})
     out["tip_pct"] = None if out["tip_m"] is None else 100 * out["tip_m"] / SPAN
     out["latched"] = out["deploy_s"] is not None and out["deploy_s"] <= TIP_TIME
     out["uvlm"] = job.model.startswith("uvlm")
@@ -165,6 +178,13 @@ def plot(parts, default):
     a.set(xlabel="flow speed (m/s)", ylabel="deployment time (s)", title="deploy_rigid (Otsuka et al. 2019, Fig. 11a)")
     b.set(xlabel="time (s)", ylabel="fold angle (deg)", title="deploy_rigid, uvlm-flat")
     REPORT.save(fig, "deployment_rigid", legend=7)
+    fig, ((ax,),) = REPORT.figure(1, 1, 4.6, 3.2)    # Otsuka et al. 2019, Fig. 11b
+    for part, scene, marker in ((1, "deploy_rigid", "o-"), (4, "deploy_wind_tunnel_2019", "s:")):
+        scaled = [r for r in parts[part] if r["torque_scale"] is not None]
+        ax.plot([r["speed"] for r in scaled], [r["torque_scale"] for r in scaled], marker, label=scene)
+    ax.set(xlabel="flow speed (m/s)", ylabel="F = T_const / T_aero", yscale="log")
+    ax.set_title("deployment torque scale (Otsuka et al. 2019, Fig. 11b)", fontsize=9)
+    REPORT.save(fig, "deployment_torque_scale", legend=7)
     histories([r for r in parts[2] if not r["damping"]], "speed", "deployment_flexible",
               f"deploy_flexible, uvlm-flat, damping_model = {default}")
     histories(parts[3], "model", "deployment_fidelity", "deploy_flexible at 10 m/s, by aero.model")

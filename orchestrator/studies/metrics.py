@@ -69,6 +69,19 @@ def peak_displacement(series, probe: str, axis: str, until: float = math.inf) ->
     return max(abs(v) for v in displacement_range(series, probe, axis, until))
 
 
+def deployment_torque_scale(t, hinge_moment, torque: float, until: float = math.inf) -> float:
+    """The deployment torque scale F = T_const / T_aero of Otsuka et al. 2019, Sec. VII.A (Fig. 11b, after
+    Fujita and Nagai): T_const the actuator's constant torque (N m), T_aero the maximum |aerodynamic moment about
+    the hinge axis| (N m; the aero unit's ``hinge_moment_<hinge>``) over the samples with t <= ``until`` (s; the
+    latch time: during the deployment). NaN if no sample is in the window or T_aero is 0 (no aerodynamic
+    torque: F is unbounded)."""
+    t, moment = np.asarray(t, dtype=float), np.asarray(hinge_moment, dtype=float)
+    window = np.abs(moment[t <= until + TIME_TOLERANCE])
+    if not window.size or not np.nanmax(window, initial=0.0) > 0.0:
+        return math.nan
+    return float(torque / np.nanmax(window))
+
+
 def tip_deflection(t, x, y, at: float) -> float:
     """Distance (m) of a point with global coordinates x(t), y(t) from the global z axis (the undeformed
     span line), at time ``at`` (s, linear interpolation; NaN if the samples end before it)."""

@@ -70,6 +70,16 @@ def test_displacement_during_deployment_stops_at_the_latch():
     assert math.isnan(metrics.peak_displacement(series, "p", "y", until=-0.1))
 
 
+def test_deployment_torque_scale_is_the_constant_torque_over_the_largest_aero_moment_up_to_the_latch():
+    # a moment that peaks at -0.02 N m before the latch at 0.3 s and at 0.05 N m after it (the latch bounce)
+    t = np.linspace(0.0, 0.5, 51)
+    moment = np.where(t <= 0.3, -0.02 * np.sin(np.pi * t / 0.3), 0.05 * np.sin(np.pi * (t - 0.3) / 0.2))
+    assert metrics.deployment_torque_scale(t, moment, 0.043, until=0.3) == pytest.approx(0.043 / 0.02, rel=1e-12)
+    assert metrics.deployment_torque_scale(t, moment, 0.043) == pytest.approx(0.043 / 0.05, rel=1e-12)
+    assert math.isnan(metrics.deployment_torque_scale(t, 0.0 * t, 0.043, until=0.3))   # still air: no T_aero
+    assert math.isnan(metrics.deployment_torque_scale(t, moment, 0.043, until=-1.0))   # no sample
+
+
 def test_tip_deflection_is_the_distance_from_the_span_axis():
     t = np.array([0.0, 0.1, 0.2, 0.3])
     x, y = 3 * t, 4 * t                                   # distance 5 t

@@ -26,8 +26,8 @@ def test_flexible_deployment_reaches_zero_near_otsuka_2022(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "ok"
     assert summary["deployment_time_s"] == pytest.approx(0.120, rel=0.10)
-    # the inner body bends out of the wing plane (y) after the latch (Otsuka et al. 2019's -28 mm is its own wing data's:
-    # tests/validation/test_wind_tunnel_2019.py)
+    # the inner body bends out of the wing plane (y) after the latch (Otsuka et al. 2019's -28 mm is its own wing
+    # data's: tests/validation/test_wind_tunnel_2019.py)
     bending = summary["probes"]["bending_100mm"]["min_displacement"][1]
     assert -0.040 < bending < -0.015
     print(f"deployment {summary['deployment_time_s']:.4f} s, bending_100mm min {1e3 * bending:.1f} mm")
