@@ -108,7 +108,7 @@ def torque_scale(scene, series, deploy):
     Sec. VII.A, Fig. 11b; metrics.deployment_torque_scale), or None: no aero unit, or not latched."""
     if deploy is None or "hinge_moment_fold" not in series.hinge_moment_names:
         return None
-    fold = next(j for j in scene["structure"]["joints"] if j["name"] == "fold")
+    fold = next(j for j in scene["structure"]["joints"] if j.get("name") == "fold")
     value = metrics.deployment_torque_scale(series.time, series.column("hinge_moment_fold"), fold["torque"], deploy)
     return None if np.isnan(value) else value
 
