@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from fidelity import reference_rms
 from report import Report, fmt, status
 
 from orchestrator.scene.load import load_scene
@@ -41,12 +42,8 @@ STRAIN_ELEMENTS, QUICK_STRAIN = (6, 12, 30), (6,)
 ANCF_ELEMENTS, QUICK_ANCF = (6,), (6,)
 SEGMENTS, QUICK_SEGMENTS = (6, 12, 30, 60, 120), (6, 30)     # per body, the generalized-alpha chain
 REFERENCE_SEGMENTS = (6, 30)   # the DOP853 chain's own cost, for comparison
-REFERENCE_RMS = (10.135858, 1.8e-7)   # m: RMS of the free end's Z and its uncertainty, tests/finite_segment_chain.py
-                                      # extrapolated from 25-200 segments (docs/studies/fidelity.md, its converged
-                                      # answer: several CPU minutes, not repeated here)
 PAPER_WAKE = 95.0              # %, Otsuka et al. 2019, Sec. VII.A and Sec. VIII: flat-wake time 95% shorter
 PAPER_BEAM = 97.0              # %, Otsuka et al. 2022, Sec. 4.4 and Sec. 6: 6 sections vs 30 finite segments
-EARLIER = {"truncated": 44.0, "whole": 97.0}   # %, an earlier measurement of ours (see the report)
 
 
 @dataclass(frozen=True)
@@ -263,7 +260,8 @@ def main(argv=None):
                             "whole": saving(flat, all_wake[0]),
                             "flat_inf_whole": saving(wake[("uvlm-flat", m, n, float("inf"))][0], all_wake[0])})
 
-    ref_rms = None if args.quick else REFERENCE_RMS[0]
+    reference = (None, None) if args.quick else reference_rms()   # the converged answer, as the fidelity study's
+    ref_rms = reference[0]
     beam_rows = []
     names = {"strain-based": "strain-based (run_scene)", "flexible": "ANCF flexible (run_scene)",
              "segments-alpha": "finite segments, clamp EI/l, generalized-alpha h = 0.01 s",
@@ -300,10 +298,10 @@ def main(argv=None):
         plot(beam, err_of)
     total_cpu = sum(r.get("cpu_s") or 0 for r in res.values())
     REPORT.render(wake_rows=wake_rows, wake_claims=wake_claims, beam_rows=beam_rows, beam_claims=beam_claims,
-                  err_of=err_of, cpu_of=cpu_of, reference=REFERENCE_RMS, matched=matched, repeats=repeats,
+                  err_of=err_of, cpu_of=cpu_of, reference=reference, matched=matched, repeats=repeats,
                   wake_stop=wake_stop, beam_stop=beam_stop, window=min(CL_WINDOW, wake_stop), speed=WAKE_SPEED,
                   quick=args.quick,
-                  PAPER_WAKE=PAPER_WAKE, PAPER_BEAM=PAPER_BEAM, EARLIER=EARLIER, total_cpu=total_cpu,
+                  PAPER_WAKE=PAPER_WAKE, PAPER_BEAM=PAPER_BEAM, total_cpu=total_cpu,
                   scene=load_scene(WAKE_SCENE),
                   chord=load_scene(WAKE_SCENE)["structure"]["bodies"][0]["section"]["chord"])
     return REPORT.finish(failed, len(tasks))
