@@ -65,6 +65,18 @@ class StructuralModel(Protocol):
             (n_q, n_q) SI.
         """
 
+    def mass_product(self, q, t, x) -> np.ndarray:
+        """M_q x, without forming M_q where it depends on q (generalized-alpha's residual).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            x: (n_q,) accelerations.
+
+        Returns:
+            (n_q,) SI.
+        """
+
     def solve_mass(self, q, t, b) -> np.ndarray:
         """M_q^-1 b.
 

@@ -1,7 +1,7 @@
 """Time integrators for M(q) q'' + Phi_q^T lambda = F(q, q', t), Phi(q, t) = 0.
 
 The model (structure_fmu.model.StructureModel, constant M; structure_fmu.strain_model.StrainBasedModel,
-configuration-dependent M) gives the mass (`mass_matrix`, `solve_mass`), the force (`force_q`), the
+configuration-dependent M) gives the mass (`mass_matrix`, `mass_product`, `solve_mass`), the force (`force_q`), the
 constraints (`constraint_*`) and generalized-alpha's iteration matrix (`iteration_matrix`).
 
 * RK4: explicit 4th-order Runge-Kutta on the index-1 (acceleration level) equations, the scheme of Otsuka et al. 2019
@@ -316,7 +316,7 @@ class GeneralizedAlpha:
         residual, scaled_phi = rhs[:n], rhs[n:]
         for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            np.matmul(model.mass_matrix(q, t), ddq, out=residual)
+            residual[:] = model.mass_product(q, t, ddq)   # M_q q'' without forming M_q where it varies
             residual -= F
             if m:
                 residual += lam @ model.constraint_jacobian(q, E)

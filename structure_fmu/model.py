@@ -276,6 +276,19 @@ class StructureModel:
         """
         return self.mass_q
 
+    def mass_product(self, q, t, x):
+        """M_q x at q and t.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            x: (n_q,) accelerations.
+
+        Returns:
+            (n_q,).
+        """
+        return np.dot(self.mass_q, x)
+
     def solve_mass(self, q, t, b):
         """M_q^-1 b at q and t.
 

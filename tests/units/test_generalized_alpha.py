@@ -21,6 +21,9 @@ class Oscillator:
     def mass_matrix(self, q, t):
         return np.eye(1)
 
+    def mass_product(self, q, t, x):
+        return x.copy()
+
     def solve_mass(self, q, t, b):
         return b
 
