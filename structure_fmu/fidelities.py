@@ -30,6 +30,7 @@ class StructuralModel(Protocol):
 
     hinges: list
     mass_E: np.ndarray                 # (n, n) the constant mass matrix on E (Otsuka et al. 2019, Eq. 5)
+    newton_weights: np.ndarray | None  # (n_q,) factors on q in generalized-alpha's convergence test (None: 1)
 
     @property
     def constraint_count(self) -> int:

@@ -186,7 +186,7 @@ class GeneralizedAlpha:
 
     Args:
         rho_inf: spectral radius at infinite frequency, 0 to 1 (1: no high-frequency dissipation).
-        tol: relative tolerance of the Newton iteration on q.
+        tol: relative tolerance of the Newton iteration on q (times the model's newton_weights, where it has them).
         max_iterations: Newton iterations of a step before it counts as diverged.
     """
 
@@ -290,10 +290,11 @@ class GeneralizedAlpha:
         n = len(q)
         # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
         # would leave velocity errors of gamma' tol per step, growing as h shrinks)
-        scale = 1.0
+        scale, weights = 1.0, None
         if n:
-            q_scale = max(1.0, float(np.max(np.abs(q))))
-            dq_scale = max(1.0, float(np.max(np.abs(dq))))
+            weights = model.newton_weights
+            q_scale = max(1.0, float(np.max(np.abs(q if weights is None else weights * q))))
+            dq_scale = max(1.0, float(np.max(np.abs(dq if weights is None else weights * dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
@@ -331,7 +332,7 @@ class GeneralizedAlpha:
             if m:
                 lam -= beta_p * delta[n:]
             self.newton_iterations += 1
-            size = float(np.max(np.abs(dq_step))) if n else 0.0
+            size = float(np.max(np.abs(dq_step if weights is None else weights * dq_step))) if n else 0.0
             first = size if first is None else first
             # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
             # observed contraction rate), is below the tolerance

@@ -102,6 +102,11 @@ class StrainBasedModel(StructureModel):
                 raise ValueError(f"body {name}: its nodes do not follow its elements (strain-based sweep)")
             start = self.strain_slices[name].start
             self._element_columns[name] = start + sk.STRAINS * np.arange(len(body.elements), dtype=np.int64)
+        # generalized-alpha's convergence test on ds eps_x (m) and ds kappa (rad), an element's elongation and
+        # relative rotation, in place of strains in 1/m: the units of the ANCF coordinates' tolerance
+        self.newton_weights = np.ones(self.n_q)
+        for name, body in topology.bodies.items():
+            self.newton_weights[self.strain_slices[name]] = np.repeat(self.lengths[body.elements], sk.STRAINS)
         self._constraints = _JointConstraints(self.roots, self.n_q)
         self._mass_E_sparse = scipy.sparse.csr_array(self.mass_E)     # banded: element blocks along the bodies
         self._cache_configuration = (None, None)

@@ -11,6 +11,7 @@ class Oscillator:
     """m q'' + k q = 0 with m = 1 kg, k = omega^2 N/m: the model interface the integrators ask for."""
 
     constraint_count = 0
+    newton_weights = None
 
     def __init__(self, omega):
         self.k = omega ** 2
