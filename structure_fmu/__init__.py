@@ -20,6 +20,7 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   joints.py          revolute joints: fold angle, spring actuator, latch
   joint_monitors.py  per-joint constraint monitors (point mismatch, axis products) on E
   strain_kinematics.py  the strain-based recursion: nodal vectors from strains and joint parameters, derivatives
+  strain_kernels.c   the strain-based sweeps along a body in C (compiled and loaded by fmu_common.c_library)
   strain_model.py    the strain-based model (Otsuka et al. 2022, Eq. 9) over the ANCF model's inertia and forces
   motion.py          prescribed rigid motions: clamps, driven roots (Eq. 27), heave/pitch laws
   damping.py         damping of deformation

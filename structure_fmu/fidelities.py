@@ -30,6 +30,7 @@ class StructuralModel(Protocol):
 
     hinges: list
     mass_E: np.ndarray                 # (n, n) the constant mass matrix on E (Otsuka et al. 2019, Eq. 5)
+    newton_weights: np.ndarray | None  # (n_q,) factors on q in generalized-alpha's convergence test (None: 1)
 
     @property
     def constraint_count(self) -> int:
@@ -63,6 +64,18 @@ class StructuralModel(Protocol):
 
         Returns:
             (n_q, n_q) SI.
+        """
+
+    def mass_product(self, q, t, x) -> np.ndarray:
+        """M_q x, without forming M_q where it depends on q (generalized-alpha's residual).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            x: (n_q,) accelerations.
+
+        Returns:
+            (n_q,) SI.
         """
 
     def solve_mass(self, q, t, b) -> np.ndarray:

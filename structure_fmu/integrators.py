@@ -1,7 +1,7 @@
 """Time integrators for M(q) q'' + Phi_q^T lambda = F(q, q', t), Phi(q, t) = 0.
 
 The model (structure_fmu.model.StructureModel, constant M; structure_fmu.strain_model.StrainBasedModel,
-configuration-dependent M) gives the mass (`mass_matrix`, `solve_mass`), the force (`force_q`), the
+configuration-dependent M) gives the mass (`mass_matrix`, `mass_product`, `solve_mass`), the force (`force_q`), the
 constraints (`constraint_*`) and generalized-alpha's iteration matrix (`iteration_matrix`).
 
 * RK4: explicit 4th-order Runge-Kutta on the index-1 (acceleration level) equations, the scheme of Otsuka et al. 2019
@@ -186,7 +186,7 @@ class GeneralizedAlpha:
 
     Args:
         rho_inf: spectral radius at infinite frequency, 0 to 1 (1: no high-frequency dissipation).
-        tol: relative tolerance of the Newton iteration on q.
+        tol: relative tolerance of the Newton iteration on q (times the model's newton_weights, where it has them).
         max_iterations: Newton iterations of a step before it counts as diverged.
     """
 
@@ -290,10 +290,11 @@ class GeneralizedAlpha:
         n = len(q)
         # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
         # would leave velocity errors of gamma' tol per step, growing as h shrinks)
-        scale = 1.0
+        scale, weights = 1.0, None
         if n:
-            q_scale = max(1.0, float(np.max(np.abs(q))))
-            dq_scale = max(1.0, float(np.max(np.abs(dq))))
+            weights = model.newton_weights
+            q_scale = max(1.0, float(np.max(np.abs(q if weights is None else weights * q))))
+            dq_scale = max(1.0, float(np.max(np.abs(dq if weights is None else weights * dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
@@ -316,7 +317,7 @@ class GeneralizedAlpha:
         residual, scaled_phi = rhs[:n], rhs[n:]
         for iteration in range(self.max_iterations):
             F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            np.matmul(model.mass_matrix(q, t), ddq, out=residual)
+            residual[:] = model.mass_product(q, t, ddq)   # M_q q'' without forming M_q where it varies
             residual -= F
             if m:
                 residual += lam @ model.constraint_jacobian(q, E)
@@ -331,7 +332,7 @@ class GeneralizedAlpha:
             if m:
                 lam -= beta_p * delta[n:]
             self.newton_iterations += 1
-            size = float(np.max(np.abs(dq_step))) if n else 0.0
+            size = float(np.max(np.abs(dq_step if weights is None else weights * dq_step))) if n else 0.0
             first = size if first is None else first
             # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
             # observed contraction rate), is below the tolerance

@@ -36,6 +36,10 @@ class StructureModel:
     ancf_elastic = True
     """Whether a deformable body carries the ANCF elastic force on E (Otsuka et al. 2019, Eqs. 7-11)."""
 
+    newton_weights = None
+    """(n_q,) factors on q (and q') in generalized-alpha's convergence test, or None: the coordinates are
+    positions (m) and gradients (1) already, the units the Newton tolerance is stated in."""
+
     def __init__(self, topology, gravity, hinge_parameters=None, body_damping=None, damping_model="deformation"):
         self.top = topology
         self.n = topology.n_coordinates
@@ -275,6 +279,19 @@ class StructureModel:
             (n_q, n_q).
         """
         return self.mass_q
+
+    def mass_product(self, q, t, x):
+        """M_q x at q and t.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            t: time, s.
+            x: (n_q,) accelerations.
+
+        Returns:
+            (n_q,).
+        """
+        return np.dot(self.mass_q, x)
 
     def solve_mass(self, q, t, b):
         """M_q^-1 b at q and t.

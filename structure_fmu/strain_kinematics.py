@@ -18,11 +18,14 @@ pi (theta > pi) takes the general route instead: exponentials of block-triangula
 of exp: exp([[X, Y], [0, X]]) holds d exp(X + tY)/dt at t = 0 in its upper right block, and
 exp([[X, Y, 0], [0, X, Y], [0, 0, X]]) half the second derivative in its corner).
 """
+import ctypes
 import math
+from pathlib import Path
 
 import numpy as np
 from scipy.linalg import expm
 
+from fmu_common import c_library, compiled
 from fmu_common.vectors import rotation_about, skew
 
 STRAINS = 4
@@ -251,6 +254,93 @@ def transfer_second_expm(strains, rates, lengths):
 #
 # c(eta) (3, 3) maps the parent's tip gradients to the child's root gradients, rows: [r_x; r_y; r_z]_child =
 # c [r_x; r_y; r_z]_parent. With frames F = [r_x r_y r_z] (columns) that is F_child = F_parent c^T.
+
+C_SOURCE = Path(__file__).with_name("strain_kernels.c")    # the compiled sweeps (fmu_common.c_library)
+
+
+def body_sweep(Phi, dPhi, H0, dH0, Ht0, columns):
+    """The nodes of one body from its root node: H_{k+1} = Phi_k H_k (Otsuka et al. 2022, Eq. 7) with the
+    derivatives along q, dH_{k+1}/dq = Phi_k dH_k/dq + sum_p dPhi_k/dxi_p H_k e_{c_k + p}^T, and along t at fixed q,
+    dH_{k+1}/dt = Phi_k dH_k/dt. Runs the C kernel of strain_kernels.c unless $WINGSIM_KERNELS = numpy (the
+    numpy form below is its reference; tests/units/test_strain_based.py checks both agree to 1e-12).
+
+    Args:
+        Phi: (n_el, 4, 4) the body's transfer matrices in order from its root (`transfer`).
+        dPhi: (n_el, 4, 4, 4) their derivatives along the element's strains [p, i, j] (`transfer`).
+        H0: (4, 3) the root node's H (m and 1).
+        dH0: (4, 3, n_q) its derivative along q, zero in the columns of the body's strains and beyond.
+        Ht0: (4, 3) its derivative along t at fixed q, per s.
+        columns: (n_el,) int, the column of each element's first strain in q, increasing by 4.
+
+    Returns:
+        (H (n_el + 1, 4, 3), dH/dq (n_el + 1, 4, 3, n_q), dH/dt (n_el + 1, 4, 3)), row 0 the root's.
+    """
+    n_el, n_q = len(Phi), dH0.shape[-1]
+    H = np.zeros((n_el + 1, 4, 3))
+    dH = np.zeros((n_el + 1, 4, 3, n_q))
+    Ht = np.zeros((n_el + 1, 4, 3))
+    H[0], dH[0], Ht[0] = H0, dH0, Ht0
+    library = _c_kernels()
+    if library is not None and n_el:
+        Phi = np.ascontiguousarray(Phi, dtype=float)
+        dPhi = np.ascontiguousarray(dPhi, dtype=float)
+        columns = np.ascontiguousarray(columns, dtype=np.int64)
+        library.body_sweep(n_el, n_q, columns.ctypes.data, Phi.ctypes.data, dPhi.ctypes.data, H.ctypes.data,
+                           dH.ctypes.data, Ht.ctypes.data)
+        return H, dH, Ht
+    for k in range(n_el):
+        H[k + 1] = Phi[k] @ H[k]
+        width = columns[k]
+        dH[k + 1, ..., :width] = np.einsum("ij,jkq->ikq", Phi[k], dH[k, ..., :width])
+        dH[k + 1, ..., width:width + STRAINS] = np.einsum("pij,jk->ikp", dPhi[k], H[k])
+        Ht[k + 1] = Phi[k] @ Ht[k]
+    return H, dH, Ht
+
+
+def body_accelerations(Phi, Phi_d, Phi_dd, H, Hd, Hdd0):
+    """d2H/dt2 of one body's nodes from its root node's: d2H_{k+1}/dt2 = Phi''_k H_k + 2 Phi'_k dH_k/dt +
+    Phi_k d2H_k/dt2 (the time derivatives of Otsuka et al. 2022, Eq. 7). Runs the C kernel of strain_kernels.c
+    unless $WINGSIM_KERNELS = numpy (the numpy form below is its reference; equal to 1e-12).
+
+    Args:
+        Phi: (n_el, 4, 4) the body's transfer matrices in order from its root (`transfer`).
+        Phi_d: (n_el, 4, 4) their rates, per s.
+        Phi_dd: (n_el, 4, 4) their second time derivatives, per s^2 (`transfer_second`).
+        H: (n_el + 1, 4, 3) the body's nodes, root first, m and 1.
+        Hd: (n_el + 1, 4, 3) their rates, per s.
+        Hdd0: (4, 3) the root node's d2H/dt2, per s^2.
+
+    Returns:
+        (n_el + 1, 4, 3) d2H/dt2, row 0 the root's.
+    """
+    n_el = len(Phi)
+    Hdd = np.zeros((n_el + 1, 4, 3))
+    Hdd[0] = Hdd0
+    library = _c_kernels()
+    if library is not None and n_el:
+        arrays = [np.ascontiguousarray(x, dtype=float) for x in (Phi, Phi_d, Phi_dd, H, Hd)]
+        library.body_accelerations(n_el, *(x.ctypes.data for x in arrays), Hdd.ctypes.data)
+        return Hdd
+    for k in range(n_el):
+        Hdd[k + 1] = Phi_dd[k] @ H[k] + 2.0 * Phi_d[k] @ Hd[k] + Phi[k] @ Hdd[k]
+    return Hdd
+
+
+def _c_kernels():
+    """The C library of strain_kernels.c (fmu_common.c_library), its function typed; None when $WINGSIM_KERNELS
+    selects the numpy kernels."""
+    if compiled.selected() == "numpy":
+        return None
+    library = c_library.load(C_SOURCE)
+    if not hasattr(library, "typed"):
+        n, array = ctypes.c_long, ctypes.c_void_p
+        library.body_sweep.argtypes = [n, n, array, array, array, array, array, array]
+        library.body_sweep.restype = n
+        library.body_accelerations.argtypes = [n, array, array, array, array, array, array]
+        library.body_accelerations.restype = n
+        library.typed = True
+    return library
+
 
 PARAMETERS = {"revolute": 1, "ball": 4, "universal": 9, "fixed": 0}
 """Joint parameters per joint kind (Otsuka et al. 2022, Table 2, N_J): theta; Euler parameters; direction cosines."""

@@ -95,11 +95,24 @@ class StrainBasedModel(StructureModel):
         for name, body in topology.bodies.items():
             k = np.array([[s.axial, s.torsion, s.flap, s.chordwise] for s in (section[e] for e in body.elements)])
             self.stiffness_diagonal[self.strain_slices[name]] = (k * self.lengths[body.elements, None]).ravel()
+        self._element_columns = {}       # the column of each element's first strain in q, by body
+        for name, body in topology.bodies.items():
+            if any(tuple(topology.element_nodes[e]) != (body.nodes[k], body.nodes[k + 1])
+                   for k, e in enumerate(body.elements)):
+                raise ValueError(f"body {name}: its nodes do not follow its elements (strain-based sweep)")
+            start = self.strain_slices[name].start
+            self._element_columns[name] = start + sk.STRAINS * np.arange(len(body.elements), dtype=np.int64)
+        # generalized-alpha's convergence test on ds eps_x (m) and ds kappa (rad), an element's elongation and
+        # relative rotation, in place of strains in 1/m: the units of the ANCF coordinates' tolerance
+        self.newton_weights = np.ones(self.n_q)
+        for name, body in topology.bodies.items():
+            self.newton_weights[self.strain_slices[name]] = np.repeat(self.lengths[body.elements], sk.STRAINS)
         self._constraints = _JointConstraints(self.roots, self.n_q)
         self._mass_E_sparse = scipy.sparse.csr_array(self.mass_E)     # banded: element blocks along the bodies
         self._cache_configuration = (None, None)
         self._cache_motion = (None, None)
         self._cache_mass = (None, None)
+        self._cache_factor = (None, None)
 
     # ---------------------------------------------------------------- construction
     def _root(self, name, body, offset):
@@ -139,14 +152,10 @@ class StrainBasedModel(StructureModel):
         for name, body in top.bodies.items():
             root, first = self.roots[name], body.nodes[0]
             H[first], dH[first], Ht[first] = self._root_state(root, q, t, H, dH, Ht)
-            columns = self.strain_slices[name].start
-            for k, e in enumerate(body.elements):
-                a, b = top.element_nodes[e]
-                H[b] = Phi[e] @ H[a]
-                dH[b] = np.einsum("ij,jkq->ikq", Phi[e], dH[a])
-                dH[b][..., columns + sk.STRAINS * k:columns + sk.STRAINS * (k + 1)] += \
-                    np.einsum("pij,jk->ikp", dPhi[e], H[a])
-                Ht[b] = Phi[e] @ Ht[a]
+            # the body's nodes follow its elements (checked at construction): one sweep along them
+            nodes, elements = body.nodes, body.elements
+            H[nodes], dH[nodes], Ht[nodes] = sk.body_sweep(Phi[elements], dPhi[elements], H[first], dH[first],
+                                                           Ht[first], self._element_columns[name])
         value = (H, dH, Ht, Phi, dPhi)
         self._cache_configuration = (key, value)
         return value
@@ -194,11 +203,10 @@ class StrainBasedModel(StructureModel):
         Phi_dd = sk.transfer_second(self._per_element(q), rates, self.lengths)
         Hdd = np.zeros_like(H)
         for name, body in top.bodies.items():
-            root, first = self.roots[name], body.nodes[0]
-            Hdd[first] = self._root_acceleration(root, q, dq, t, H, Hd, Hdd)
-            for e in body.elements:
-                a, b = top.element_nodes[e]
-                Hdd[b] = Phi_dd[e] @ H[a] + 2.0 * Phi_d[e] @ Hd[a] + Phi[e] @ Hdd[a]
+            root = self.roots[name]
+            nodes, elements = body.nodes, body.elements
+            Hdd[nodes] = sk.body_accelerations(Phi[elements], Phi_d[elements], Phi_dd[elements], H[nodes], Hd[nodes],
+                                               self._root_acceleration(root, q, dq, t, H, Hd, Hdd))
         value = (_exchanged(H), _exchanged(Hd), _exchanged(Hdd))
         self._cache_motion = (key, value)
         return value
@@ -259,11 +267,52 @@ class StrainBasedModel(StructureModel):
             dq: (n_q,) their rates, per s.
             t: time, s.
         """
-        E, dE, _ = self._motion(q, dq, t)
-        return E, dE, None
+        if self._cache_motion[0] == (q.tobytes(), dq.tobytes(), t):
+            E, dE, _ = self._cache_motion[1]
+            return E, dE, None
+        if self._cache_configuration[0] == (q.tobytes(), t):
+            H, dH, Ht = self._cache_configuration[1][:3]
+            return _exchanged(H), _exchanged(dH @ dq + Ht), None
+        H, Hd = self._nodal_rates(q, dq, t)
+        return _exchanged(H), _exchanged(Hd), None
+
+    def _nodal_rates(self, q, dq, t):
+        """(H, dH/dt) (n_nodes, 4, 3) at q, q', t by one sweep of the recursion without dH/dq: H_b = Phi H_a,
+        dH_b/dt = (dPhi/dt) H_a + Phi dH_a/dt (Otsuka et al. 2022, Eqs. 7-8), for a state whose B is not
+        needed (the solver's checks and outputs at a step's end); equal to (H, dH/dq q' + dH/dt) of
+        _configuration to round-off."""
+        top = self.top
+        Phi, dPhi = sk.transfer(self._per_element(q), self.lengths)
+        Phi_d = np.einsum("np,npij->nij", self._per_element(dq), dPhi)
+        H = np.zeros((top.n_nodes, 4, 3))
+        Hd = np.zeros((top.n_nodes, 4, 3))
+        for name, body in top.bodies.items():
+            root, first = self.roots[name], body.nodes[0]
+            H[first], Hd[first] = self._root_rates(root, q, dq, t, H, Hd)
+            for e in body.elements:
+                a, b = top.element_nodes[e]
+                H[b] = Phi[e] @ H[a]
+                Hd[b] = Phi_d[e] @ H[a] + Phi[e] @ Hd[a]
+        return H, Hd
+
+    def _root_rates(self, root, q, dq, t, H, Hd):
+        """(H, dH/dt) of a body's root node: H_root = C(eta) H_parent (Otsuka et al. 2022, Eq. 8) and its rate."""
+        if root.kind == "driven":
+            Hr, rate, _ = root.driven(t)
+            return Hr, rate
+        if root.parent is None:
+            Hp, Hpd = root.ground(), np.zeros((4, 3))
+        else:
+            tip = self.top.bodies[root.parent].nodes[-1]
+            Hp, Hpd = H[tip], Hd[tip]
+        eta, rate = q[root.offset:root.offset + root.size], dq[root.offset:root.offset + root.size]
+        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
+        c_dot = np.einsum("k,kij->ij", rate, dc) if root.size else np.zeros((3, 3))
+        return (np.vstack([Hp[0], c @ Hp[1:]]),
+                np.vstack([Hpd[0], c @ Hpd[1:] + c_dot @ Hp[1:]]))
 
     def mass_matrix(self, q, t):
-        """B^T M_E B at q and t (t matters with a driven root).
+        """B^T M_E B at q and t (t matters with a driven root); cached for the last q, t.
 
         Otsuka et al. 2022, Eq. 9
 
@@ -274,28 +323,50 @@ class StrainBasedModel(StructureModel):
         Returns:
             (n_q, n_q).
         """
-        return self._mass(q, t)[0]
+        key = (q.tobytes(), t)
+        if self._cache_mass[0] != key:
+            B = self.velocity_map(q, t)
+            self._cache_mass = (key, B.T @ (self._mass_E_sparse @ B))
+            self._cache_factor = (None, None)
+        return self._cache_mass[1]
 
-    def _mass(self, q, t):
-        """(M, Cholesky factor of M + Psi_q^T w Psi_q), cached for the last q. The direction cosines of a
+    def mass_product(self, q, t, x):
+        """B^T (M_E (B x)) at q and t: M x without forming M (generalized-alpha's residual, once per Newton
+        iteration; M itself is only needed where the iteration matrix is refreshed).
+
+        Otsuka et al. 2022, Eq. 9
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+            t: time, s.
+            x: (n_q,) accelerations, per s^2.
+
+        Returns:
+            (n_q,).
+        """
+        B = self.velocity_map(q, t)
+        return B.T @ (self._mass_E_sparse @ (B @ x))
+
+    def _factor(self, q, t):
+        """The Cholesky factor of M + Psi_q^T w Psi_q, cached for the last q, t. The direction cosines of a
         universal joint make M singular: E carries no r_z, so a change of mu's third row alone moves no
         mass. Adding the constraint term (w = the mean diagonal of M) makes the matrix definite without
         changing q'' (the constrained solution satisfies Psi_q q'' = gamma, so the added term only shifts the
         multipliers by w gamma) nor the metric of the projection on the constraint manifold's tangent."""
         key = (q.tobytes(), t)
-        if self._cache_mass[0] != key:
-            B = self.velocity_map(q, t)
-            M = B.T @ (self._mass_E_sparse @ B)
+        if self._cache_factor[0] != key:
+            M = self.mass_matrix(q, t)
             regular = M
             if self._constraints.count:
                 G = self._constraints.jacobian(q)
                 regular = M + np.trace(M) / len(M) * (G.T @ G)
             # unchecked: a state gone NaN reaches the solver's divergence check, which names the time
-            self._cache_mass = (key, (M, cho_factor(regular, check_finite=False)))
-        return self._cache_mass[1]
+            self._cache_factor = (key, cho_factor(regular, check_finite=False))
+        return self._cache_factor[1]
 
     def solve_mass(self, q, t, b):
-        """(M + Psi_q^T w Psi_q)^-1 b at q and t: the integrators' index-1 solve and projection metric (see _mass).
+        """(M + Psi_q^T w Psi_q)^-1 b at q and t: the integrators' index-1 solve and projection metric (see
+        _factor).
 
         Args:
             q: (n_q,) strain-based coordinates.
@@ -305,7 +376,7 @@ class StrainBasedModel(StructureModel):
         Returns:
             the shape of b.
         """
-        return cho_solve(self._mass(q, t)[1], b, check_finite=False)
+        return cho_solve(self._factor(q, t), b, check_finite=False)
 
     def force_q(self, q, dq, t, Q, latched):
         """B^T (F_E - M_E dB/dt q') - K q and the current E, dE; no separate prescribed term.
@@ -366,7 +437,8 @@ class StrainBasedModel(StructureModel):
         E, dE, _ = self._motion(q, dq, t)
         B = self.velocity_map(q, t)
         K_E, C_E = self.tangent_E(E, dE, latched)
-        S = beta_p * self.mass_matrix(q, t) + B.T @ (gamma_p * C_E + K_E) @ B + np.diag(self.stiffness_diagonal)
+        tangent = scipy.sparse.csr_array(gamma_p * C_E + K_E)     # banded like M_E: element and hinge blocks
+        S = beta_p * self.mass_matrix(q, t) + B.T @ (tangent @ B) + np.diag(self.stiffness_diagonal)
         if self._constraints.count:
             S = S + self._constraints.hessian_sum(lam)
         return S, E

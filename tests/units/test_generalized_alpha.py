@@ -11,6 +11,7 @@ class Oscillator:
     """m q'' + k q = 0 with m = 1 kg, k = omega^2 N/m: the model interface the integrators ask for."""
 
     constraint_count = 0
+    newton_weights = None
 
     def __init__(self, omega):
         self.k = omega ** 2
@@ -20,6 +21,9 @@ class Oscillator:
 
     def mass_matrix(self, q, t):
         return np.eye(1)
+
+    def mass_product(self, q, t, x):
+        return x.copy()
 
     def solve_mass(self, q, t, b):
         return b

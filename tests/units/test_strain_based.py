@@ -121,6 +121,52 @@ def test_velocity_map_and_convective_term_match_finite_differences(overrides):
     assert np.abs(second - a).max() < 1e-5 * np.abs(a).max()
 
 
+@pytest.mark.parametrize("path, overrides", [(PENDULUM, []), (PENDULUM, UNIVERSAL), (PENDULUM, REVOLUTE),
+                                             (SCENES / "spin_up.toml", ["structure.fidelity=strain-based"])],
+                         ids=["ball", "universal", "revolute", "driven"])
+def test_the_rates_sweep_without_b_matches_the_configuration(path, overrides):
+    """coordinates() at a state whose B was never computed (one sweep of H and dH/dt) gives the E and dE/dt of
+    the full recursion (_motion: B q' + dH/dt)."""
+    model = model_of(path, *overrides)
+    rng = np.random.default_rng(4)
+    q = model.initial_coordinates() + 0.05 * rng.standard_normal(model.n_q)
+    dq = rng.standard_normal(model.n_q)
+    t = 0.013
+    E, dE, _ = model.coordinates(q, dq, t)
+    E_full, dE_full, _ = model._motion(q, dq, t)
+    assert np.abs(E - E_full).max() < 1e-14 * np.abs(E_full).max()
+    assert np.abs(dE - dE_full).max() < 1e-13 * np.abs(dE_full).max()
+
+
+def test_the_c_body_sweeps_equal_the_numpy_reference(monkeypatch):
+    """strain_kernels.c against strain_kinematics.body_sweep's and body_accelerations' numpy forms: a 5-element
+    body hanging from a parent (nonzero root derivatives in the first 9 columns), its strains from column 9 on,
+    random transfers: equal to 1e-12 of the largest entry."""
+    rng = np.random.default_rng(12)
+    n_el, n_q, start = 5, 9 + 4 * 5 + 3, 9
+    Phi, dPhi = sk.transfer(0.4 * rng.standard_normal((n_el, 4)), rng.uniform(0.05, 0.5, n_el))
+    H0, Ht0 = rng.standard_normal((4, 3)), rng.standard_normal((4, 3))
+    dH0 = np.zeros((4, 3, n_q))
+    dH0[..., :start] = rng.standard_normal((4, 3, start))
+    columns = start + 4 * np.arange(n_el)
+    out = {}
+    for kind in ("numpy", "compiled"):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+        out[kind] = sk.body_sweep(Phi, dPhi, H0, dH0, Ht0, columns)
+    for compiled, reference in zip(out["compiled"], out["numpy"]):
+        assert np.abs(compiled - reference).max() <= 1e-12 * np.abs(reference).max()
+    assert not out["numpy"][1][..., start + 4 * n_el:].any()     # no node depends on the last columns
+    Phi_d = np.einsum("np,npij->nij", rng.standard_normal((n_el, 4)), dPhi)
+    Phi_dd = rng.standard_normal((n_el, 4, 4))
+    H, Hd, Hdd0 = out["numpy"][0], rng.standard_normal((n_el + 1, 4, 3)), rng.standard_normal((4, 3))
+    accelerations = {}
+    for kind in ("numpy", "compiled"):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+        accelerations[kind] = sk.body_accelerations(Phi, Phi_d, Phi_dd, H, Hd, Hdd0)
+    reference = accelerations["numpy"]
+    assert np.abs(accelerations["compiled"] - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
 def test_linear_stiffness_gives_the_piecewise_constant_curvature_cantilever():
     """K q = B^T Q at rest: each element takes the curvature at its midpoint (the energy minimum of constant
     curvatures under M(x) = F (L - x)), so a tip force F deflects the tip by F/EI sum_i l (L - x_i)^2 with x_i the
