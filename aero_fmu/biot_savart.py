@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse
 
-from fmu_common import c_library, compiled
+from fmu_common import c_library
 
 FOUR_PI = 4.0 * np.pi
 _TINY = np.finfo(float).tiny
@@ -191,16 +191,11 @@ def influence(points, starts, ends, weights, core=0.0, semi_infinite=False, norm
 def c_kernels():
     """The C library of biot_savart.c (fmu_common.c_library), its functions typed; None when $WINGSIM_KERNELS
     selects the numpy kernels."""
-    if compiled.selected() == "numpy":
-        return None
-    library = c_library.load(C_SOURCE)
-    if not hasattr(library, "typed"):
-        n, real, flag = ctypes.c_long, ctypes.c_double, ctypes.c_int
-        library.normal_wash.argtypes = [n, _ARRAY, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]
-        library.components.argtypes = [n, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]
-        library.velocity_sum.argtypes = [n, _ARRAY, n, _ARRAY, _ARRAY, _ARRAY, real, flag, _ARRAY]
-        library.typed = True
-    return library
+    n, real, flag = ctypes.c_long, ctypes.c_double, ctypes.c_int
+    return c_library.kernels(C_SOURCE, {
+        "normal_wash": (ctypes.c_int, [n, _ARRAY, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]),
+        "components": (ctypes.c_int, [n, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]),
+        "velocity_sum": (ctypes.c_int, [n, _ARRAY, n, _ARRAY, _ARRAY, _ARRAY, real, flag, _ARRAY])})
 
 
 def _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block):

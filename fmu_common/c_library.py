@@ -32,7 +32,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
-from .compiled import CACHE_VARIABLE, KERNELS_VARIABLE, cache_folder
+from .compiled import CACHE_VARIABLE, KERNELS_VARIABLE, cache_folder, selected
 
 FLAGS = ("-O3", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno", "-Wall")
 """IEEE arithmetic as numpy does it (-ffp-contract=off: no fused multiply-add; no fast-math); -fno-math-errno
@@ -104,6 +104,28 @@ def load(source: str | Path) -> ctypes.CDLL:
     library = _loaded.get(source)          # by the path as given (a module constant): no file system call
     if library is None:
         library = _loaded[source] = _load(Path(source))
+    return library
+
+
+def kernels(source: str | Path, signatures: dict) -> ctypes.CDLL | None:
+    """The library of the C kernels `source` (`load`) with the functions of `signatures` typed, once per process;
+    None when $WINGSIM_KERNELS selects the numpy kernels (fmu_common.compiled.selected).
+
+    Args:
+        source: the C file.
+        signatures: {function name: (its ctypes restype, its ctypes argtypes list)}.
+
+    Returns:
+        the library, or None.
+    """
+    if selected() == "numpy":
+        return None
+    library = load(source)
+    if not hasattr(library, "typed"):
+        for name, (restype, argtypes) in signatures.items():
+            function = getattr(library, name)
+            function.restype, function.argtypes = restype, argtypes
+        library.typed = True
     return library
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmu_common import c_library, compiled
+from fmu_common import c_library
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import cross
 
@@ -380,15 +380,8 @@ def elastic_jacobian(e, length, stiffness):
 def c_kernels():
     """The C library of element_kernels.c (fmu_common.c_library), its functions typed; None when $WINGSIM_KERNELS
     selects the numpy kernels."""
-    if compiled.selected() == "numpy":
-        return None
-    library = c_library.load(C_SOURCE)
-    if not hasattr(library, "typed"):
-        n = ctypes.c_long
-        for kernel in (library.elastic_force, library.elastic_jacobian):
-            kernel.argtypes = [n, n, _ARRAY, _ARRAY, _ARRAY]
-        library.typed = True
-    return library
+    signature = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY])
+    return c_library.kernels(C_SOURCE, {"elastic_force": signature, "elastic_jacobian": signature})
 
 
 def _compiled(kernel, e, length, stiffness, shape):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from fmu_common import c_library, compiled
+from fmu_common import c_library
 from fmu_common.vectors import rotation_about, skew
 
 STRAINS = 4
@@ -326,20 +326,14 @@ def body_accelerations(Phi, Phi_d, Phi_dd, H, Hd, Hdd0):
     return Hdd
 
 
+_N, _ARRAY = ctypes.c_long, ctypes.c_void_p   # a count; a C-contiguous array, passed as its data address
+SIGNATURES = {"body_sweep": (_N, [_N, _N] + [_ARRAY] * 6), "body_accelerations": (_N, [_N] + [_ARRAY] * 6)}
+"""The C functions of strain_kernels.c: {name: (restype, argtypes)} (fmu_common.c_library.kernels)."""
+
+
 def _c_kernels():
-    """The C library of strain_kernels.c (fmu_common.c_library), its function typed; None when $WINGSIM_KERNELS
-    selects the numpy kernels."""
-    if compiled.selected() == "numpy":
-        return None
-    library = c_library.load(C_SOURCE)
-    if not hasattr(library, "typed"):
-        n, array = ctypes.c_long, ctypes.c_void_p
-        library.body_sweep.argtypes = [n, n, array, array, array, array, array, array]
-        library.body_sweep.restype = n
-        library.body_accelerations.argtypes = [n, array, array, array, array, array, array]
-        library.body_accelerations.restype = n
-        library.typed = True
-    return library
+    """The C library of strain_kernels.c, typed; None when $WINGSIM_KERNELS selects the numpy kernels."""
+    return c_library.kernels(C_SOURCE, SIGNATURES)
 
 
 PARAMETERS = {"revolute": 1, "ball": 4, "universal": 9, "fixed": 0}
