@@ -22,14 +22,16 @@
  * multiply-add; no fast-math), the sums over j in the order 0..3.
  */
 
-static void sweep(long n_el, long n_q, const long *columns, const double *Phi, const double *dPhi, double *H,
+#include <stdint.h>    /* columns: int64 as numpy passes them, on every platform (a C long is 32 bits on Windows) */
+
+static void sweep(long n_el, long n_q, const int64_t *columns, const double *Phi, const double *dPhi, double *H,
                   double *dH, double *Ht)
 {
     for (long k = 0; k < n_el; ++k) {
         const double *P = Phi + 16 * k, *dP = dPhi + 64 * k;
         const double *Ha = H + 12 * k, *Hta = Ht + 12 * k, *dHa = dH + 12 * n_q * k;
         double *Hb = H + 12 * (k + 1), *Htb = Ht + 12 * (k + 1), *dHb = dH + 12 * n_q * (k + 1);
-        long width = columns[k];
+        long width = (long)columns[k];
         for (long i = 0; i < 4; ++i) {
             for (long c = 0; c < 3; ++c) {
                 double h = 0.0, ht = 0.0;
@@ -78,7 +80,7 @@ static void accelerations(long n_el, const double *Phi, const double *Phi_d, con
     }
 }
 
-long body_kinematics(long n_el, long n_q, long first, long first_element, long parent, const long *columns,
+long body_kinematics(long n_el, long n_q, long first, long first_element, long parent, const int64_t *columns,
                      const double *ground, const double *c, long n_eta, long offset, const double *dc,
                      const double *c_dot, const double *c_ddot, const double *Phi, const double *dPhi,
                      const double *Phi_d, const double *Phi_dd, const double *dq, double *H, double *dH, double *Ht,
