@@ -205,7 +205,8 @@ class StructureSolver:
         `self.sensors.output_names()`: probe positions (m), velocities (m/s) and accelerations (m/s^2), gauge
         strains (1)."""
         E, dE, _, _ = self._evaluated(self.state)
-        return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E))
+        return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E),
+                                    self.model.element_curvatures(self.state.q))
 
     def acceleration_E(self) -> np.ndarray:
         """d2E/dt2 (n,) at the current state under the generalized force of the last step (zero before the first):

@@ -320,8 +320,11 @@ def body_kinematics(first, first_element, parent, columns, root, transfers, dq, 
         root: RootTerms at this state.
         transfers: (Phi, dPhi, Phi', Phi'') of every element of the model (`transfers`).
         dq: (n_q,) the rates q', per s.
-        H, Ht, Hd, Hdd: (n_nodes, 4, 3) H, dH/dt at fixed q, dH/dt, d2H/dt2 at q'' = 0, written for the body.
+        H: (n_nodes, 4, 3) the nodal H, m and 1, written for the body.
         dH: (n_nodes, 4, 3, n_q) dH/dq, zero in the body's rows on entry.
+        Ht: (n_nodes, 4, 3) dH/dt at fixed q, per s.
+        Hd: (n_nodes, 4, 3) dH/dt at q', per s.
+        Hdd: (n_nodes, 4, 3) d2H/dt2 at q'' = 0, per s^2.
     """
     n_el, n_q = len(columns), dH.shape[-1]
     Phi, dPhi, Phi_d, Phi_dd = transfers
@@ -359,9 +362,17 @@ def body_kinematics(first, first_element, parent, columns, root, transfers, dq, 
 
 
 class RootTerms:
-    """What body_kinematics needs of a root joint at a state: c (3, 3), dc/deta (n_eta, 3, 3) at q's columns
-    offset.. (Otsuka et al. 2022, Eq. 8), c' and c'' at zero parameter acceleration (3, 3), and ground (3, 4, 3):
-    H, dH/dt, d2H/dt2 of the ground point the root hangs from (read when it hangs from no parent)."""
+    """What body_kinematics needs of a root joint at a state (Otsuka et al. 2022, Eq. 8).
+
+    Args:
+        c: (3, 3) the joint matrix c(eta).
+        dc: (n_eta, 3, 3) dc/deta.
+        c_dot: (3, 3) dc/dt, per s.
+        c_ddot: (3, 3) d2c/dt2 at zero parameter acceleration, per s^2.
+        offset: the column of eta's first parameter in q.
+        ground: (3, 4, 3) H, dH/dt, d2H/dt2 of the ground point the root hangs from (read when it hangs from no
+            parent).
+    """
 
     def __init__(self, c, dc, c_dot, c_ddot, offset, ground):
         as_c = lambda x: np.ascontiguousarray(x, dtype=float)

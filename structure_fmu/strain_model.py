@@ -378,6 +378,21 @@ class StrainBasedModel(StructureModel):
         return np.linalg.lstsq(B, dE - _exchanged(Ht), rcond=None)[0]
 
     # ---------------------------------------------------------------- monitors
+    def element_curvatures(self, q):
+        """Each element's own flap curvature, the constant -kappa_y / (1 + eps_x) (1/m, by element): the curvature
+        of its reference line toward +n per unit deformed length, as structure_fmu.element.flap_curvature measures
+        it (r'' = (1 + eps_x) r_x' = -(1 + eps_x) kappa_y r_z, Otsuka et al. 2022, Eq. 6), which the strain gauges
+        reading the model's curvature take (Otsuka et al. 2022, Sec. 5: h/2 x kappa_y).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+
+        Returns:
+            (n_elements,) 1/m.
+        """
+        strains = q[self._strain_columns]
+        return -strains[:, 2] / (1.0 + strains[:, 0])
+
     def potential_energy(self, q, E, latched, angles):
         """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J.
 

@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError, SolverDiverged
-from fmu_common.specs import StructureUnitSpec
+from fmu_common.specs import StrainGaugeSpec, StructureUnitSpec
 from fmu_common.wing_spec import StructureSpec
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu import strain_kinematics as sk
 from structure_fmu.modes import natural_frequencies
+from structure_fmu.sensors import Sensors
 from structure_fmu.solver import StructureSolver
 from structure_fmu.strain_model import StrainBasedModel
 from structure_fmu.topology import StructureTopology
@@ -189,6 +190,35 @@ def test_linear_stiffness_gives_the_piecewise_constant_curvature_cantilever():
     l = L / n
     midpoints = l * (np.arange(n) + 0.5)
     assert deflection == pytest.approx(force / EI * np.sum(l * (L - midpoints) ** 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("n", [5, 40])
+def test_strain_gauges_read_the_elements_own_curvature(n):
+    """Under a tip force F the elements take the curvature of their midpoints, F (L - x_i) / EI (see the test
+    above), and a gauge reading the model's curvature reads d times its element's: exactly the midpoint value.
+    The cubic reading of the same state has the same sign (both positive toward the section normal), and both are
+    within d F (l / 2) / EI of Euler-Bernoulli's d F (L - s) / EI at the gauge's own span s (l the element length:
+    the distance from the span to its element's midpoint)."""
+    force, L, EI, d = 10.0, 2.0, 1e5, 0.01
+    model = model_of(SCENES / "cantilever_static.toml", "structure.fidelity=strain-based",
+                     f"structure.elements_per_body={n}")
+    q0 = model.initial_coordinates()
+    Q = np.zeros(model.top.n_coordinates)
+    Q[9 * model.top.n_nodes - 9 + 2] = force              # tip node, r_z
+    q = q0 + np.linalg.solve(np.diag(model.stiffness_diagonal), model.velocity_map(q0, 0.0).T @ Q)
+    spans = (0.11, 1.31)
+    gauges = [StrainGaugeSpec(f"g{k}", f"g{k}", "beam", s, d, curvature) for k, s in enumerate(spans)
+              for curvature in ("model", "cubic")]
+    sensors = Sensors((), tuple(gauges), model.top)
+    E = model.coordinates(q, np.zeros_like(q), 0.0)[0]
+    strains = sensors.strains(E, model.element_curvatures(q)).reshape(len(spans), 2)
+    l = L / n
+    midpoints = l * (np.floor(np.array(spans) / l) + 0.5)
+    assert strains[:, 0] == pytest.approx(d * force * (L - midpoints) / EI, rel=1e-9)
+    assert np.all(strains[:, 1] > 0)
+    # both within the discretization's bound d F (l / 2) / EI of Euler-Bernoulli at the gauge's own span
+    beam_theory = d * force * (L - np.array(spans)) / EI
+    assert np.all(np.abs(strains - beam_theory[:, None]) <= d * force * (l / 2) / EI)
 
 
 @pytest.mark.parametrize("overrides", [[], UNIVERSAL, REVOLUTE], ids=["ball", "universal", "revolute"])
