@@ -1,7 +1,7 @@
 /* Compiled strain-based kinematics (C): the closed-form element transfers and the recursion along a body of
  * strain_kinematics (Otsuka et al. 2022, Eqs. 7-8) with its derivatives along the coordinates and in time, nothing
  * allocated. Compiled once per machine by fmu_common/c_library.py (and into every structure FMU by its build) and
- * called through ctypes by strain_kinematics.element_transfers and body_kinematics, whose numpy forms are the
+ * called through ctypes by strain_kinematics.transfers and kinematics, whose numpy forms are the
  * reference ($WINGSIM_KERNELS=numpy); the tests check both agree to 1e-12 relative.
  *
  *   body_kinematics  one body's nodes in the model's arrays: its root node from what it hangs from (the parent's

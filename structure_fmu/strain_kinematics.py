@@ -304,38 +304,67 @@ def transfer_second_expm(strains, rates, lengths):
 C_SOURCE = Path(__file__).with_name("strain_kernels.c")    # the compiled sweeps (fmu_common.c_library)
 
 
-def body_kinematics(first, first_element, parent, columns, root, transfers, dq, H, dH, Ht, Hd, Hdd):
-    """One body's nodes, written into the model's arrays: its root node from what it hangs from (Otsuka et al.
+def kinematics(bodies, roots, transfers, dq, n_nodes):
+    """The nodal vectors of every body, parents first: each body's root node from what it hangs from (Otsuka et al.
     2022, Eq. 8: H_root = C(eta) H_parent, C = blockdiag(1, c)), then along its elements H_{k+1} = Phi_k H_k
     (Eq. 7) with dH_{k+1}/dq = Phi_k dH_k/dq + sum_p dPhi_k/dxi_p H_k e_{c_k + p}^T and dH_{k+1}/dt = Phi_k dH_k/dt at
     fixed q; the rates dH/dt = dH/dq q' + dH/dt; the accelerations at q'' = 0, d2H_{k+1}/dt2 = Phi''_k H_k +
-    2 Phi'_k dH_k/dt + Phi_k d2H_k/dt2. Runs the C kernel of strain_kernels.c unless $WINGSIM_KERNELS = numpy (the
-    numpy form below is its reference; tests/units/test_strain_based.py checks both agree to 1e-12).
+    2 Phi'_k dH_k/dt + Phi_k d2H_k/dt2. Runs the C kernel body_kinematics of strain_kernels.c once per body unless
+    $WINGSIM_KERNELS = numpy (the numpy form `_body_kinematics` is its reference; tests/units/test_strain_based.py
+    checks both agree to 1e-12).
 
     Args:
-        first: the body's root node; its nodes are first..first + n_el.
-        first_element: its first element; its elements are first_element..first_element + n_el - 1.
-        parent: the node the root hangs from (the parent's tip), or -1: root.ground.
-        columns: (n_el,) int64, the column of each element's first strain in q, increasing by 4.
-        root: RootTerms at this state.
-        transfers: (Phi, dPhi, Phi', Phi'') of every element of the model (`transfers`).
+        bodies: the BodyLine of each body, parents first.
+        roots: the RootTerms of each body's root joint at this state, in the same order.
+        transfers: (Phi, dPhi, Phi', Phi'') of every element (`transfers`).
         dq: (n_q,) the rates q', per s.
-        H: (n_nodes, 4, 3) the nodal H, m and 1, written for the body.
-        dH: (n_nodes, 4, 3, n_q) dH/dq, zero in the body's rows on entry.
-        Ht: (n_nodes, 4, 3) dH/dt at fixed q, per s.
-        Hd: (n_nodes, 4, 3) dH/dt at q', per s.
-        Hdd: (n_nodes, 4, 3) d2H/dt2 at q'' = 0, per s^2.
+        n_nodes: the number of nodes.
+
+    Returns:
+        (H, dH/dq, dH/dt at fixed q, dH/dt, d2H/dt2 at q'' = 0): (n_nodes, 4, 3) each but dH/dq (n_nodes, 4, 3,
+        n_q); m, 1 and per s, per s^2.
     """
-    n_el, n_q = len(columns), dH.shape[-1]
-    Phi, dPhi, Phi_d, Phi_dd = transfers
+    dq = np.ascontiguousarray(dq, dtype=float)
+    n_q = len(dq)
+    H, Ht, Hd, Hdd = (np.zeros((n_nodes, 4, 3)) for _ in range(4))
+    dH = np.zeros((n_nodes, 4, 3, n_q))
     library = _c_kernels()
-    if library is not None:
-        library.body_kinematics(n_el, n_q, first, first_element, parent, columns.ctypes.data, root.ground.ctypes.data,
-                                root.c.ctypes.data, len(root.dc), root.offset, root.dc.ctypes.data,
-                                root.c_dot.ctypes.data, root.c_ddot.ctypes.data, Phi.ctypes.data, dPhi.ctypes.data,
-                                Phi_d.ctypes.data, Phi_dd.ctypes.data, dq.ctypes.data, H.ctypes.data, dH.ctypes.data,
-                                Ht.ctypes.data, Hd.ctypes.data, Hdd.ctypes.data)
-        return
+    if library is None:
+        for body, root in zip(bodies, roots):
+            _body_kinematics(body, root, transfers, dq, H, dH, Ht, Hd, Hdd)
+        return H, dH, Ht, Hd, Hdd
+    shared = [x.ctypes.data for x in (*transfers, dq, H, dH, Ht, Hd, Hdd)]
+    for body, root in zip(bodies, roots):
+        library.body_kinematics(body.n_el, n_q, body.first, body.first_element, body.parent, body.columns_address,
+                                root.ground.ctypes.data, root.c.ctypes.data, len(root.dc), root.offset,
+                                root.dc.ctypes.data, root.c_dot.ctypes.data, root.c_ddot.ctypes.data, *shared)
+    return H, dH, Ht, Hd, Hdd
+
+
+class BodyLine:
+    """A body as the sweep sees it: its root node `first` (its nodes first..first + n_el), its first element
+    (its elements first_element..first_element + n_el - 1), the node its root hangs from (the parent's tip; -1:
+    the ground) and the column of each element's first strain in q (n_el,), increasing by 4.
+
+    Args:
+        first: the root node.
+        first_element: the first element.
+        parent: the parent's tip node, or -1.
+        columns: (n_el,) int.
+    """
+
+    def __init__(self, first, first_element, parent, columns):
+        self.first, self.first_element, self.parent = first, first_element, parent
+        self.columns = np.ascontiguousarray(columns, dtype=np.int64)
+        self.n_el = len(self.columns)
+        self.columns_address = self.columns.ctypes.data
+
+
+def _body_kinematics(body, root, transfers, dq, H, dH, Ht, Hd, Hdd):
+    """`kinematics` of one body in numpy, written into the arrays: the reference of the C kernel."""
+    first, first_element, parent, columns = body.first, body.first_element, body.parent, body.columns
+    n_el, n_q = body.n_el, len(dq)
+    Phi, dPhi, Phi_d, Phi_dd = transfers
     if parent >= 0:
         Hp, dHp, Htp, Hpd, Hpdd = H[parent], dH[parent], Ht[parent], Hd[parent], Hdd[parent]
     else:
@@ -362,7 +391,7 @@ def body_kinematics(first, first_element, parent, columns, root, transfers, dq, 
 
 
 class RootTerms:
-    """What body_kinematics needs of a root joint at a state (Otsuka et al. 2022, Eq. 8).
+    """What `kinematics` needs of a root joint at a state (Otsuka et al. 2022, Eq. 8).
 
     Args:
         c: (3, 3) the joint matrix c(eta).

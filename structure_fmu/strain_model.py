@@ -124,6 +124,9 @@ class StrainBasedModel(StructureModel):
         self.newton_weights = np.ones(self.n_q)
         for name, body in topology.bodies.items():
             self.newton_weights[self.strain_slices[name]] = np.repeat(self.lengths[body.elements], sk.STRAINS)
+        self._body_lines = [sk.BodyLine(body.nodes[0], body.elements[0] if body.elements else 0,
+                                        self.roots[name].parent_node, self._element_columns[name])
+                            for name, body in topology.bodies.items()]
         self._strain_columns = np.zeros((len(self.lengths), sk.STRAINS), dtype=np.int64)   # q's column of xi_ep
         for name, body in topology.bodies.items():
             self._strain_columns[body.elements] = self._element_columns[name][:, None] + np.arange(sk.STRAINS)
@@ -163,17 +166,9 @@ class StrainBasedModel(StructureModel):
         key = (q.tobytes(), dq.tobytes(), t)
         if self._cache_evaluation[0] == key:
             return self._cache_evaluation[1]
-        top = self.top
-        n_nodes = top.n_nodes
         transfers = sk.transfers(q[self._strain_columns], dq[self._strain_columns], self.lengths)
-        H, Ht, Hd, Hdd = (np.zeros((n_nodes, 4, 3)) for _ in range(4))
-        dH = np.zeros((n_nodes, 4, 3, self.n_q))
-        dq = np.ascontiguousarray(dq, dtype=float)
-        for name, body in top.bodies.items():
-            root = self.roots[name]
-            sk.body_kinematics(body.nodes[0], body.elements[0] if body.elements else 0, root.parent_node,
-                               self._element_columns[name], root.terms(q, dq, t), transfers, dq, H, dH, Ht, Hd, Hdd)
-        value = (H, dH, Ht, Hd, Hdd)
+        value = sk.kinematics(self._body_lines, [root.terms(q, dq, t) for root in self.roots.values()], transfers,
+                              dq, self.top.n_nodes)
         self._cache_evaluation = (key, value)
         return value
 

@@ -141,7 +141,7 @@ def test_the_rates_sweep_without_b_matches_the_configuration(path, overrides):
 
 
 def test_the_c_kinematics_equal_the_numpy_reference(monkeypatch):
-    """strain_kernels.c against the numpy forms of strain_kinematics.transfers and body_kinematics: two bodies of
+    """strain_kernels.c against the numpy forms of strain_kinematics.transfers and kinematics: two bodies of
     5 and 3 elements with random strains and rates, the first hanging from a moving ground point by one joint
     parameter, the second from the first's tip by four (random c, dc/deta, c', c''); every array equal to 1e-12 of
     its largest entry, and no node depending on a later strain."""
@@ -161,12 +161,8 @@ def test_the_c_kinematics_equal_the_numpy_reference(monkeypatch):
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
         transfers = sk.transfers(strains, rates, lengths)
-        n_nodes = sum(n_el) + 2
-        H, Ht, Hd, Hdd = (np.zeros((n_nodes, 4, 3)) for _ in range(4))
-        dH = np.zeros((n_nodes, 4, 3, n_q))
-        sk.body_kinematics(0, 0, -1, columns[0], roots[0], transfers, dq, H, dH, Ht, Hd, Hdd)
-        sk.body_kinematics(n_el[0] + 1, n_el[0], n_el[0], columns[1], roots[1], transfers, dq, H, dH, Ht, Hd, Hdd)
-        out[kind] = transfers + (H, dH, Ht, Hd, Hdd)
+        bodies = (sk.BodyLine(0, 0, -1, columns[0]), sk.BodyLine(n_el[0] + 1, n_el[0], n_el[0], columns[1]))
+        out[kind] = transfers + sk.kinematics(bodies, roots, transfers, dq, sum(n_el) + 2)
     for compiled, reference in zip(out["compiled"], out["numpy"]):
         assert np.abs(compiled - reference).max() <= 1e-12 * np.abs(reference).max()
     dH = out["numpy"][5]
