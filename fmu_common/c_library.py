@@ -93,7 +93,11 @@ def _flags(platform: str) -> tuple[str, ...]:
 
 
 def record_file(library: Path) -> Path:
-    """The file recording the SHA-256 of `library`'s bytes (hex), beside it."""
+    """The file recording the SHA-256 of `library`'s bytes (hex), beside it.
+
+    Args:
+        library: a library file's path.
+    """
     return library.with_name(library.name + RECORD_SUFFIX)
 
 
