@@ -369,7 +369,7 @@ class _Compilation:
     def discard(self) -> None:
         """Stop the compiler if it runs and remove the temporary folder."""
         # SIGTERM first: the compiler driver then removes its own temporary files
-        for stop in (signal.SIGTERM, signal.SIGKILL):
+        for stop in (signal.SIGTERM, getattr(signal, "SIGKILL", signal.SIGTERM)):    # Windows has no SIGKILL
             if self.process.poll() is not None:
                 break
             try:
