@@ -101,27 +101,42 @@ def test_a_damaged_library_carried_beside_its_source_is_reported_and_not_loaded(
     assert run.stdout.splitlines()[-1] == str(tmp_path / "cache" / carried.name)
 
 
-def _namespace_with(mount_options: str, folder: Path) -> list[str]:
+def _namespace_with(mount_options: str, folder: Path, seed: Path | None = None) -> list[str]:
     """A command prefix: the victim runs in its own user and mount namespace where `folder` is a fresh tmpfs
-    mounted with `mount_options` (root is not needed, and root cannot write there either)."""
+    mounted with `mount_options`, holding the files of `seed` if given (root is not needed, and root cannot write
+    there either)."""
     unshare = shutil.which("unshare")
     assert unshare, "unshare (util-linux) is needed to give the victim a read-only or full cache folder"
-    fill = f" && head -c 1M /dev/zero > {folder}/filler; true" if "size" in mount_options else ""
-    return [unshare, "--user", "--map-root-user", "--mount", "sh", "-c",
-            f"mount -t tmpfs -o {mount_options} tmpfs {folder}{fill} && exec \"$0\" \"$@\""]
+    mount = f"mount -t tmpfs -o {mount_options} tmpfs {folder}"
+    if seed is not None:        # filled, then made read-only
+        mount = (f"mount -t tmpfs tmpfs {folder} && cp -a {seed}/. {folder}/ "
+                 f"&& mount -o remount,{mount_options} {folder}")
+    if "size" in mount_options:
+        mount += f" && (head -c 1M /dev/zero > {folder}/filler; true)"
+    return [unshare, "--user", "--map-root-user", "--mount", "sh", "-c", f"{mount} && exec \"$0\" \"$@\""]
 
 
-@pytest.mark.parametrize("cache_is", ["read-only", "full"])
+@pytest.mark.parametrize("cache_is", ["read-only", "read-only, holding a truncated library", "full"])
 def test_a_cache_folder_that_cannot_be_written_gives_the_documented_warning_and_the_run_goes_on(tmp_path,
                                                                                               cache_is):
-    """docs/fmu.md: a host whose user cannot write the cache folder gets a warning and compiles in each process."""
-    cache = tmp_path / "cache"
+    """docs/fmu.md: a host whose user cannot write the cache folder gets a warning and compiles in each process;
+    a damaged library there, which cannot be deleted, is reported and never loaded."""
+    cache, seed = tmp_path / "cache", None
     cache.mkdir()
-    options = "ro" if cache_is == "read-only" else "size=64k"
-    run, velocity, loaded = _victim(cache, command=_namespace_with(options, cache))
+    if "truncated" in cache_is:
+        run, velocity, _ = _victim(tmp_path / "scratch")
+        _check_velocity(run, velocity)
+        seed = tmp_path / "scratch"
+        [damaged] = seed.glob("biot_savart-*.so")
+        _damage(damaged, "truncated")
+    options = "size=64k" if cache_is == "full" else "ro"
+    run, velocity, loaded = _victim(cache, command=_namespace_with(options, cache, seed))
     _check_velocity(run, velocity)
     assert f"cannot write the cache folder {cache}" in run.stderr, run.stderr
     assert "compiled in every process" in run.stderr
+    if seed is not None:
+        assert f"{cache / damaged.name} is not the library compiled from biot_savart.c" in run.stderr
+        assert "not deleted" in run.stderr
     assert loaded != "numpy" and not loaded.startswith(str(cache))
     assert not Path(loaded).exists()        # the process's own copy is gone with it
 
