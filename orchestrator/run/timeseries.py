@@ -1,17 +1,16 @@
 """The samples a run records at each communication point.
 
-One row per sample: time (s), each probe's global position (``<probe>_x/_y/_z``, m), then each probe's global velocity
-(``<probe>_vx/_vy/_vz``, m/s), then each probe's global acceleration (``<probe>_ax/_ay/_az``, m/s^2), each hinge's
-fold angle (degrees), each strain
-gauge's surface strain (-, a column named as the gauge), each joint monitor (``<joint>_point_mismatch`` in m,
-``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a parent), the structure's energy (J),
-its kinetic energy (J), its constraint residual (-) and the work of the point loads and Q on it since t = 0
-(``external_work``, J: energy minus it changes only by damping and driven motions), and, for a scene with an
-aero unit, each hinge's aerodynamic moment about its axis ``hinge_moment_<hinge>`` (N m), the lift coefficient
-``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the iterations
-``coupling_iterations`` the master took in the communication step ending at that sample and the relative
-interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those of
-``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
+One row per sample: time (s), each probe's global position (``<probe>_x/_y/_z``, m), then each probe's global
+velocity (``<probe>_vx/_vy/_vz``, m/s), then each probe's global acceleration (``<probe>_ax/_ay/_az``, m/s^2), each
+hinge's fold angle (degrees), each strain gauge's surface strain (-, a column named as the gauge), each joint
+monitor (``<joint>_point_mismatch`` in m, ``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint
+with a parent), the structure's energy (J), its kinetic energy (J), its constraint residual (-) and the work of
+the point loads and Q on it since t = 0 (``external_work``, J: energy minus it changes only by damping and driven
+motions), and, for a scene with an aero unit, each hinge's aerodynamic moment about its axis
+``hinge_moment_<hinge>`` (N m), the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling,
+the iterations ``coupling_iterations`` the master took in the communication step ending at that sample and the
+relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those
+of ``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
 
@@ -82,7 +81,7 @@ class TimeSeries:
                     coupling: Mapping[str, Sequence[float]] | None = None,
                     strains: Mapping[str, Sequence[float]] | None = None,
                     joints: Mapping[str, Sequence[float]] | None = None,
-                    velocities=None, accelerations=None) -> "TimeSeries":
+                    velocities: Sequence | None = None, accelerations: Sequence | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
         energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN;
         velocities and accelerations (m, probes, 3) likewise (NaN without them).
