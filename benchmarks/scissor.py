@@ -232,6 +232,8 @@ def main():
                   pivot_rows=[row["pivot_row"] for row in table.values()], paper=PAPER,
                   rates_rows=[row["rates_row"] for row in table.values()],
                   rates={rho: row["rates"] for rho, row in table.items()},
+                  a1_rms_falls_with_rho=all(table[low]["rates"]["a1_rms"] <= table[high]["rates"]["a1_rms"]
+                                            for low, high in zip(sorted(table), sorted(table)[1:])),
                   wing_rows=[wing_row(r) for r in wing + flexible_wing], wing_stop=wing_stop,
                   flexible_wing=[(r.rho_inf, res[r]) for r in flexible_wing], rigid_wing={
                       r.speed if r.model != "none" else "none": res[r].get("deploy_s") for r in wing},
@@ -261,8 +263,8 @@ def plot_rates(table, res, array, rho):
             ax.set(xlabel="t (s)", ylabel=f"{axis} {name} ({unit})", title=f"pivots, {axis} {name}, rho_inf = {rho:g}")
     REPORT.save(fig, "scissor_pivot_rates", legend=7)
 
-    # every rho_inf, the largest vibration drawn first; then those below 1 after t = 0 (the initial acceleration,
-    # the same for all, dwarfs them)
+    # every rho_inf, the least dissipative (the highest) drawn first, under the others; then those below 1 after
+    # t = 0 (the initial acceleration, the same for all, dwarfs them)
     rhos = sorted(table, key=lambda rho_k: -rho_k)
     fig, axes = REPORT.figure(1, 2, 12, 4)
     for ax, shown, start in ((axes[0, 0], rhos, 0), (axes[0, 1], [x for x in rhos if x < 1], 1)):
