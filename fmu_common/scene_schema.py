@@ -350,9 +350,9 @@ MOTION = Table({
        "law, no structural solver runs", optional=True, rules=(_motion_rule,))
 
 PROBE = Table({
-    "name": Name("-", REQUIRED, "column prefix in timeseries.csv (`<name>_x`, `_y`, `_z`) and key in "
-                                "summary.json; the structure FMU outputs `<name>_x/_y/_z` (m), "
-                                "`<name>_vx/_vy/_vz` (m/s) and `<name>_ax/_ay/_az` (m/s^2)"),
+    "name": Name("-", REQUIRED, "column prefix in timeseries.csv and key in summary.json: the structure "
+                                "FMU outputs and the run records `<name>_x/_y/_z` (m), `<name>_vx/_vy/_vz` "
+                                "(m/s) and `<name>_ax/_ay/_az` (m/s^2)"),
     "body": Name("-", REQUIRED, _BODY_REF),
     "span": non_negative("m", "position from the body root, at most the body length"),
     "chord": fraction("where on the chord", Absent("the body's section.axis_position")),

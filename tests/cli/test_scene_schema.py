@@ -204,7 +204,8 @@ def test_time_series_estimate_matches_the_recorded_rows():
 
     scene = load_scene(SCENES / "deploy_flexible.toml", ["time.stop=1.0"])
     estimate = memory_estimate(scene)["time series"][1]
-    columns = 1 + 3 * 2 + 1 + 1 + 3 + 2                        # time, 2 probes, 1 hinge, 1 gauge, monitors, CL, lift
+    columns = 1 + 9 * 2 + 1 + 1 + 3 + 2      # time, 2 probes (position, velocity, acceleration), 1 hinge, 1 gauge,
+                                             # monitors, CL, lift
     row = np.zeros(columns)
     measured = (sys.getsizeof(row) + 8) * 1001                 # the row and its list entry, 1001 samples
     assert measured <= estimate <= 1.2 * measured
