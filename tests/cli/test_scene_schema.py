@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import copy
 import json
-import time
 
 import numpy as np
 import pytest
@@ -26,15 +25,12 @@ from orchestrator.scene.load import load_scene, read_scene_file, resolve_scene
 from repository import SCENES
 
 SHIPPED = sorted(SCENES.glob("*.toml"))
-FAST_S = 1.0      # a refusal takes well under a second
 
 
 def refusal(scene: str, overrides: list[str]) -> SceneError:
-    """The SceneError of loading scenes/<scene>.toml with `overrides`, checked to come within FAST_S."""
-    start = time.perf_counter()
+    """The SceneError of loading scenes/<scene>.toml with `overrides`."""
     with pytest.raises(SceneError) as err:
         load_scene(SCENES / f"{scene}.toml", overrides)
-    assert time.perf_counter() - start < FAST_S
     return err.value
 
 
@@ -182,10 +178,8 @@ def test_estimated_memory_is_bounded():
     raw["structure"]["bodies"] = [dict(body, name=f"b{i}") for i in range(10)]
     raw["structure"]["elements_per_body"] = 100
     del raw["load"], raw["probes"]
-    start = time.perf_counter()
     with pytest.raises(SceneError) as err:
         resolve_scene(raw, "large")
-    assert time.perf_counter() - start < FAST_S
     assert err.value.key == "structure.elements_per_body" and "GiB of estimated memory" in str(err.value)
     assert "structure matrices" in str(err.value)
 
@@ -321,11 +315,9 @@ def test_load_case_defaults_are_its_body_tip_and_axis():
 ])
 def test_run_exits_2_naming_the_key(setting, key, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    start = time.perf_counter()
     code = main(["run", str(SCENES / "deploy_flexible.toml"), "--set", setting, "--out", str(tmp_path / "out")])
-    assert time.perf_counter() - start < FAST_S
     assert code == 2 and f"'{key}'" in capsys.readouterr().err
-    assert not (tmp_path / "fmus").exists()
+    assert not (tmp_path / "fmus").exists() and not (tmp_path / "out").exists()    # refused before anything ran
 
 
 def test_build_refuses_an_infinite_youngs_modulus(tmp_path, capsys, monkeypatch):
