@@ -49,7 +49,12 @@ Facts about pythonfmu 0.7.0 this encodes (measured, see docs/fmu.md):
     and then releases a reference to those globals that it does not own, once per instance: the module's
     dictionary is freed under the slave (a segfault at the next fmi2Instantiate). A script whose classes define
     methods gets the reference back by accident (each run leaves a class whose methods hold the globals);
-    our slave classes define none, so each run of a slave class statement takes one (`__init_subclass__`);
+    our slave classes define none, so each run of a slave class statement takes one (`_SlaveClass`);
+  * that run of the script is only a search (the class it uses is the module's): the class it defines is kept
+    alive by a list fmi2Instantiate never releases, a class per instance (kilobytes each). `_SlaveClass` makes
+    the run return the module's existing class instead of defining another, so instantiate/free cycles keep
+    memory flat; and fmi2Instantiate puts the resources folder on sys.path once more per instance, which
+    `SolverSlave.__init__` takes back;
   * pythonfmu has no unit attribute on variables: `fmi_units.UnitReal` adds one.
 """
 from __future__ import annotations
@@ -65,7 +70,7 @@ import sys
 import traceback
 import weakref
 import xml.etree.ElementTree as ET
-from abc import abstractmethod
+from abc import ABCMeta, abstractmethod
 from typing import Callable
 
 import numpy as np
@@ -139,6 +144,31 @@ def _hold_module_globals(cls: type) -> None:
         ctypes.pythonapi.Py_IncRef(ctypes.py_object(vars(module)))
 
 
+class _SlaveClass(ABCMeta):
+    """The metaclass of the slaves: a class statement that defines again a slave class its module already holds,
+    with the same bases (pythonfmu's fmi2Instantiate running the slave script once more, module docstring),
+    returns the module's class instead of a new one. Every class statement takes one reference to its module's
+    globals (`_hold_module_globals`), the one fmi2Instantiate releases."""
+
+    def __new__(mcls, name, bases, namespace, **kwargs):
+        module = sys.modules.get(namespace.get("__module__"))
+        existing = vars(module).get(name) if module is not None else None
+        if (isinstance(existing, mcls) and existing.__bases__ == bases
+                and existing.__qualname__ == namespace.get("__qualname__")):
+            _hold_module_globals(existing)
+            return existing
+        cls = super().__new__(mcls, name, bases, namespace, **kwargs)
+        _hold_module_globals(cls)
+        return cls
+
+
+def _drop_repeated_path(folder: str | None) -> None:
+    """Keep one entry of `folder` in sys.path: fmi2Instantiate inserts the resources folder at its front for
+    every instance (module docstring), which would grow it by one per instantiate/free cycle."""
+    while folder and sys.path.count(folder) > 1:
+        del sys.path[len(sys.path) - 1 - sys.path[::-1].index(folder)]
+
+
 def _fmi_type(var) -> str:
     return next((t.__name__ for t in (Real, Integer, Boolean, String) if isinstance(var, t)), type(var).__name__)
 
@@ -172,7 +202,7 @@ _VARIABILITY = {"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variab
                 "fixed": Fmi2Variability.fixed, "constant": Fmi2Variability.constant}
 
 
-class SolverSlave(Fmi2Slave):
+class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
     """Abstract slave over a solver. Subclasses set `label`, `model_name` (the modelIdentifier, the FMU binary's
     name), `solver_class`, `spec_class` (the unit's spec, fmu_common.specs, whose `fmi_model_name` and
     `fmi_description` give the model description's modelName and description) and `interface` (the unit's
@@ -194,13 +224,10 @@ class SolverSlave(Fmi2Slave):
     def interface(self) -> Interface:
         """The unit's interface table (a class attribute of the concrete slave)."""
 
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        _hold_module_globals(cls)
-
     def __init__(self, **kwargs):
         limit_blas_threads()   # the unit starts here, in whatever host: one BLAS thread (threads.py)
         super().__init__(**kwargs)
+        _drop_repeated_path(self.resources)
         self.scene = read_scene(self.resources, self.label)
         self.spec = self.spec_class.from_scene(self.scene)   # the one read of the scene: the solver takes the spec
         self.modelName = self.model_name
