@@ -21,7 +21,7 @@ from .choices import Fidelity
 from .errors import SceneError
 from .shape_functions import hermite, shape_row
 from .wing_spec import BodySpec, JointSpec, ParentJointSpec, RevoluteSpec, StructureSpec, UniversalSpec
-from .vectors import rotation_about
+from .vectors import rotation_about, unit
 
 @dataclass
 class Body:
@@ -164,13 +164,13 @@ class Topology:
                                      "not allowed: a jointed child starts at its parent's tip, in its parent's tip "
                                      "frame turned by the joint (orientation_deg, initial_angle_deg)")
             given = spec.chord_axis
-            if given is not None and np.linalg.norm(_unit(given) - y0) > 1e-9:
+            if given is not None and np.linalg.norm(unit(given) - y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", list(given), f"the chord axis the joint gives the child, "
                                  f"{[round(float(v), 12) for v in y0]}, or none")
         else:
             r0 = np.array(spec.root, dtype=float)
-            x0 = _unit(spec.span_axis)
-            y0 = _unit(spec.chord_axis)
+            x0 = unit(spec.span_axis)
+            y0 = unit(spec.chord_axis)
             if abs(x0 @ y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", list(spec.chord_axis), "a direction perpendicular to span_axis")
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
@@ -198,11 +198,11 @@ class Topology:
         axis = child_axis = np.zeros(3)
         initial = 0.0
         if isinstance(joint, RevoluteSpec):
-            axis, initial = _unit(joint.axis), np.radians(joint.initial_angle_deg)
+            axis, initial = unit(joint.axis), np.radians(joint.initial_angle_deg)
         elif isinstance(joint, UniversalSpec):
-            axis, child_axis = _unit(joint.parent_axis), _unit(joint.child_axis)
+            axis, child_axis = unit(joint.parent_axis), unit(joint.child_axis)
         if parent is None:      # the ground: the child's own axes give its frame at t = 0
-            start = _frame(_unit(child.span_axis), _unit(child.chord_axis))
+            start = _frame(unit(child.span_axis), unit(child.chord_axis))
             turn = rotation_about(axis, initial) if kind == "revolute" else np.eye(3)
             orientation = turn.T @ start
         if kind == "universal" and abs(axis @ orientation @ child_axis) > 1e-9:
@@ -318,10 +318,6 @@ def _frame(span, chord) -> np.ndarray:
     """[span, chord, normal] (3, 3), columns, normal = span x chord."""
     return np.column_stack([span, chord, np.cross(span, chord)])
 
-
-def _unit(vector) -> np.ndarray:
-    v = np.asarray(vector, dtype=float)
-    return v / np.linalg.norm(v)
 
 
 def _body_order(bodies, parent_of):
