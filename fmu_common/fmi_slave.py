@@ -300,6 +300,9 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
             "depends directly on every input", and a system tool then sees an algebraic loop between the
             structure and the aero unit; in truth no output depends directly on an input: outputs change only
             in fmi2DoStep (and, at initialization, with the scene and the parameters).
+          * no start value that is not a finite number: a ValueError names the variable (a scene value that
+            overflowed in the arithmetic giving it; the scene checks refuse the known ones first, naming the key),
+            so a build never writes start="nan", which fmpy's validation refuses;
           * InitialUnknowns: FMI 2.0 lists there the outputs with initial "approx" or "calculated" and the
             calculated parameters (and states, which a co-simulation FMU without Derivatives has none of). Here
             they are the outputs whose table row is initial "calculated" (fmu_common.interface.Output: their
@@ -314,6 +317,12 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
             the root element, fmiModelDescription.
         """
         root = super().to_xml({} if model_options is None else model_options)
+        for variable in root.iterfind("ModelVariables/ScalarVariable"):
+            start = variable.find("Real")
+            if start is not None and "start" in start.attrib and not math.isfinite(float(start.get("start"))):
+                raise ValueError(f"{self.label}: the start value of {variable.get('name')} "
+                                 f"({variable.get('description')}) is {start.get('start')}, not a finite number: a "
+                                 "value of the scene overflowed in the arithmetic that gives it")
         root.set("modelName", self.spec.fmi_model_name())
         root.set("description", self.spec.fmi_description())
         at = next(i for i, c in enumerate(list(root)) if c.tag == "CoSimulation") + 1
