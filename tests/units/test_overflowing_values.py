@@ -68,3 +68,20 @@ def test_youngs_modulus_1e308_diverges_with_the_solvers_reason(tmp_path):
                        ["structure.bodies.0.section.youngs_modulus=1e308", "time.stop=0.002", "aero.model=none"])
     result = run_scene(scene, backend="direct")
     assert result.status == "diverged" and "ZeroDivisionError" not in result.message
+
+
+@pytest.mark.parametrize("scene, overrides, key", [
+    # a 2 m beam (3 elements of 0.667 m) whose root is 1e17 m away: its nodes coincide in double precision
+    ("cantilever_static", ["structure.bodies.beam.root=[1e17, 0, 0]"], "structure.bodies.beam.root"),
+    # bodies of 1e307 m: their mass matrices (rho A L^3) overflow
+    ("deploy_rigid", ["structure.bodies.inner.length=1e307", "structure.bodies.outer.length=1e307"],
+     "structure.bodies.inner.length"),
+    # a lumped mass of 1e308 kg under 1e308 m/s^2: its weight overflows
+    ("deploy_rigid", ["structure.masses.0.mass=1e308", "structure.gravity=[0, 0, -1e308]"], "structure.gravity"),
+])
+def test_finite_values_whose_products_overflow_are_refused_naming_the_key(scene, overrides, key):
+    """Refused when the scene is loaded (the topology places the nodes) or when the solver is built."""
+    with pytest.raises(SceneError) as refused:
+        loaded = load_scene(SCENES / f"{scene}.toml", ["aero.model=none", *overrides])
+        StructureSolver(StructureUnitSpec.from_scene(loaded))
+    assert refused.value.key == key
