@@ -79,7 +79,7 @@ does not divide by zero."""
 
 def latching_hinges(scene: dict) -> list[str]:
     """Names of the scene's hinges that have a stop angle (they latch there), in scene order."""
-    return [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    return [j["name"] for j in hinge_joints(scene) if j.get("stop_angle_deg") is not None]   # resolved: None
 
 
 def deployment_time(latch_times: dict[str, float], scene: dict) -> float | None:
