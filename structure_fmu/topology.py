@@ -336,6 +336,9 @@ class StructureTopology(topology.Topology):
         direction = np.asarray(spec.direction, dtype=float)
         magnitude = spec.parameter * body.section.flap / body.length**2
         force = magnitude * unit(direction)
+        if not np.all(np.isfinite(force)):
+            raise SceneError("load.parameter", spec.parameter, f"a value whose force P = parameter x EI_yy / L^2 is "
+                                                              f"finite (it overflows: {magnitude:g} N)")
         self._add_load(spec.key, spec.body, spec.span, spec.chord, force, spec.ramp_time)
 
     # ------------------------------------------------------------------ queries
