@@ -27,21 +27,23 @@ from __future__ import annotations
 # first: inside an FMU, one message names every package the Python it runs in lacks (fmu_common/dependencies.py)
 from fmu_common import dependencies  # noqa: F401
 
-# Only the abstract SolverSlave is imported: pythonfmu's builder picks the one concrete Fmi2Slave subclass of
-# this module. Absolute imports: inside the FMU this script sits at the top of resources/, which pythonfmu puts
-# on sys.path, beside the embedded packages.
-from aero_fmu.interface import AERO
-from aero_fmu.solver import AeroSolver
-from fmu_common.fmi_slave import SolverSlave
-from fmu_common.specs import AeroUnitSpec
+# Modules, not classes, are imported: pythonfmu's fmi2Instantiate runs this script once more and keeps, for each
+# class the run binds, a list it never frees (fmu_common/fmi_slave.py); the slave class is then the only one, and
+# `SolverSlave`'s metaclass makes it the module's own. Pythonfmu's builder picks the one concrete Fmi2Slave
+# subclass of this module. Absolute imports: inside the FMU this script sits at the top of resources/, which
+# pythonfmu puts on sys.path, beside the embedded packages.
+import fmu_common.fmi_slave
+import fmu_common.specs
+import aero_fmu.interface
+import aero_fmu.solver
 
 
-class AeroSlave(SolverSlave):
+class AeroSlave(fmu_common.fmi_slave.SolverSlave):
     """The aero unit's FMI 2.0 co-simulation slave over AeroSolver."""
 
     author = "wingsim"
-    label = AERO.unit
+    label = aero_fmu.interface.AERO.unit
     model_name = "aero"
-    solver_class = AeroSolver
-    spec_class = AeroUnitSpec
-    interface = AERO
+    solver_class = aero_fmu.solver.AeroSolver
+    spec_class = fmu_common.specs.AeroUnitSpec
+    interface = aero_fmu.interface.AERO

@@ -37,6 +37,7 @@ from fmu_common.scene_schema import parameter_values
 from fmu_common.topology import Topology
 from fmu_common.scene_bounds import substep_count
 from fmu_common.specs import AeroUnitSpec
+from fmu_common.vectors import unit
 
 from .hinge_moments import hinge_lines, hinge_moments
 from .models import build_model
@@ -107,11 +108,11 @@ class AeroSolver:
             if values[name] < 0:
                 raise SceneError(name, values[name], "a value >= 0")
         direction = np.array([values[f"flow.direction[{i}]"] for i in (1, 2, 3)])
-        norm = float(np.linalg.norm(direction))
-        if not norm > 0:
-            raise SceneError("flow.direction", list(direction), "a non-zero direction")
+        try:
+            self.direction = unit(direction)
+        except ValueError:
+            raise SceneError("flow.direction", list(direction), "a non-zero direction") from None
         self.parameters = values
-        self.direction = direction / norm
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
         self.model = build_model(self.topology, aero, max_wake_rows)

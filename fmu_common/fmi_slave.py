@@ -51,7 +51,12 @@ Facts about pythonfmu 0.7.0 this encodes (measured, see docs/fmu.md):
     and then releases a reference to those globals that it does not own, once per instance: the module's
     dictionary is freed under the slave (a segfault at the next fmi2Instantiate). A script whose classes define
     methods gets the reference back by accident (each run leaves a class whose methods hold the globals);
-    our slave classes define none, so each run of a slave class statement takes one (`__init_subclass__`);
+    our slave classes define none, so each run of a slave class statement takes one (`_SlaveClass`);
+  * that run of the script is only a search (the class it uses is the module's): the class it defines is kept
+    alive by a list fmi2Instantiate never releases, a class per instance (kilobytes each). `_SlaveClass` makes
+    the run return the module's existing class instead of defining another, so instantiate/free cycles keep
+    memory flat; and fmi2Instantiate puts the resources folder on sys.path once more per instance, which
+    `SolverSlave.__init__` takes back;
   * pythonfmu has no unit attribute on variables: `fmi_units.UnitReal` adds one.
 """
 from __future__ import annotations
@@ -67,7 +72,7 @@ import sys
 import traceback
 import weakref
 import xml.etree.ElementTree as ET
-from abc import abstractmethod
+from abc import ABCMeta, abstractmethod
 from typing import Callable
 
 import numpy as np
@@ -142,6 +147,31 @@ def _hold_module_globals(cls: type) -> None:
         ctypes.pythonapi.Py_IncRef(ctypes.py_object(vars(module)))
 
 
+class _SlaveClass(ABCMeta):
+    """The metaclass of the slaves: a class statement that defines again a slave class its module already holds,
+    with the same bases (pythonfmu's fmi2Instantiate running the slave script once more, module docstring),
+    returns the module's class instead of a new one. Every class statement takes one reference to its module's
+    globals (`_hold_module_globals`), the one fmi2Instantiate releases."""
+
+    def __new__(mcls, name, bases, namespace, **kwargs):
+        module = sys.modules.get(namespace.get("__module__"))
+        existing = vars(module).get(name) if module is not None else None
+        if (isinstance(existing, mcls) and existing.__bases__ == bases
+                and existing.__qualname__ == namespace.get("__qualname__")):
+            _hold_module_globals(existing)
+            return existing
+        cls = super().__new__(mcls, name, bases, namespace, **kwargs)
+        _hold_module_globals(cls)
+        return cls
+
+
+def _drop_repeated_path(folder: str | None) -> None:
+    """Keep one entry of `folder` in sys.path: fmi2Instantiate inserts the resources folder at its front for
+    every instance (module docstring), which would grow it by one per instantiate/free cycle."""
+    while folder and sys.path.count(folder) > 1:
+        del sys.path[len(sys.path) - 1 - sys.path[::-1].index(folder)]
+
+
 def _fmi_type(var) -> str:
     return next((t.__name__ for t in (Real, Integer, Boolean, String) if isinstance(var, t)), type(var).__name__)
 
@@ -175,7 +205,7 @@ _VARIABILITY = {"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variab
                 "fixed": Fmi2Variability.fixed, "constant": Fmi2Variability.constant}
 
 
-class SolverSlave(Fmi2Slave):
+class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
     """Abstract slave over a solver. Subclasses set `label`, `model_name` (the modelIdentifier, the FMU binary's
     name), `solver_class`, `spec_class` (the unit's spec, fmu_common.specs, whose `fmi_model_name` and
     `fmi_description` give the model description's modelName and description) and `interface` (the unit's
@@ -197,13 +227,10 @@ class SolverSlave(Fmi2Slave):
     def interface(self) -> Interface:
         """The unit's interface table (a class attribute of the concrete slave)."""
 
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        _hold_module_globals(cls)
-
     def __init__(self, **kwargs):
         limit_blas_threads()   # the unit starts here, in whatever host: one BLAS thread (threads.py)
         super().__init__(**kwargs)
+        _drop_repeated_path(self.resources)
         self.scene = read_scene(self.resources, self.label)
         self.spec = self.spec_class.from_scene(self.scene)   # the one read of the scene: the solver takes the spec
         self.modelName = self.model_name
@@ -276,6 +303,9 @@ class SolverSlave(Fmi2Slave):
             "depends directly on every input", and a system tool then sees an algebraic loop between the
             structure and the aero unit; in truth no output depends directly on an input: outputs change only
             in fmi2DoStep (and, at initialization, with the scene and the parameters).
+          * no start value that is not a finite number: a ValueError names the variable (a scene value that
+            overflowed in the arithmetic giving it; the scene checks refuse the known ones first, naming the key),
+            so a build never writes start="nan", which fmpy's validation refuses;
           * InitialUnknowns: FMI 2.0 lists there the outputs with initial "approx" or "calculated" and the
             calculated parameters (and states, which a co-simulation FMU without Derivatives has none of). Here
             they are the outputs whose table row is initial "calculated" (fmu_common.interface.Output: their
@@ -290,6 +320,12 @@ class SolverSlave(Fmi2Slave):
             the root element, fmiModelDescription.
         """
         root = super().to_xml({} if model_options is None else model_options)
+        for variable in root.iterfind("ModelVariables/ScalarVariable"):
+            start = variable.find("Real")
+            if start is not None and "start" in start.attrib and not math.isfinite(float(start.get("start"))):
+                raise ValueError(f"{self.label}: the start value of {variable.get('name')} "
+                                 f"({variable.get('description')}) is {start.get('start')}, not a finite number: a "
+                                 "value of the scene overflowed in the arithmetic that gives it")
         root.set("modelName", self.spec.fmi_model_name())
         root.set("description", self.spec.fmi_description())
         at = next(i for i, c in enumerate(list(root)) if c.tag == "CoSimulation") + 1

@@ -28,6 +28,7 @@ from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
 from .scissors import expand_scissors
+from .vectors import unit
 from .fmi_units import fmi_unit
 from .schema import (MISSING, REQUIRED, Absent, Choice, Integer, Name, Number, Table, Tables, Text, Variants,
                      Vector, is_number, item_label)
@@ -267,8 +268,8 @@ JOINT = Variants("type", {
 
 def _scissor_rule(key: str, chain: dict) -> None:
     """The height axis is perpendicular to the direction; bars have an even element count (a mid-length node)."""
-    d, h = (np.asarray(chain[name], float) for name in ("direction", "height_axis"))
-    if abs(d @ h) > 1e-9 * np.linalg.norm(d) * np.linalg.norm(h):
+    d, h = unit(chain["direction"]), unit(chain["height_axis"])    # any length: scaled before the product
+    if abs(d @ h) > 1e-9:
         raise SceneError(f"{key}.height_axis", chain["height_axis"], "a direction perpendicular to direction")
     if chain["elements_per_bar"] is not None and chain["elements_per_bar"] % 2:
         raise SceneError(f"{key}.elements_per_bar", chain["elements_per_bar"], "an even count: the mid-length pivot "

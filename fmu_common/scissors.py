@@ -23,6 +23,7 @@ import numpy as np
 from .choices import fidelity, fidelity_names
 from .errors import SceneError
 from .schema import item_label
+from .vectors import unit
 
 ENDS = (("start_lower", "b", 0), ("start_upper", "a", 0), ("end_upper", "a", -1), ("end_lower", "b", -1))
 """(key, point letter, which SLE) of a chain's four ends."""
@@ -52,8 +53,7 @@ def chain_tables(structure: dict, chain: dict) -> tuple[list[dict], list[dict], 
         chain: one of its resolved scissor chains.
     """
     name, n, L = chain["name"], chain["count"], chain["bar_length"]
-    d = np.asarray(chain["direction"], float) / np.linalg.norm(chain["direction"])
-    h = np.asarray(chain["height_axis"], float) / np.linalg.norm(chain["height_axis"])
+    d, h = unit(chain["direction"]), unit(chain["height_axis"])
     k = np.cross(d, h)
     theta = math.radians(chain["initial_angle_deg"])
     w, H = L * math.cos(theta), L * math.sin(theta)

@@ -21,7 +21,7 @@ from .choices import Fidelity
 from .errors import SceneError
 from .shape_functions import hermite, shape_row
 from .wing_spec import BodySpec, JointSpec, ParentJointSpec, RevoluteSpec, StructureSpec, UniversalSpec
-from .vectors import rotation_about
+from .vectors import rotation_about, unit
 
 @dataclass
 class Body:
@@ -164,20 +164,22 @@ class Topology:
                                      "not allowed: a jointed child starts at its parent's tip, in its parent's tip "
                                      "frame turned by the joint (orientation_deg, initial_angle_deg)")
             given = spec.chord_axis
-            if given is not None and np.linalg.norm(_unit(given) - y0) > 1e-9:
+            if given is not None and np.linalg.norm(unit(given) - y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", list(given), f"the chord axis the joint gives the child, "
                                  f"{[round(float(v), 12) for v in y0]}, or none")
         else:
             r0 = np.array(spec.root, dtype=float)
-            x0 = _unit(spec.span_axis)
-            y0 = _unit(spec.chord_axis)
+            x0 = unit(spec.span_axis)
+            y0 = unit(spec.chord_axis)
             if abs(x0 @ y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", list(spec.chord_axis), "a direction perpendicular to span_axis")
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
         first_node = len(self.node_names)
+        positions = [r0 + x0 * length * i / n_el for i in range(n_el + 1)]
+        _check_node_spacing(key if spec.root is not None else None, spec, positions)
         for i in range(n_el + 1):
             self.node_names.append(f"{name}.{i}")
-            self.node_initial.append(np.array([r0 + x0 * length * i / n_el, x0, y0]))
+            self.node_initial.append(np.array([positions[i], x0, y0]))
             body.nodes.append(first_node + i)
         for i in range(n_el):
             body.elements.append(len(self.element_nodes))
@@ -198,11 +200,11 @@ class Topology:
         axis = child_axis = np.zeros(3)
         initial = 0.0
         if isinstance(joint, RevoluteSpec):
-            axis, initial = _unit(joint.axis), np.radians(joint.initial_angle_deg)
+            axis, initial = unit(joint.axis), np.radians(joint.initial_angle_deg)
         elif isinstance(joint, UniversalSpec):
-            axis, child_axis = _unit(joint.parent_axis), _unit(joint.child_axis)
+            axis, child_axis = unit(joint.parent_axis), unit(joint.child_axis)
         if parent is None:      # the ground: the child's own axes give its frame at t = 0
-            start = _frame(_unit(child.span_axis), _unit(child.chord_axis))
+            start = _frame(unit(child.span_axis), unit(child.chord_axis))
             turn = rotation_about(axis, initial) if kind == "revolute" else np.eye(3)
             orientation = turn.T @ start
         if kind == "universal" and abs(axis @ orientation @ child_axis) > 1e-9:
@@ -314,14 +316,37 @@ class Topology:
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
+NODE_SPACING_TOLERANCE = 1e-6
+"""Relative error allowed in the distance between neighbouring nodes at t = 0 against length / elements: a root
+(or a parent's tip) so far from the origin that double precision cannot hold the element length is refused."""
+
+
+def _check_node_spacing(key: str | None, spec: BodySpec, positions: list[np.ndarray]) -> None:
+    """SceneError unless the initial node positions of a body are finite and each element as long as the scene
+    says, after the arithmetic that places them (r0 + x0 L i / n): a root of 1e17 m and a body of 1 m give
+    nodes that coincide, a root of 1e308 m and a body of 1e308 m an infinite tip.
+
+    Args:
+        key: the body's dotted key if it gives its root (which is then named), else None (a hinge's child, placed
+            at its parent's tip: its length is named).
+        spec: the body's spec.
+        positions: (elements + 1) positions (3,), m, global frame.
+    """
+    spacing = spec.length / spec.elements
+    with np.errstate(over="ignore", invalid="ignore"):
+        gaps = np.linalg.norm(np.diff(np.array(positions), axis=0) / spacing, axis=1)   # scaled: no overflow
+        if np.all(np.isfinite(positions)) and np.all(np.abs(gaps - 1.0) <= NODE_SPACING_TOLERANCE):
+            return
+    where = "its root" if key is not None else "its parent's tip"
+    name, value = (f"{key}.root", list(spec.root)) if key is not None else (f"{spec.key}.length", spec.length)
+    raise SceneError(name, value, f"a body whose nodes, {spacing:g} m apart, stay finite and apart in double "
+                                  f"precision at {where} ({np.max(np.abs(positions[0])):g} m from the origin)")
+
+
 def _frame(span, chord) -> np.ndarray:
     """[span, chord, normal] (3, 3), columns, normal = span x chord."""
     return np.column_stack([span, chord, np.cross(span, chord)])
 
-
-def _unit(vector) -> np.ndarray:
-    v = np.asarray(vector, dtype=float)
-    return v / np.linalg.norm(v)
 
 
 def _body_order(bodies, parent_of):

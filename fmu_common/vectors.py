@@ -1,6 +1,30 @@
-"""Kernels on 3-vectors both units use: the cross product on stacks of vectors, the cross-product matrix, a
-rotation about an axis (Rodrigues)."""
+"""Kernels on 3-vectors both units use: the unit vector of a direction, the cross product on stacks of vectors,
+the cross-product matrix, a rotation about an axis (Rodrigues)."""
 import numpy as np
+
+
+def unit(vector) -> np.ndarray:
+    """The unit vector v / |v| of a direction given with any finite, non-zero length.
+
+    v is first divided by its largest |component|, so that |v| neither overflows (components near 1e308) nor
+    underflows (near 1e-308): the direction is the one written, whatever its scale. Every direction a scene
+    gives (axes, lines, normals, the flow) is normalized here.
+
+    Args:
+        vector: (3,) finite, not all zero.
+
+    Returns:
+        (3,) of length 1 (to round-off).
+
+    Raises:
+        ValueError: a vector that is not finite, or zero.
+    """
+    v = np.asarray(vector, dtype=float)
+    largest = float(np.max(np.abs(v))) if v.size else 0.0
+    if not (np.isfinite(largest) and largest > 0):
+        raise ValueError(f"no direction: {v.tolist()} is zero or not finite")
+    v = v / largest
+    return v / np.linalg.norm(v)
 
 
 def cross(a, b):

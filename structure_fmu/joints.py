@@ -28,6 +28,14 @@ def _sine_cosine(a0, a1, a2, b0, b1, b2, n0, n1, n2):
     return axb, axb[0] * n0 + axb[1] * n1 + axb[2] * n2, a0 * b0 + a1 * b1 + a2 * b2
 
 
+def _angle_weight(s, c):
+    """1 / (s^2 + c^2), the weight of d atan2(s, c); NaN where s = c = 0 (a state whose vectors vanished, to
+    underflow, has no fold angle): the integrator's finite check then reports a divergence, where a float
+    division would raise ZeroDivisionError."""
+    r2 = s * s + c * c
+    return 1.0 / r2 if r2 > 0 else math.nan
+
+
 def fold_angle(x):
     """theta (rad) of a chord-axis hinge.
 
@@ -49,7 +57,7 @@ def fold_angle_gradient(x):
     """
     a0, a1, a2, b0, b1, b2, n0, n1, n2 = values = x.tolist()
     (p0, p1, p2), s, c = _sine_cosine(*values)
-    w = 1.0 / (s * s + c * c)
+    w = _angle_weight(s, c)
     cw, sw = c * w, s * w                   # d atan2(s, c) = (c ds - s dc) / (s^2 + c^2)
     # d s / d a = b x n, d s / d b = n x a, d s / d n = a x b = p; d c / d a = b, d c / d b = a (written out:
     # this runs at every acceleration evaluation, and one list is the cheapest way to build the array)
@@ -145,7 +153,7 @@ def axis_angle_gradient(x, hinge):
     if not ground:
         ds = _direction_gradient(xa, la, rya, binormal, Q) + ds
         dc = _direction_gradient(xa, la, rya, p, Q) + dc
-    w = 1.0 / (s * s + c * c)
+    w = _angle_weight(s, c)
     return math.atan2(s, c), np.array([(c * a - s * b) * w for a, b in zip(ds, dc)])
 
 

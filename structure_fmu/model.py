@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
+from fmu_common.errors import SceneError
 from fmu_common.shape_functions import shape_row
 
 from . import element
@@ -65,6 +66,7 @@ class StructureModel:
         for node, mass in topology.masses:
             self.mass_E[9 * node:9 * node + 3, 9 * node:9 * node + 3] += mass * np.eye(3)
             self.gravity_E[9 * node:9 * node + 3] += mass * gravity
+        _check_finite_masses(topology, element_mass, self.gravity_E, gravity)
         self.mass_q = self.T.T @ self.mass_E @ self.T
         # M_q^-1, once: the explicit integrator's solves become products (M_q is SPD; its condition number,
         # 1e7-1e8 with 7-15 elements per body, costs at most ~1e-8 relative, below the projection's tolerance)
@@ -510,6 +512,26 @@ class StructureModel:
         for h in self.hinges:
             spring += actuator_energy(h, angles[h.name], latched.get(h.name, False))
         return elastic + potential + spring
+
+
+def _check_finite_masses(topology, element_mass, gravity_E, gravity) -> None:
+    """SceneError naming the key unless every element's mass matrix and every weight are finite, after the
+    products of finite scene values that give them (rho A L, rho A L^3; m g of the elements and lumped masses).
+
+    Args:
+        topology: the StructureTopology.
+        element_mass: (elements, 18, 18) element mass matrices, kg (and kg m, kg m^2).
+        gravity_E: (n,) generalized gravity force on E, N.
+        gravity: (3,) m/s^2.
+    """
+    for body, mass in zip(topology.element_body, element_mass):
+        if not np.all(np.isfinite(mass)):
+            raise SceneError(f"structure.bodies.{body}.length", topology.bodies[body].length,
+                             "a length whose elements have a finite mass matrix with the section's mass per length "
+                             "(rho A L and rho A L^3 overflow)")
+    if not np.all(np.isfinite(gravity_E)):
+        raise SceneError("structure.gravity", gravity.tolist(), "a gravity whose weights m g of the bodies and "
+                                                                "masses are finite numbers (they overflow)")
 
 
 class _Reduction:

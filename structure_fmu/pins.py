@@ -19,7 +19,7 @@ import numpy as np
 from fmu_common.choices import fidelity_names
 from fmu_common.errors import SceneError
 from fmu_common.wing_spec import PinSpec, SliderSpec
-from fmu_common.vectors import perpendiculars
+from fmu_common.vectors import perpendiculars, unit
 
 from .constraints import AxisProduct, LinearRow
 from .joint_rows import SlidingRow
@@ -130,9 +130,9 @@ def add_sliders(top, joints) -> None:
                                                       f"fidelity (not {top.fidelity.name})")
         node = top.node_at(f"{key}.span", spec.body, spec.span)
         if spec.line is not None:
-            normals = perpendiculars(np.asarray(spec.line, float) / np.linalg.norm(spec.line))
+            normals = perpendiculars(unit(spec.line))
         else:
-            normals = [np.asarray(spec.plane_normal, float) / np.linalg.norm(spec.plane_normal)]
+            normals = [unit(spec.plane_normal)]
         start = top.node_initial[node][0]
         if spec.other is None:
             top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]

@@ -49,11 +49,14 @@ class StructureSolver:
         q0 = self.model.initial_coordinates()
         n_q = len(q0)
         n_c = self.model.constraint_count
-        self.state = State(0.0, q0, self._initial_rates(), np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
+        with np.errstate(over="ignore", invalid="ignore"):     # an overflow is refused by _check_initial_rates
+            rates = self._initial_rates()
+        self.state = State(0.0, q0, rates, np.zeros(n_q), np.zeros(n_q), np.zeros(n_c))
         self._zero_Q = np.zeros(self.topology.n_coordinates)
         self._last_Q = self._zero_Q
         self._initialized = False
         self._cache = ((None, None), (None, None))   # (state, _evaluated values), newest first
+        self._check_initial_rates()
         self._check_initial_constraints()
 
     def _initial_rates(self):
@@ -85,6 +88,23 @@ class StructureSolver:
             {name: (default, unit, description)}.
         """
         return dict(spec.parameters)
+
+    def _check_initial_rates(self):
+        """SceneError naming the fastest body's `angular_velocity` unless the initial rates and their kinetic energy
+        1/2 dE^T M dE are finite: finite rates (rad/s) can overflow in omega x r or in the energy, and would start
+        the unit from NaN."""
+        spins = self.topology.angular_velocity
+        if not spins:
+            return
+        _, dE, _ = self.model.coordinates(self.state.q, self.state.dq, 0.0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            kinetic = 0.5 * float(np.dot(dE, np.dot(self.model.mass_E, dE)))
+        if np.all(np.isfinite(self.state.dq)) and math.isfinite(kinetic):
+            return
+        name = max(spins, key=lambda body: float(np.max(np.abs(spins[body]))))
+        raise SceneError(f"structure.bodies.{name}.angular_velocity", spins[name].tolist(),
+                         f"a rotation rate whose initial rates and kinetic energy are finite numbers (they are not: "
+                         f"1/2 dE^T M dE = {kinetic:g} J)")
 
     def _check_initial_constraints(self):
         if self.model.constraint_count == 0:

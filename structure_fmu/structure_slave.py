@@ -30,21 +30,23 @@ from __future__ import annotations
 # first: inside an FMU, one message names every package the Python it runs in lacks (fmu_common/dependencies.py)
 from fmu_common import dependencies  # noqa: F401
 
-# Only the abstract SolverSlave is imported: pythonfmu's builder picks the one concrete Fmi2Slave subclass of
-# this module. Absolute imports: inside the FMU this script sits at the top of resources/, which pythonfmu puts
-# on sys.path, beside the embedded packages.
-from fmu_common.fmi_slave import SolverSlave
-from fmu_common.specs import StructureUnitSpec
-from structure_fmu.interface import STRUCTURE
-from structure_fmu.solver import StructureSolver
+# Modules, not classes, are imported: pythonfmu's fmi2Instantiate runs this script once more and keeps, for each
+# class the run binds, a list it never frees (fmu_common/fmi_slave.py); the slave class is then the only one, and
+# `SolverSlave`'s metaclass makes it the module's own. Pythonfmu's builder picks the one concrete Fmi2Slave
+# subclass of this module. Absolute imports: inside the FMU this script sits at the top of resources/, which
+# pythonfmu puts on sys.path, beside the embedded packages.
+import fmu_common.fmi_slave
+import fmu_common.specs
+import structure_fmu.interface
+import structure_fmu.solver
 
 
-class StructureSlave(SolverSlave):
+class StructureSlave(fmu_common.fmi_slave.SolverSlave):
     """The structure unit's FMI 2.0 co-simulation slave over StructureSolver."""
 
     author = "wingsim"
-    label = STRUCTURE.unit
+    label = structure_fmu.interface.STRUCTURE.unit
     model_name = "structure"
-    solver_class = StructureSolver
-    spec_class = StructureUnitSpec
-    interface = STRUCTURE
+    solver_class = structure_fmu.solver.StructureSolver
+    spec_class = fmu_common.specs.StructureUnitSpec
+    interface = structure_fmu.interface.STRUCTURE

@@ -32,7 +32,7 @@ from fmu_common import topology
 from fmu_common.errors import SceneError
 from fmu_common.choices import fidelity_names
 from fmu_common.wing_spec import ParentJointSpec, StructureSpec
-from fmu_common.vectors import perpendiculars
+from fmu_common.vectors import perpendiculars, unit
 
 from .constraints import AxisProduct, LinearRow
 from .joint_rows import SlidingRow
@@ -218,7 +218,7 @@ class StructureTopology(topology.Topology):
         frequency = spec.frequency
         if alpha != 0.0:     # the schema refuses alpha_deg with an oscillating pitch or a heave
             amplitude, frequency, phase = alpha, 0.0, np.pi / 2
-        self.motions.append(HeavePitch(heave_axis / np.linalg.norm(heave_axis), -x0, pivot, spec.heave_amplitude,
+        self.motions.append(HeavePitch(unit(heave_axis), -x0, pivot, spec.heave_amplitude,
                                        amplitude, frequency, phase))
         return len(self.motions) - 1
 
@@ -335,7 +335,10 @@ class StructureTopology(topology.Topology):
         body = self.bodies[self._check_body("load.body", spec.body)]
         direction = np.asarray(spec.direction, dtype=float)
         magnitude = spec.parameter * body.section.flap / body.length**2
-        force = np.array(list(magnitude * direction / np.linalg.norm(direction)), dtype=float)
+        force = magnitude * unit(direction)
+        if not np.all(np.isfinite(force)):
+            raise SceneError("load.parameter", spec.parameter, f"a value whose force P = parameter x EI_yy / L^2 is "
+                                                              f"finite (it overflows: {magnitude:g} N)")
         self._add_load(spec.key, spec.body, spec.span, spec.chord, force, spec.ramp_time)
 
     # ------------------------------------------------------------------ queries

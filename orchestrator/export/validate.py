@@ -57,10 +57,14 @@ def _simulate(path: Path, kind: str) -> list[str]:
     step = scene["coupling"]["step"]
     with tempfile.TemporaryDirectory(prefix="wingsim_validate_") as folder:
         shutil.copy(path, Path(folder) / FMU_FILES[kind])   # the units find an FMU by its kind's file name
+        copy = str(Path(folder) / FMU_FILES[kind])
+
+        def named(err: Exception) -> str:
+            return str(err).replace(copy, str(path))    # the FMU the user gave, not its temporary copy
         try:
             unit = make_unit(kind, scene, "fmu", folder, check_layout=False)   # validate checked it already
         except UnitError as err:
-            return [f"instantiation failed: {err}"]
+            return [f"instantiation failed: {named(err)}"]
         try:
             e0 = Topology.from_spec(StructureSpec.from_scene(scene)).initial_coordinates()
             for k in range(STEPS):
@@ -73,7 +77,7 @@ def _simulate(path: Path, kind: str) -> list[str]:
                 if not np.all(np.isfinite(outputs)):
                     return [f"non-finite outputs after step {k + 1} (t = {(k + 1) * step:g} s)"]
         except UnitError as err:
-            return [f"simulation failed: {err}"]
+            return [f"simulation failed: {named(err)}"]
         finally:
             unit.terminate()
     return []
@@ -83,6 +87,8 @@ def validate(path: Path) -> list[str]:
     """All problems of one FMU file: model description, then a short simulation."""
     from fmpy.validation import validate_fmu
 
+    if path.is_dir():
+        return [f"a folder, not an FMU file: {path}"]
     if not path.is_file():
         return [f"no such file: {path}"]
     try:

@@ -21,9 +21,14 @@ Summary fields (SI units, angles in degrees):
   between communication points, where the latch has already arrested the fold); null if a hinge never
   latches or no hinge has a stop;
 - ``max_constraint_residual``: the largest constraint residual over the run;
-- ``energy_drift``: (E_final - E_0) / max(|E_0|, max over the run of the kinetic energy, 1e-12 J), with
-  E_0 and E_final the first and last finite energy samples and the kinetic energy taken over the samples
-  with a finite energy (NaN samples ignored). The peak kinetic energy is the scale of the energy the
+- ``energy_drift``: (E_final - E_0 - W_external) / max(|E_0|, max over the run of the kinetic energy,
+  1e-12 J), with E_0 and E_final the first and last samples with a finite energy and external work,
+  W_external the work the structure unit integrated over the same span (``external_work``: the point loads
+  and the aerodynamic Q, trapezoidal over the internal steps), and the kinetic energy taken over those
+  samples (NaN samples ignored); null when no sample has both. It is the energy that no load accounts for:
+  the numerical drift of the integrator, plus the work of damping (always negative) and of driven motions
+  (prescribed clamps and laws, which the unit does not count), so a driven conservative structure reports
+  its numerical drift, not the work of its loads. The peak kinetic energy is the scale of the energy the
   structure exchanges, so the drift stays meaningful when E_0 = 0 (e.g. a pendulum released at rest at
   its potential datum); the 1e-12 J floor only avoids a division by zero for a structure at rest;
 - ``probes``: per probe ``initial`` and ``final`` global position [x, y, z] (m) and per-component
@@ -79,7 +84,7 @@ does not divide by zero."""
 
 def latching_hinges(scene: dict) -> list[str]:
     """Names of the scene's hinges that have a stop angle (they latch there), in scene order."""
-    return [j["name"] for j in hinge_joints(scene) if "stop_angle_deg" in j]
+    return [j["name"] for j in hinge_joints(scene) if j.get("stop_angle_deg") is not None]   # resolved: None
 
 
 def deployment_time(latch_times: dict[str, float], scene: dict) -> float | None:
@@ -91,24 +96,29 @@ def deployment_time(latch_times: dict[str, float], scene: dict) -> float | None:
     return float(max(latch_times[h] for h in stops))
 
 
-def energy_drift(energy: np.ndarray, kinetic_energy: np.ndarray | None = None) -> float | None:
-    """(E_final - E_0) / max(|E_0|, max kinetic energy, ENERGY_FLOOR_J), or None without a finite energy.
+def energy_drift(energy: np.ndarray, kinetic_energy: np.ndarray | None, external_work: np.ndarray | None
+                 ) -> float | None:
+    """(E_final - E_0 - W_external) / max(|E_0|, max kinetic energy, ENERGY_FLOOR_J), or None without a sample
+    whose energy and external work are finite.
 
-    E_0 and E_final are the first and last finite samples of ``energy`` (J); the kinetic energy (J, one
-    value per energy sample, or None) counts over the samples with a finite energy, NaN values ignored.
+    E_0 and E_final are the first and last samples of ``energy`` (J) at which the external work (J, since the
+    start, one value per energy sample) is finite too, W_external its change between them; None for the work:
+    no load acts (W_external = 0). The kinetic energy (J, one value per energy sample, or None) counts over
+    those samples, NaN values ignored.
     """
     energy = np.asarray(energy, dtype=float)
-    finite = np.isfinite(energy)
+    work = np.zeros_like(energy) if external_work is None else np.asarray(external_work, dtype=float)
+    finite = np.isfinite(energy) & np.isfinite(work)
     if not finite.any():
         return None
-    e = energy[finite]
+    e, w = energy[finite], work[finite]
     scale = max(abs(e[0]), ENERGY_FLOOR_J)
     if kinetic_energy is not None:
         kinetic = np.asarray(kinetic_energy, dtype=float)[finite]
         kinetic = kinetic[np.isfinite(kinetic)]
         if kinetic.size:
             scale = max(scale, float(kinetic.max()))
-    return float((e[-1] - e[0]) / scale)
+    return float((e[-1] - e[0] - (w[-1] - w[0])) / scale)
 
 
 def largest_magnitude(values: np.ndarray) -> float | None:
@@ -207,7 +217,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "scene": result.scene,
         "deployment_time_s": deployment_time(result.latch_times, result.scene),
         "max_constraint_residual": max_constraint_residual(series.constraint_residual),
-        "energy_drift": energy_drift(series.energy, series.kinetic_energy),
+        "energy_drift": energy_drift(series.energy, series.kinetic_energy, series.external_work),
         "probes": probe_summary(series),
     }
     if series.strain_names:

@@ -50,6 +50,7 @@ class FmuPort:
                                fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
         self.label = f"{instance_name} ({fmu_path.name}, fmu)"
+        self._fmu_path = fmu_path
         self.kind, spec = kind, KINDS[kind]
         self._fmu = None
         self._dir = None
@@ -57,7 +58,8 @@ class FmuPort:
         self._initialized = False
         self.log: list[LogEntry] = []
         if not fmu_path.is_file():
-            raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
+            what = "a folder, not an FMU file" if fmu_path.is_dir() else "not found"
+            raise UnitError(f"{self.label}: {fmu_path} {what}; build it first (wingsim build SCENE)")
         try:
             md = read_model_description(str(fmu_path))
             self._dir = extract(str(fmu_path))
@@ -85,14 +87,27 @@ class FmuPort:
         self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance_name)
+        cwd = os.getcwd()
+        try:
+            fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
+                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance_name)
+        except Exception as exc:        # fmpy: the binary is missing or not a library of this platform
+            os.chdir(cwd)               # fmpy changed to the binary's folder and did not change back
+            message = self._inside(str(exc))
+            self.close()
+            raise UnitError(f"{self.label}: cannot load {fmu_path}: {message}") from None
         try:
             self._call("fmi2Instantiate", fmu.instantiate, callbacks=self._callbacks, loggingOn=True)
         except UnitError:
             self.close()
             raise
         self._fmu = fmu
+
+    def _inside(self, text: str) -> str:
+        """`text` with the temporary folder the FMU is unpacked in written as the FMU file the user gave:
+        `<fmu>:binaries/linux64/structure.so` (the folder is deleted with the port and means nothing to them)."""
+        return text if self._dir is None else text.replace(f"{self._dir}/", f"{self._fmu_path}:").replace(
+            str(self._dir), str(self._fmu_path))
 
     def _check_scene(self, scene: dict, sections: tuple[str, ...]) -> None:
         """Refuse an FMU built from a different scene than `scene` in `sections`, but for their tunable keys
@@ -136,10 +151,10 @@ class FmuPort:
         try:
             result = fn(*args, **kwargs)
         except Exception as exc:
-            raise UnitError(f"{self.label}: {what} failed ({exc}): {self._reasons(mark)}",
+            raise UnitError(self._inside(f"{self.label}: {what} failed ({exc}): {self._reasons(mark)}"),
                             diverged=reported_divergence(self.log[mark:])) from None
         if any(entry.status >= ERROR_STATUS for entry in self.log[mark:]):
-            raise UnitError(f"{self.label}: {what} failed: {self._reasons(mark)}",
+            raise UnitError(self._inside(f"{self.label}: {what} failed: {self._reasons(mark)}"),
                             diverged=reported_divergence(self.log[mark:]))
         return result
 

@@ -53,8 +53,8 @@ def synthetic(scene, status="ok", samples=None):
     samples = len(TIME) if samples is None else samples
     series = TimeSeries.from_arrays(["tip"], ["fold"], TIME[:samples], TIP[:samples, None, :],
                                     FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples],
-                                    kinetic_energy=KINETIC[:samples], velocities=TIP_V[:samples, None, :],
-                                    accelerations=TIP_A[:samples, None, :])
+                                    kinetic_energy=KINETIC[:samples], external_work=np.zeros(samples),
+                                    velocities=TIP_V[:samples, None, :], accelerations=TIP_A[:samples, None, :])
     reached = float(TIME[samples - 1]) if samples else 0.0
     latch_times = {"fold": LATCH} if reached > LATCH else {}
     return RunResult(status, "a message", 1.25, reached, scene, series, latch_times=latch_times)
@@ -89,23 +89,23 @@ def test_energy_drift_from_zero_initial_energy_is_relative_to_peak_kinetic_energ
     energy = np.array([0.0, 0.001, -0.001, 0.0005, -0.002])
     kinetic = np.array([0.0, 0.3, 0.8, 0.5, 0.1])
     series = TimeSeries.from_arrays(["tip"], ["fold"], time, np.zeros((5, 1, 3)), np.full((5, 1), 90.0),
-                                    energy, np.zeros(5), kinetic_energy=kinetic)
+                                    energy, np.zeros(5), kinetic_energy=kinetic, external_work=np.zeros(5))
     result = RunResult("ok", "", 1.0, 0.4, scene, series)
     assert summarize(result)["energy_drift"] == pytest.approx(-2.5e-3, rel=1e-12)
-    assert energy_drift(energy, kinetic) == pytest.approx(-2.5e-3, rel=1e-12)
+    assert energy_drift(energy, kinetic, None) == pytest.approx(-2.5e-3, rel=1e-12)
 
 
 def test_energy_drift_scale_and_floor():
     # |E_0| = 3 J exceeds the peak kinetic energy 1 J: (2.7 - 3) / 3 = -0.1
-    assert energy_drift(np.array([3.0, 2.9, 2.7]), np.array([0.0, 1.0, 0.5])) == pytest.approx(-0.1)
+    assert energy_drift(np.array([3.0, 2.9, 2.7]), np.array([0.0, 1.0, 0.5]), None) == pytest.approx(-0.1)
     # NaN/inf samples are skipped, also the kinetic energy of a sample without a finite energy:
     # (0.01 - 0) / max(0, 0.5) = 0.02 (the 40 J at the NaN energy sample does not count)
     assert energy_drift(np.array([0.0, 0.005, np.nan, 0.01]),
-                        np.array([np.nan, 0.5, 40.0, 0.2])) == pytest.approx(0.02)
+                        np.array([np.nan, 0.5, 40.0, 0.2]), None) == pytest.approx(0.02)
     # at rest throughout (E_0 = 0, no kinetic energy): the 1e-12 J floor, no division by zero
-    assert energy_drift(np.array([0.0, 3e-15]), np.zeros(2)) == pytest.approx(3e-3)
-    assert energy_drift(np.array([0.0, 3e-15])) == pytest.approx(3e-3)   # no kinetic energy recorded
-    assert energy_drift(np.array([np.nan]), np.array([1.0])) is None
+    assert energy_drift(np.array([0.0, 3e-15]), np.zeros(2), None) == pytest.approx(3e-3)
+    assert energy_drift(np.array([0.0, 3e-15]), None, None) == pytest.approx(3e-3)   # no kinetic energy recorded
+    assert energy_drift(np.array([np.nan]), np.array([1.0]), None) is None
 
 
 def test_probe_displacements_relative_to_initial(scene):
