@@ -59,8 +59,8 @@ class FmuPort:
         if not fmu_path.is_file():
             raise UnitError(f"{self.label}: {fmu_path} not found; build it first (wingsim build SCENE)")
         try:
-            md = read_model_description(str(fmu_path))
             self._dir = extract(str(fmu_path))
+            md = read_model_description(self._dir)   # of the files extracted: the GUID their binary carries
         except Exception as exc:
             self.close()
             raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc
