@@ -25,7 +25,9 @@ with ``--set``, so that variants of one scene never overwrite each other's FMUs 
 in the same folders with ``-standalone`` appended.
 
 ``--out`` is checked before anything runs (``results.check_out_dir``): a file, a path below a file or a
-folder that cannot be written is refused with exit 2.
+folder that cannot be written is refused with exit 2; so is the folder of ``run`` or ``sweep`` while another
+run or sweep writes it (``orchestrator.files.folder_lock``, ``FolderBusy`` naming that run). ``build`` waits for
+a build of the same folder (``orchestrator.build.fmus.build_lock``).
 
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), a results
 file could not be written (the message names it), or an unexpected error; 2 bad scene or bad arguments

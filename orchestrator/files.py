@@ -8,11 +8,11 @@
   is in the target folder, so no rename crosses file systems, wherever the system's temporary folder is.
 - ``folder_lock(folder, record)``: an advisory lock (``flock``) on ``folder/.wingsim.lock`` (or another lock
   file), which holds the record of its holder (``process_record``: a run id, the process id, the host, the
-  command line, the start time) while it is held and nothing once released. Taken by a second process,
-  the lock is refused (``FolderBusy``, naming the holder) or waited for (``wait=True``, saying whom it
-  waits for). The kernel releases a ``flock`` when its holder dies, however it dies (SIGKILL included), so
-  a lock is never stale; the record a killed holder leaves behind is handed to the next holder, which says
-  it takes the folder over.
+  command line, the start time) and is removed when released. Taken by a second process, the lock is
+  refused (``FolderBusy``, naming the holder) or waited for (``wait=True``, saying whom it waits for). The
+  kernel releases a ``flock`` when its holder dies, however it dies (SIGKILL included), so a lock is never
+  stale; the lock file a killed holder leaves behind, with its record, is taken by the next process, which
+  says it takes the folder over.
 
 Locks are per host (``flock``); a folder shared over a network file system is not locked across machines.
 """
@@ -149,18 +149,10 @@ def folder_lock(folder: Path, record: dict, lock_file: str = LOCK_FILE, wait: bo
     path = folder / lock_file
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as err:
         raise WriteError(path, err) from err
+    fd = _acquire(path, option, folder, wait, stream)
     try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = _read_record(fd)
-            if not wait:
-                raise FolderBusy(option, folder, holder) from None
-            print(f"waiting for {describe(holder)}, which holds {folder} ...", file=stream, flush=True)
-            fcntl.flock(fd, fcntl.LOCK_EX)
         stale = _read_record(fd)
         if stale is not None:
             print(f"note: taking over {folder} from {describe(stale)}, which ended without releasing it",
@@ -169,13 +161,41 @@ def folder_lock(folder: Path, record: dict, lock_file: str = LOCK_FILE, wait: bo
             _write_record(fd, record)
         except OSError as err:
             raise WriteError(path, err) from err
-        try:
-            yield stale
-        finally:
-            with contextlib.suppress(OSError):
-                os.ftruncate(fd, 0)      # released: no record for the next holder to take over
+        yield stale
     finally:
+        with contextlib.suppress(OSError):
+            path.unlink()                # while still held: a process waiting on it opens the file anew
         os.close(fd)                     # closing releases the flock
+
+
+def _acquire(path: Path, option: str, folder: Path, wait: bool, stream) -> int:
+    """An open descriptor of the lock file `path` holding its flock (module docstring); the file may have been
+    removed by the holder that released it while this process waited on it: then opened again."""
+    waited = False
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise WriteError(path, err) from err
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _read_record(fd)
+                if not wait:
+                    raise FolderBusy(option, folder, holder) from None
+                if not waited:
+                    print(f"waiting for {describe(holder)}, which holds {folder} ...", file=stream, flush=True)
+                    waited = True
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            if os.fstat(fd).st_ino == os.stat(path).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass                         # removed by its holder as it released it: open it anew
+        except BaseException:
+            os.close(fd)
+            raise
+        os.close(fd)
 
 
 def _read_record(fd: int) -> dict | None:
