@@ -135,21 +135,25 @@ def paused_run(out: Path, cwd: Path) -> subprocess.Popen:
     return proc
 
 
-def test_a_second_run_into_a_busy_folder_is_refused_naming_the_first(tmp_path):
+def test_a_second_run_or_sweep_into_a_busy_folder_is_refused_naming_the_first(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     first = paused_run(out, tmp_path)
     second = wingsim("run", DEPLOY, *STILL, "--backend", "direct", "--set", "structure.joints.fold.torque=0.4",
                      "--out", out, cwd=tmp_path)
-    holder = json.loads((out / "run.json").read_text())
     assert second.returncode == 2, second.stderr
+    holder = json.loads((out / "run.json").read_text())
     assert f"error: --out {str(out)!r}: busy: run {holder['run_id']} (pid {first.pid} on " in second.stderr
-    assert holder["pid"] == first.pid                                            # nothing of the second
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", str(DEPLOY), *STILL, "--grid", "flow.speed=0,1", "--out", str(out)]) == 2
+    assert f"busy: run {holder['run_id']} (pid {first.pid} " in capsys.readouterr().err
+    assert holder["pid"] == first.pid and not (out / "runs").exists()            # nothing of the others
     assert json.loads((out / "summary.json").read_text())["status"] == "running"
     _, err = finished(first, "\n")
     assert first.returncode == 0, err
     record = json.loads((out / "run.json").read_text())
     assert record["pid"] == first.pid and record["complete"] is True
     assert record["overrides"] == ["aero.model=none", "time.stop=0.02"]
+    assert not (out / ".wingsim.lock").exists()                                  # released
 
 
 def test_the_folder_of_a_killed_run_is_taken_over_with_a_note(tmp_path):
@@ -165,19 +169,6 @@ def test_the_folder_of_a_killed_run_is_taken_over_with_a_note(tmp_path):
     record = json.loads((out / "run.json").read_text())
     assert record["pid"] != first.pid and record["complete"] is True
     assert json.loads((out / "summary.json").read_text())["status"] == "ok"
-
-
-def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path, capsys, monkeypatch):
-    out = tmp_path / "sweep"
-    first = paused_run(out, tmp_path)   # a run holds the folder
-    monkeypatch.chdir(tmp_path)
-    code = main(["sweep", str(DEPLOY), *STILL, "--grid", "flow.speed=0,1", "--out", str(out)])
-    assert code == 2
-    assert f"busy: run {json.loads((out / 'run.json').read_text())['run_id']} (pid {first.pid} " in \
-        capsys.readouterr().err
-    assert not (out / "runs").exists()
-    finished(first, "\n")
-    assert first.returncode == 0
 
 
 # --- builds of one folder -------------------------------------------------------------------------------------
