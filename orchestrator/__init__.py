@@ -3,6 +3,8 @@
 A stage imports only the stages above it in this list (tests/cli/test_architecture.py checks that no
 import runs in a circle and that the product never imports ``studies``):
 
+- ``files``    what every stage writes: each file whole or not at all (a temporary name in its folder, renamed),
+               each folder written by one process at a time (a lock naming its holder); no stage imported
 - ``scene``    read a TOML scene, apply ``--set``, fill defaults, validate; docs/scenes.md from the schema
 - ``build``    build the FMUs a scene needs (pythonfmu, the C shim), standalone FMUs and their runtime
 - ``run``      the units behind one interface (FMU or in-process), the coupling schemes, the run loop, the

@@ -25,7 +25,9 @@ with ``--set``, so that variants of one scene never overwrite each other's FMUs 
 in the same folders with ``-standalone`` appended.
 
 ``--out`` is checked before anything runs (``results.check_out_dir``): a file, a path below a file or a
-folder that cannot be written is refused with exit 2.
+folder that cannot be written is refused with exit 2; so is the folder of ``run`` or ``sweep`` while another
+run or sweep writes it (``orchestrator.files.folder_lock``, ``FolderBusy`` naming that run). ``build`` waits for
+a build of the same folder (``orchestrator.build.fmus.build_lock``).
 
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), a results
 file could not be written (the message names it), or an unexpected error; 2 bad scene or bad arguments
@@ -187,7 +189,7 @@ def _start_compiling_kernels() -> None:
 
 def cmd_build(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
-    from orchestrator.build.fmus import build_fmus, units_to_build
+    from orchestrator.build.fmus import build_fmus, build_lock, units_to_build
     from orchestrator.output.results import check_out_dir
     from orchestrator.scene.load import load_scene
 
@@ -195,7 +197,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     _require_standalone(args.standalone, args.win64)
     units_to_build(scene, args.units)   # a unit the scene does not build: SceneError before anything is written
     out = check_out_dir(args.out or fmu_dir(scene, _file_scene(args, scene), args.standalone))
-    for path in build_fmus(scene, out, standalone=args.standalone, win64=args.win64, units=args.units):
+    with build_lock(out):   # a concurrent build of the same folder finishes first, this one waits
+        built = build_fmus(scene, out, standalone=args.standalone, win64=args.win64, units=args.units)
+    for path in built:
         if args.standalone:
             from orchestrator.build.standalone import describe
 
@@ -318,11 +322,8 @@ def _build_if_needed(scene: dict, fmu_dir: Path, standalone: bool = False, win64
 
 def cmd_run(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
-    from orchestrator.run.master import RunResult, new_series, run_scene
-    from orchestrator.output.plots import write_plots
-    from orchestrator.run.progress import Progress
-    from orchestrator.output.results import (WriteError, check_out_dir, deployment_time, latching_hinges,
-                                      write_results, write_started)
+    from orchestrator.files import folder_lock, process_record, remove_partials
+    from orchestrator.output.results import check_out_dir
     from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene, args.overrides)
@@ -330,9 +331,26 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SceneError("--standalone", True, "standalone FMUs run with --backend fmu only")
     _require_standalone(args.standalone)
     out = check_out_dir(args.out or RESULTS_ROOT / scene["name"])
+    holder = process_record()
+    with folder_lock(out, holder):   # another run writing there: refused (exit 2), naming it
+        remove_partials(out)         # temporary files of a run killed while it wrote them
+        return _run_into(args, scene, out, holder)
+
+
+def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) -> int:
+    """`wingsim run` once `out` is held: run.json, the summary before the run, the run, the results and plots,
+    run.json completed last."""
+    from orchestrator.files import WriteError
+    from orchestrator.output.plots import write_plots
+    from orchestrator.output.results import deployment_time, latching_hinges, write_results, write_started
+    from orchestrator.output.run_record import finish_record, start_record
+    from orchestrator.run.master import RunResult, new_series, run_scene
+    from orchestrator.run.progress import Progress
+
     start = time.perf_counter()
     try:   # from here on an interrupt still writes the results (run_scene handles its own)
         try:
+            record = start_record(out, holder, args.overrides, scene_file=str(args.scene), backend=args.backend)
             write_started(scene, out)
         except WriteError as err:
             print(f"error: {err}; nothing was run", file=sys.stderr)
@@ -346,17 +364,24 @@ def cmd_run(args: argparse.Namespace) -> int:
         result = RunResult("error", f"interrupted ({err or 'SIGINT'}) before the first communication step",
                            time.perf_counter() - start, 0.0, scene, new_series(scene))
     try:
-        write_results(result, out)   # summary.json first, then timeseries.csv
+        written = write_results(result, out)   # summary.json first, then timeseries.csv
     except WriteError as err:
         print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
         print(f"error: {err}", file=sys.stderr)
         return interrupt_exit_code() or 1
     try:
-        write_plots(result, out)
+        written += write_plots(result, out)
     except Exception as err:  # the data are written; a plotting problem must not hide them
         if _debug():
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
+    else:
+        try:
+            finish_record(out, record, written)   # last: the folder is complete
+        except WriteError as err:
+            print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
+            print(f"error: {err}", file=sys.stderr)
+            return interrupt_exit_code() or 1
     print(f"{scene['name']}: {result.status}: {result.message}")
     latching = latching_hinges(scene)
     if latching:   # the answer a deployment run is for
@@ -430,7 +455,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()
     allocator.tune()
-    from orchestrator.output.results import WriteError
+    from orchestrator.files import WriteError
 
     _received.clear()
     previous = _handle_signals()

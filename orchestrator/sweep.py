@@ -11,18 +11,26 @@ runs that differ only in tunable keys, such as ``flow.speed``, which the master 
 
 Layout of the output folder ``OUT``:
 
-- ``OUT/runs/<index>_<key=value_...>/``: ``summary.json``, ``timeseries.csv`` (as ``wingsim run``),
-  ``sweep_run.json`` (the run's overrides and backend, for resuming), PNG plots with ``plots=True``;
+- ``OUT/runs/<index>_<key=value_...>/``: ``summary.json``, ``timeseries.csv`` (as ``wingsim run``), PNG plots
+  with ``plots=True``, and ``run.json`` (``orchestrator.output.run_record``: the sweep that wrote the folder, the
+  run's overrides, and under ``sweep`` its index, grid values, backend and whether it has plots; completed last,
+  with the digest of every file, once the folder is whole);
 - ``OUT/sweep.csv``: one row per run, appended as runs finish (a killed sweep keeps the finished
   rows) and rewritten complete, in grid order, at the end.
 
-Before any run starts, each run folder gets its ``sweep_run.json`` and a summary with status "running"
+The sweep holds ``OUT`` (``orchestrator.files.folder_lock``): a second sweep or run into it is refused, naming
+this one. Every file but the appended ``sweep.csv`` (rewritten whole at the end) is written to a temporary name
+in its folder and renamed (``orchestrator.files``).
+
+Before any run starts, each run folder gets its ``run.json`` (not complete) and a summary with status "running"
 (``results.write_started``). A run folder that cannot be written, a run that fails, and a run whose
 results cannot be written each get their row (status "error", the message naming the file or the
 cause) and the sweep goes on with the others.
 
-Resume: a run whose folder holds a ``summary.json`` (status ok, diverged or error) for the same
-overrides, backend and resolved scene, and its ``timeseries.csv``, is not run again.
+Resume: a run whose folder is complete (its ``run.json`` written last, every file it lists unchanged since),
+for the same overrides, backend and resolved scene, with a ``summary.json`` of status ok, diverged or error,
+and with its plots when ``plots=True`` asks for them, is not run again; any other is run again (a run killed
+while its results or plots were written included).
 
 Local workers die with the sweep's process: they ignore SIGINT (the sweep's process stops them), and on
 Linux each asks the kernel for SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)``), also when the
@@ -56,7 +64,6 @@ DONE_STATUSES = ("ok", "diverged", "error")
 FIXED_COLUMNS = ("index",)
 RESULT_COLUMNS = ("status", "deployment_time_s", "wall_time_s", "message", "run_dir")
 SKIPPED_FIGURES = {"status", "message", "wall_time_s", "stepping_wall_time_s", "deployment_time_s", "scene"}
-RUN_FILE = "sweep_run.json"
 SWEEP_CSV = "sweep.csv"
 GRID_HELP = "KEY=V1,V2,... with a dotted scene key and at least one value, e.g. --grid flow.speed=0,10,20"
 AXES = ("x", "y", "z")
@@ -182,21 +189,28 @@ def die_with_parent(parent_pid: int) -> None:
 
 # --- resume -----------------------------------------------------------------------------------------
 
-def _run_record(run: Run, backend: str) -> dict:
-    return {"index": run.index, "grid": run.values, "overrides": run.overrides, "backend": backend}
+def _sweep_fields(run: Run, backend: str, plots: bool) -> dict:
+    """What a run folder's run.json says of the sweep's run (beside its writer and overrides)."""
+    return {"index": run.index, "grid": run.values, "backend": backend, "plots": plots}
 
 
-def finished_summary(run: Run, run_dir: Path, backend: str) -> dict | None:
-    """The run folder's summary if it holds a finished run of the same overrides, backend and scene."""
+def finished_summary(run: Run, run_dir: Path, backend: str, plots: bool = False) -> dict | None:
+    """The run folder's summary if the folder is complete (``run_record.complete_record``: run.json written
+    last, every file it lists unchanged) and holds a finished run of the same overrides, backend and scene,
+    with its plots when `plots` asks for them."""
     from orchestrator.output.results import SUMMARY_FILE, TIMESERIES_FILE, json_safe
+    from orchestrator.output.run_record import complete_record
 
+    record = complete_record(run_dir)
+    if record is None or not {SUMMARY_FILE, TIMESERIES_FILE} <= set(record["files"]):
+        return None
     try:
-        record = json.loads((run_dir / RUN_FILE).read_text())
         summary = json.loads((run_dir / SUMMARY_FILE).read_text())
     except (OSError, ValueError):
         return None
-    same = (record.get("overrides") == run.overrides and record.get("backend") == backend
-            and summary.get("status") in DONE_STATUSES and (run_dir / TIMESERIES_FILE).is_file()
+    sweep = record.get("sweep") or {}
+    same = (record.get("overrides") == run.overrides and sweep.get("backend") == backend
+            and (sweep.get("plots") or not plots) and summary.get("status") in DONE_STATUSES
             and summary.get("scene") == json.loads(json.dumps(json_safe(run.scene))))
     return summary if same else None
 
@@ -270,7 +284,7 @@ class SweepTable:
 
     def add(self, row: dict) -> None:
         """Keep the row and append it to the file; WriteError naming the file if that fails."""
-        from orchestrator.output.results import WriteError
+        from orchestrator.files import WriteError
 
         self.rows[row["index"]] = row
         try:
@@ -286,7 +300,7 @@ class SweepTable:
     def close(self) -> None:
         """Rewrite the file with every row so far, sorted by index, with the union of all columns;
         WriteError naming the file if that fails (the file appended so far stays)."""
-        from orchestrator.output.results import write_file
+        from orchestrator.files import write_file
 
         if self._file is not None:
             try:
@@ -357,10 +371,22 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
     """Run (or resume) the planned runs; writes the run folders and OUT/sweep.csv (``out`` must be a
     folder that can be written: ``results.check_out_dir``). A run folder that cannot be written, a failed
     run or results that cannot be written give the run's row status "error" and the sweep goes on."""
-    from orchestrator.output.results import TIMESERIES_FILE, WriteError, summarize, write_results, write_started
+    from orchestrator.files import folder_lock, process_record
 
-    stream = stream if stream is not None else sys.stderr
     out = Path(out)
+    holder = process_record()
+    with folder_lock(out, holder, stream=stream):   # another sweep or run writing there: refused, naming it
+        return _sweep_into(runs, out, holder, backend, jobs, scheduler, plots,
+                           stream if stream is not None else sys.stderr)
+
+
+def _sweep_into(runs: list[Run], out: Path, holder: dict, backend: str, jobs: int | None, scheduler: str | None,
+                plots: bool, stream: TextIO) -> SweepOutcome:
+    """`run_sweep` once `out` is held by this process (`holder`, its record)."""
+    from orchestrator.files import WriteError, remove_partials
+    from orchestrator.output.results import TIMESERIES_FILE, summarize, write_results, write_started
+    from orchestrator.output.run_record import finish_record, start_record
+
     grid_keys = list(runs[0].values) if runs else []
     table = SweepTable(out / SWEEP_CSV, grid_keys)
     by_index = {run.index: run for run in runs}
@@ -368,7 +394,7 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
     todo = []
     for run in runs:
         run_dir = out / "runs" / run.name
-        summary = finished_summary(run, run_dir, backend)
+        summary = finished_summary(run, run_dir, backend, plots)
         if summary is None:
             todo.append(run)
         else:
@@ -379,6 +405,7 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
         print(f"sweep: {skipped}/{total} runs already done in {out / 'runs'}, running the other {len(todo)}",
               file=stream)
     statuses: dict[str, int] = {}
+    records: dict[int, dict] = {}   # run.json of each run folder prepared, by run index
 
     def record(run: Run, result: Any, status: str, message: str) -> None:
         nonlocal done
@@ -395,17 +422,20 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
         run_dir = out / "runs" / run.name
         status, message = result.status, result.message
         try:
-            write_results(result, run_dir)   # summary.json, then timeseries.csv
+            written = write_results(result, run_dir)   # summary.json, then timeseries.csv
         except WriteError as err:
             status, message = "error", f"{err} (the run itself: {result.status}: {result.message})"
         else:
-            if plots:
-                try:
+            try:
+                if plots:
                     from orchestrator.output.plots import write_plots
 
-                    write_plots(result, run_dir)
-                except Exception as err:
-                    print(f"warning: {run.name}: plots not written: {type(err).__name__}: {err}", file=stream)
+                    written += write_plots(result, run_dir)
+                if run.index in records:
+                    finish_record(run_dir, records[run.index], written)   # last: the folder is complete
+            except Exception as err:   # the folder stays incomplete: a resume runs it again
+                print(f"warning: {run.name}: {'plots' if plots else 'run.json'} not written: "
+                      f"{type(err).__name__}: {err}", file=stream)
         record(run, result, status, message)
 
     def prepare(run: Run) -> bool:
@@ -414,10 +444,11 @@ def run_sweep(runs: list[Run], out: Path, backend: str = "direct", jobs: int | N
         path = run_dir
         try:
             run_dir.mkdir(parents=True, exist_ok=True)
+            remove_partials(run_dir)       # temporary files of a sweep killed while it wrote them
             path = run_dir / TIMESERIES_FILE
             path.unlink(missing_ok=True)   # a stale one is never taken as this run's
-            path = run_dir / RUN_FILE
-            path.write_text(json.dumps(_run_record(run, backend), indent=2) + "\n")
+            records[run.index] = start_record(run_dir, holder, run.overrides,
+                                              sweep=_sweep_fields(run, backend, plots))
             write_started(run.scene, run_dir)
         except WriteError as err:
             record(run, _failed(run.scene, ""), "error", f"{err}; not run")

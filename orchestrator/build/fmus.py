@@ -20,14 +20,11 @@ binaries and a Windows runtime too (`orchestrator.build.win64`).
 """
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import hashlib
 import importlib
 import importlib.metadata
 import importlib.util
 import json
-import os
 import shutil
 import sys
 import tempfile
@@ -42,6 +39,7 @@ from fmu_common.fmi_slave import SCENE_RESOURCE
 from fmu_common.scene_schema import without_tunables
 from orchestrator.build import native_binary, standalone as standalone_fmu, win64 as windows
 from orchestrator.build.sources import UNITS, BuildError, requirements, slave_script, source_digest, sources
+from orchestrator.files import folder_lock, process_record, write_file
 from orchestrator.scene.load import check_physics
 
 BUILD_INFO_RESOURCE = "build_info.json"
@@ -90,20 +88,16 @@ def build_fmus(scene: dict, out_dir: Path, standalone: bool = False, win64: bool
     return built
 
 
-@contextlib.contextmanager
+BUILD_LOCK = ".build.lock"
+
+
 def build_lock(out_dir: Path):
-    """Hold the folder `out_dir` (created if missing) for one process while it checks and builds FMUs there:
-    runs of variants that share one folder (they differ in tunable keys only) then build it once, the others
-    waiting and finding the FMUs up to date. An advisory lock (flock) on `out_dir/.build.lock`, released when
-    the block ends or the process dies."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with open(out_dir / ".build.lock", "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    """Hold the folder `out_dir` (created if missing) for one process while it checks and builds FMUs there
+    (`orchestrator.files.folder_lock` on `out_dir/.build.lock`, waiting for a process that holds it, and saying
+    whom it waits for): concurrent builds of one folder run one after the other, each FMU is renamed into place
+    whole, and runs of variants that share one folder (they differ in tunable keys only) build it once, the
+    others waiting and finding the FMUs up to date. Released when the block ends or the process dies."""
+    return folder_lock(out_dir, process_record(), lock_file=BUILD_LOCK, wait=True)
 
 
 def refusal(standalone: bool, win64: bool) -> tuple[str, str] | None:
@@ -209,25 +203,26 @@ def _build_unit(kind: str, scene: dict, out_dir: Path, standalone: bool, win64: 
             if target.suffix == ".c":
                 _c_kernel(f, target.parent, dest)
         project_files += [stage / p for p in packages]
-        partial = out_dir / f".building-{os.getpid()}-{fmu_name}"
+
+        def build(partial: Path) -> None:   # into a temporary name beside `dest`, renamed when whole
+            try:
+                FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
+                                     canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+                _native_binary(partial, dest)
+            except SceneError:
+                raise
+            except Exception as exc:
+                raise BuildError(f"building {dest} for scene {scene.get('name', '?')!r} failed: "
+                                 f"{type(exc).__name__}: {exc}") from exc
+
         try:
-            FmuBuilder.build_FMU(script, dest=partial, project_files=project_files,
-                                 canGetAndSetFMUstate=True, canSerializeFMUstate=True)
-            _native_binary(partial, dest)
-        except SceneError:
-            partial.unlink(missing_ok=True)
-            raise
-        except Exception as exc:
-            partial.unlink(missing_ok=True)
-            raise BuildError(f"building {dest} for scene {scene.get('name', '?')!r} failed: "
-                             f"{type(exc).__name__}: {exc}") from exc
+            write_file(dest, build)
         finally:  # pythonfmu leaves the script folder on sys.path and the script in sys.modules
             sys.path[:] = saved_path
             if saved_module is None:
                 sys.modules.pop(script.stem, None)
             else:
                 sys.modules[script.stem] = saved_module
-    os.replace(partial, dest)  # atomic: a failed build never leaves a half-written FMU behind
     return dest
 
 

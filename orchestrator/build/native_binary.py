@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import os
 import shlex
 import subprocess
 import sys
@@ -26,6 +25,7 @@ import zipfile
 from pathlib import Path
 
 from fmu_common import c_library
+from orchestrator.files import write_file
 
 SHIM_SOURCE = Path(__file__).with_name("fmi_shim.c")
 WORKER_SOURCE = Path(__file__).with_name("fmi_worker.c")
@@ -196,8 +196,8 @@ def _replace_binary(fmu: Path, model_identifier: str, shim: bytes, pythonfmu_bin
     """Rewrite `fmu` with `shim` as the Linux binary and pythonfmu's beside it, and no other platform's."""
     binary = f"{PLATFORM_DIR}/{model_identifier}.so"
     kept = f"{PLATFORM_DIR}/{inner_name(model_identifier)}"
-    rewritten = fmu.with_name(fmu.name + ".shim")
-    try:
+
+    def rewrite(rewritten: Path) -> None:
         with zipfile.ZipFile(fmu) as old, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
             for info in old.infolist():
                 if info.filename == kept or not _on_linux(info.filename):
@@ -207,10 +207,8 @@ def _replace_binary(fmu: Path, model_identifier: str, shim: bytes, pythonfmu_bin
                     new.writestr(_executable_entry(kept, info.date_time), pythonfmu_binary)
                 else:
                     new.writestr(info, old.read(info))
-    except BaseException:
-        rewritten.unlink(missing_ok=True)
-        raise
-    os.replace(rewritten, fmu)
+
+    write_file(fmu, rewrite)
 
 
 def keep_linux_only(fmu: Path) -> None:
@@ -219,16 +217,14 @@ def keep_linux_only(fmu: Path) -> None:
     with zipfile.ZipFile(fmu) as old:
         if all(_on_linux(name) for name in old.namelist()):
             return
-        rewritten = fmu.with_name(fmu.name + ".linux")
-        try:
-            with zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
-                for info in old.infolist():
-                    if _on_linux(info.filename):
-                        new.writestr(info, old.read(info))
-        except BaseException:
-            rewritten.unlink(missing_ok=True)
-            raise
-    os.replace(rewritten, fmu)
+
+    def rewrite(rewritten: Path) -> None:
+        with zipfile.ZipFile(fmu) as old, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as new:
+            for info in old.infolist():
+                if _on_linux(info.filename):
+                    new.writestr(info, old.read(info))
+
+    write_file(fmu, rewrite)
 
 
 def _on_linux(name: str) -> bool:

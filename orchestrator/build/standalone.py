@@ -36,6 +36,7 @@ import zipfile
 from pathlib import Path
 
 from orchestrator.build import native_binary, runtime, win64 as windows
+from orchestrator.files import write_file
 
 PLATFORM = "linux64"
 DESCRIPTION = "standalone.json"
@@ -90,12 +91,7 @@ def make_standalone(fmus: list[Path], win64: bool = False) -> None:
                 description["win64"] = {"windows": "10 or later, x64", "python": kit.python_version()}
             (folder / "resources" / DESCRIPTION).write_text(json.dumps(description, indent=1))
         for fmu, folder in zip(fmus, folders):
-            partial = fmu.with_name(f".{fmu.name}.standalone")
-            try:
-                _pack(folder, partial)
-                os.replace(partial, fmu)
-            finally:
-                partial.unlink(missing_ok=True)
+            write_file(fmu, lambda partial, folder=folder: _pack(folder, partial))
 
 
 def describe(fmu: Path) -> str:

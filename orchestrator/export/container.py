@@ -32,7 +32,6 @@ fatal) with the unit's message, prefixed with its name, in the host's log.
 """
 from __future__ import annotations
 
-import os
 import tempfile
 import uuid
 import zipfile
@@ -41,6 +40,7 @@ from time import localtime
 
 from orchestrator.build import native_binary
 from orchestrator.export.system import COUPLING, IncompatibleFMUs, System
+from orchestrator.files import write_file
 
 CONTAINER_FILE = "wing.fmu"
 MODEL_IDENTIFIER = "wing"
@@ -182,11 +182,11 @@ def write_container(system: System, path: Path) -> Path:
     description, outputs, params = _container_description(system, public, parameters)
     configuration = _configuration(system, description, list(zip(outputs + params, public + parameters)))
     path = Path(path)
-    partial = path.with_name(f".{path.name}.partial")
-    try:
-        with tempfile.TemporaryDirectory(prefix="wingsim_container_") as folder:
-            binary = _compile(Path(folder))
-            write_model_description(description, Path(folder) / "modelDescription.xml")
+    with tempfile.TemporaryDirectory(prefix="wingsim_container_") as folder:
+        binary = _compile(Path(folder))
+        write_model_description(description, Path(folder) / "modelDescription.xml")
+
+        def write(partial: Path) -> None:   # a temporary name beside `path`, renamed when whole
             with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
                 fmu.writestr(_entry("modelDescription.xml", 0o644),
                              (Path(folder) / "modelDescription.xml").read_bytes())
@@ -194,7 +194,6 @@ def write_container(system: System, path: Path) -> Path:
                 fmu.writestr(_entry(CONFIGURATION, 0o644), configuration)
                 for component in system.components:
                     _copy_unit(fmu, component)
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
+
+        write_file(path, write)
     return path

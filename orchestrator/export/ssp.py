@@ -35,6 +35,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from orchestrator.export.system import System
+from orchestrator.files import write_file
 
 SSD_FILE = "SystemStructure.ssd"
 SSP_VERSION = "1.0"
@@ -143,17 +144,13 @@ def _units(root: ET.Element, units: list) -> None:
 
 def write_ssp(system: System, path: Path) -> Path:
     """Write the SSP package of `system` to `path` (written whole or not at all); returns `path`."""
-    path = Path(path)
-    partial = path.with_name(f".{path.name}.partial")
-    try:
+    def write(partial: Path) -> None:   # a temporary name beside `path`, renamed when whole
         with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as z:
             z.writestr(SSD_FILE, system_structure(system))
             for component in system.components:   # FMUs are zips already: stored, not compressed again
                 z.write(component.fmu, component_source(component.name), compress_type=zipfile.ZIP_STORED)
-        partial.replace(path)
-    finally:
-        partial.unlink(missing_ok=True)
-    return path
+
+    return write_file(Path(path), write)
 
 
 def parameter_set_for_fmpy(ssp: Path):

@@ -2,6 +2,7 @@
 
 - ``results``         ``timeseries.csv`` and ``summary.json`` (README, Outputs), also for a failed run
 - ``plots``           PNG plots of a run
+- ``run_record``      ``run.json``: which run wrote the folder, and whether it finished writing it
 - ``mechanism_view``  the mechanism at several instants (``mechanism.png``)
 - ``wake_view``       the wing and its wake in 3D (``wake_3d.png``), by replaying the aero unit
 """

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fmu_common.shape_functions import hermite
+from orchestrator.files import write_file
 
 MECHANISM_FILE = "mechanism.png"
 INSTANTS = 5
@@ -202,5 +203,5 @@ def write_mechanism_view(result, out_dir) -> Path | None:
         return None
     fig = mechanism_figure(result)
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=DPI)
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=DPI))   # whole or not at all
     return path

@@ -19,7 +19,8 @@
 A failure of one of the two pictures prints a warning and never affects the other plots or the run's status.
 
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
-that name from an earlier run in the same folder is removed.
+that name from an earlier run in the same folder is removed. Each PNG is written to a temporary name in the
+folder and renamed (``orchestrator.files.write_file``): a PNG under its own name is complete.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from orchestrator.files import write_file
 from orchestrator.run.master import RunResult
 from orchestrator.scene.load import hinge_joints
 
@@ -172,7 +174,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
             continue
         FigureCanvasAgg(fig)
         fig.tight_layout()
-        fig.savefig(path, dpi=DPI)
+        write_file(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=DPI))   # whole or not at all
         written.append(path)
     try:
         from orchestrator.output.wake_view import write_wake_view

@@ -5,8 +5,9 @@ summary (at worst the one written before the run):
 ``check_out_dir`` refuses an output folder that cannot be written before anything runs;
 ``write_started`` writes a summary with status "running" and the resolved scene before the run; at the end
 ``write_results`` replaces it with the final summary, then writes ``timeseries.csv`` (the plots come after).
-Each file is written to a temporary name and renamed, so a file that exists is complete (a failed write
-leaves the previous summary in place). A failed write raises ``WriteError`` naming the file and the cause.
+Each file is written to a temporary name in the folder and renamed (``orchestrator.files.write_file``), so a
+file that exists is complete (a failed write leaves the previous summary in place). A failed write raises
+``WriteError`` naming the file and the cause.
 
 Summary fields (SI units, angles in degrees):
 
@@ -56,11 +57,12 @@ import os
 import tempfile
 import warnings
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from fmu_common.errors import SceneError
+from orchestrator.files import WriteError, write_file
 from orchestrator.run.master import RunResult, new_series
 from orchestrator.scene.load import hinge_joints
 from orchestrator.run.timeseries import TimeSeries
@@ -255,14 +257,6 @@ class OutFolderError(SceneError):
         self.key, self.value, self.allowed = option, str(path), why
 
 
-class WriteError(RuntimeError):
-    """A results file could not be written; the message names the file and the cause."""
-
-    def __init__(self, path: Path, err: OSError):
-        self.path, self.cause = Path(path), err
-        super().__init__(f"cannot write {path}: {err.strerror or err}")
-
-
 def check_out_dir(path: Path, option: str = "--out") -> Path:
     """Create the folder ``path`` (and its parents) if missing and check that a file can be created in it
     (by creating and removing one: permission bits alone do not tell, e.g. for root or a read-only mount);
@@ -283,20 +277,6 @@ def check_out_dir(path: Path, option: str = "--out") -> Path:
     except OSError as err:
         raise OutFolderError(option, path, f"cannot write there: {err.strerror or err}") from err
     return path
-
-
-def write_file(path: Path, write: Callable[[Path], None]) -> None:
-    """``write(temporary path)``, then rename it to ``path``: ``path`` is either complete or untouched."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except OSError as err:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
-        raise WriteError(path, err) from err
 
 
 def write_timeseries(series: TimeSeries, path: Path) -> None:

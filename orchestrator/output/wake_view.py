@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from orchestrator.files import write_file
+
 WAKE_FILE = "wake_3d.png"
 INSTANTS = 4
 REPLAY_BUDGET_S = 60.0
@@ -293,5 +295,5 @@ def write_wake_view(result, out_dir, budget_s: float | None = None) -> Path | No
         print(f"note: {WAKE_FILE}: {note}", file=sys.stderr)
     fig = wake_figure(result.scene, snapshots, note)
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=DPI)
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=DPI))   # whole or not at all
     return path

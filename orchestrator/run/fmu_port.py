@@ -61,8 +61,8 @@ class FmuPort:
             what = "a folder, not an FMU file" if fmu_path.is_dir() else "not found"
             raise UnitError(f"{self.label}: {fmu_path} {what}; build it first (wingsim build SCENE)")
         try:
-            md = read_model_description(str(fmu_path))
             self._dir = extract(str(fmu_path))
+            md = read_model_description(self._dir)   # of the files extracted: the GUID their binary carries
         except Exception as exc:
             self.close()
             raise UnitError(f"{self.label}: cannot read {fmu_path}: {exc}") from exc

@@ -24,7 +24,9 @@ from orchestrator.cli import FMU_ROOT, fmu_dir, main
 from orchestrator.run.master import RunResult, new_series
 from orchestrator.output.results import summarize
 from orchestrator.scene.load import load_scene
-from orchestrator.sweep import RUN_FILE, combinations, finished_summary, parse_grid
+from orchestrator.files import process_record
+from orchestrator.output.run_record import finish_record, start_record
+from orchestrator.sweep import combinations, finished_summary, parse_grid
 from subprocesses import CODE_ROOT
 from repository import SCENES
 
@@ -150,7 +152,9 @@ def test_a_full_disk_loses_the_timeseries_not_the_summary(tmp_path, capsys, monk
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["simulated_time_s"] == 0.02
     assert summary["message"].endswith("(timeseries.csv not written: No space left on device)")
-    assert sorted(p.name for p in out.iterdir()) == ["summary.json"]   # no partial or temporary file
+    # no partial or temporary file, the lock released; run.json says the folder is not complete
+    assert sorted(p.name for p in out.iterdir()) == ["run.json", "summary.json"]
+    assert json.loads((out / "run.json").read_text())["complete"] is False
 
 
 def test_a_disk_full_from_the_start_keeps_the_started_summary(tmp_path, capsys, monkeypatch):
@@ -224,13 +228,21 @@ def test_resume_reruns_a_run_that_was_running_or_lost_its_timeseries(tmp_path):
     run.scene = load_scene(SCENE, run.overrides)
     run_dir = tmp_path / run.name
     run_dir.mkdir()
-    (run_dir / RUN_FILE).write_text(json.dumps({"overrides": run.overrides, "backend": "direct"}))
+    record = start_record(run_dir, process_record(), run.overrides, sweep={"backend": "direct", "plots": False})
     summary = summarize(RunResult("ok", "", 1.0, 0.3, run.scene, new_series(run.scene)))
     (run_dir / "summary.json").write_text(json.dumps(summary))
-    assert finished_summary(run, run_dir, "direct") is None            # no timeseries.csv: rerun
     (run_dir / "timeseries.csv").write_text("time\n")
+    assert finished_summary(run, run_dir, "direct") is None            # run.json not completed: rerun
+    finish_record(run_dir, record, [run_dir / "summary.json"])
+    assert finished_summary(run, run_dir, "direct") is None            # no timeseries.csv written: rerun
+    finish_record(run_dir, record, [run_dir / "summary.json", run_dir / "timeseries.csv"])
     assert finished_summary(run, run_dir, "direct") == summary          # complete: skipped
+    assert finished_summary(run, run_dir, "fmu") is None               # another backend: rerun
+    assert finished_summary(run, run_dir, "direct", plots=True) is None   # plots asked for, none made: rerun
+    (run_dir / "timeseries.csv").write_text("time\n0\n")
+    assert finished_summary(run, run_dir, "direct") is None            # changed since: rerun
     (run_dir / "summary.json").write_text(json.dumps({**summary, "status": "running"}))
+    finish_record(run_dir, record, [run_dir / "summary.json", run_dir / "timeseries.csv"])
     assert finished_summary(run, run_dir, "direct") is None            # stopped during the run: rerun
 
 

@@ -202,5 +202,5 @@ def test_fmu_backend_sweep_with_plots_matches_the_direct_runs(local_sweep, tmp_p
         assert number(row["probes.tip.max_displacement_y"]) == pytest.approx(
             number(expected["probes.tip.max_displacement_y"]), rel=1e-9, abs=1e-15)
         run_dir = out / row["run_dir"]
-        assert json.loads((run_dir / "sweep_run.json").read_text())["backend"] == "fmu"
+        assert json.loads((run_dir / "run.json").read_text())["sweep"]["backend"] == "fmu"
         assert {"fold_angles.png", "probe_displacements.png"} <= {p.name for p in run_dir.glob("*.png")}
