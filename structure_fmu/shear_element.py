@@ -48,6 +48,20 @@ C_SOURCE = Path(__file__).with_name("shear_element_kernels.c")   # the compiled 
 _POINTS = len(element.GAUSS_W) * len(CHORD_W)
 
 
+def section_table(sections):
+    """The section array (n, 7) of SECTION_COLUMNS from plate sections: G = E / (2 (1 + nu)), the leading edge at
+    -a c from the reference line.
+
+    Args:
+        sections: the n elements' plate Sections (structure_fmu.section; thickness, youngs_modulus given).
+
+    Returns:
+        (n, 7) SI.
+    """
+    return np.array([[s.youngs_modulus, s.youngs_modulus / (2.0 * (1.0 + s.poissons_ratio)), s.chord,
+                      -s.axis_position * s.chord, s.thickness, s.flap, s.torsion] for s in sections]).reshape(-1, 7)
+
+
 def _point_basis(length, section):
     """Coefficients of r_x(x, y) and r_y(x, y) on the six nodal vectors at the section's Gauss points, and the
     points' weights (m^3: l w_x c w_y h).
@@ -57,8 +71,8 @@ def _point_basis(length, section):
         section: (n, 7) columns SECTION_COLUMNS.
 
     Returns:
-        (a (n, P, 6) 1 and 1/m... such that r_x = sum_j a_j v_j, b (n, P, 6) with r_y = sum_j b_j v_j,
-        weights (n, P)), P = 15 points, x-major.
+        (a (n, P, 6) with r_x = sum_j a_j v_j (1/m on r^A, r^B; 1 on r_x; m/m on r_y), b (n, P, 6) with
+        r_y = sum_j b_j v_j, weights (n, P) m^3), P = 15 points, x-major.
     """
     length = np.asarray(length, dtype=float)
     _, dN, _, L = element.gauss_basis(length)                      # (n, 5, 4), (n, 5, 2)
