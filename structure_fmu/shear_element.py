@@ -269,6 +269,5 @@ def _compiled(kernel, e, length, section, shape):
         table, address = _table(length, section)    # the table is held until the C call returns
         status = kernel(len(e), _POINTS, address, e.ctypes.data, out.ctypes.data)
         if status != 0:
-            raise ValueError(f"the shear element C kernels cannot take {_POINTS} Gauss points "
-                             "(shear_element_kernels.c, MAX_POINTS)")
+            raise ValueError(f"the shear element C kernels refused {_POINTS} Gauss points (shear_element_kernels.c)")
     return out

@@ -14,43 +14,56 @@
  *
  * Inputs of both, C-contiguous doubles: n elements, p Gauss points per element; table (n, 2 + 9 p), per element
  * [E (Pa), G (Pa), w (p,) m^3, a (p, 6), b_A (p,), b_B (p,)] (shear_element._table); e (n, 18) (m and 1). Both
- * return 0, or -1 (nothing written) when p is not in 1..MAX_POINTS.
+ * return 0, or -1 (nothing written) when p < 1.
  *
  * Arithmetic: IEEE double, each operation rounded on its own (c_library's flags: no fused multiply-add, no
  * fast-math).
  */
-#define MAX_POINTS 64
-
 static inline double dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-/* r_x and r_y at point q of an element from its coordinates v (18,) and its coefficients. */
-static inline void point_fields(const double *v, const double *a, double bA, double bB, double rx[3],
-                                double ry[3]) {
+/* One element's row of the table: E, G (Pa) and the arrays of its p points. */
+typedef struct {
+    double E, G;
+    const double *w, *a, *bA, *bB;
+} Table;
+
+static inline Table table_row(const double *table, long k, long p) {
+    const double *t = table + k * (2 + 9 * p);
+    Table row = {t[0], t[1], t + 2, t + 2 + p, t + 2 + 7 * p, t + 2 + 8 * p};
+    return row;
+}
+
+/* r_x, r_y and the strains eps_11, eps_22, gamma at point q of an element from its coordinates v (18,). */
+static inline void point_strains(const double *v, Table s, long q, double rx[3], double ry[3], double *e11,
+                                 double *e22, double *gamma) {
+    const double *a = s.a + 6 * q;
     for (int c = 0; c < 3; c++) {
         double acc = 0.0;
         for (int j = 0; j < 6; j++) acc += a[j] * v[3 * j + c];
         rx[c] = acc;
-        ry[c] = bA * v[6 + c] + bB * v[15 + c];
+        ry[c] = s.bA[q] * v[6 + c] + s.bB[q] * v[15 + c];
     }
+    *e11 = 0.5 * (dot(rx, rx) - 1.0);
+    *e22 = 0.5 * (dot(ry, ry) - 1.0);
+    *gamma = dot(rx, ry);
 }
 
 int sheet_force(long n, long p, const double *table, const double *e, double *out) {
-    if (p < 1 || p > MAX_POINTS) return -1;
+    if (p < 1) return -1;
     for (long k = 0; k < n; k++) {
-        const double *t = table + k * (2 + 9 * p), *v = e + 18 * k;
-        const double E = t[0], G = t[1], *w = t + 2, *a = t + 2 + p, *bA = t + 2 + 7 * p, *bB = t + 2 + 8 * p;
+        const Table s = table_row(table, k, p);
+        const double *v = e + 18 * k, E = s.E, G = s.G;
         double *f = out + 18 * k;
         for (int i = 0; i < 18; i++) f[i] = 0.0;
         for (long q = 0; q < p; q++) {
-            double rx[3], ry[3];
-            point_fields(v, a + 6 * q, bA[q], bB[q], rx, ry);
-            const double e11 = 0.5 * (dot(rx, rx) - 1.0), e22 = 0.5 * (dot(ry, ry) - 1.0), gamma = dot(rx, ry);
+            double rx[3], ry[3], e11, e22, gamma;
+            point_strains(v, s, q, rx, ry, &e11, &e22, &gamma);
             for (int c = 0; c < 3; c++) {
-                const double gx = w[q] * (E * e11 * rx[c] + G * gamma * ry[c]);
-                const double gy = w[q] * (E * e22 * ry[c] + G * gamma * rx[c]);
-                for (int j = 0; j < 6; j++) f[3 * j + c] -= a[6 * q + j] * gx;
-                f[6 + c] -= bA[q] * gy;
-                f[15 + c] -= bB[q] * gy;
+                const double gx = s.w[q] * (E * e11 * rx[c] + G * gamma * ry[c]);
+                const double gy = s.w[q] * (E * e22 * ry[c] + G * gamma * rx[c]);
+                for (int j = 0; j < 6; j++) f[3 * j + c] -= s.a[6 * q + j] * gx;
+                f[6 + c] -= s.bA[q] * gy;
+                f[15 + c] -= s.bB[q] * gy;
             }
         }
     }
@@ -58,16 +71,15 @@ int sheet_force(long n, long p, const double *table, const double *e, double *ou
 }
 
 int sheet_jacobian(long n, long p, const double *table, const double *e, double *out) {
-    if (p < 1 || p > MAX_POINTS) return -1;
+    if (p < 1) return -1;
     for (long k = 0; k < n; k++) {
-        const double *t = table + k * (2 + 9 * p), *v = e + 18 * k;
-        const double E = t[0], G = t[1], *w = t + 2, *a = t + 2 + p, *bA = t + 2 + 7 * p, *bB = t + 2 + 8 * p;
+        const Table s = table_row(table, k, p);
+        const double *v = e + 18 * k, E = s.E, G = s.G, *w = s.w;
         double *K = out + 324 * k;
         for (int i = 0; i < 324; i++) K[i] = 0.0;
         for (long q = 0; q < p; q++) {
-            double rx[3], ry[3], hxx[3][3], hyy[3][3], hxy[3][3];
-            point_fields(v, a + 6 * q, bA[q], bB[q], rx, ry);
-            const double e11 = 0.5 * (dot(rx, rx) - 1.0), e22 = 0.5 * (dot(ry, ry) - 1.0), gamma = dot(rx, ry);
+            double rx[3], ry[3], hxx[3][3], hyy[3][3], hxy[3][3], e11, e22, gamma;
+            point_strains(v, s, q, rx, ry, &e11, &e22, &gamma);
             for (int c = 0; c < 3; c++)
                 for (int d = 0; d < 3; d++) {
                     const double eye = c == d ? 1.0 : 0.0;
@@ -75,8 +87,8 @@ int sheet_jacobian(long n, long p, const double *table, const double *e, double 
                     hyy[c][d] = w[q] * (E * (ry[c] * ry[d] + e22 * eye) + G * rx[c] * rx[d]);
                     hxy[c][d] = w[q] * G * (ry[c] * rx[d] + gamma * eye);   /* d/dr_x (c) d/dr_y (d) */
                 }
-            const double *aq = a + 6 * q;
-            double b[6] = {0.0, 0.0, bA[q], 0.0, 0.0, bB[q]};
+            const double *aq = s.a + 6 * q;
+            const double b[6] = {0.0, 0.0, s.bA[q], 0.0, 0.0, s.bB[q]};
             for (int i = 0; i < 6; i++)
                 for (int j = 0; j < 6; j++) {
                     const double xx = aq[i] * aq[j], yy = b[i] * b[j], xy = aq[i] * b[j], yx = b[i] * aq[j];

@@ -8,14 +8,10 @@ from scipy.spatial.transform import Rotation
 
 from elastica import elastica_tip
 from structure_fmu import element, shear_element
+from test_element import rigid_transform, straight
 
 RNG = np.random.default_rng(5)
 E_AL, G_AL, RHO_AL = 70e9, 26.3e9, 2700.0      # aluminium, Pa and kg/m^3
-
-
-def straight(length):
-    """Undeformed element along x with the chord along y."""
-    return np.array([0, 0, 0, 1, 0, 0, 0, 1, 0, length, 0, 0, 1, 0, 0, 0, 1, 0], dtype=float)
 
 
 def plate(chord, thickness, count=1, leading_edge=None):
@@ -23,12 +19,6 @@ def plate(chord, thickness, count=1, leading_edge=None):
     lead = -chord / 2 if leading_edge is None else leading_edge
     flap = E_AL * chord * thickness**3 / 12
     return np.tile([E_AL, G_AL, chord, lead, thickness, flap, 0.4 * flap], (count, 1))
-
-
-def rigid_transform(e, rotation, shift):
-    v = e.reshape(-1, 6, 3) @ rotation.T
-    v[:, [0, 3]] += shift
-    return v.reshape(-1, 18)
 
 
 def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
@@ -114,15 +104,15 @@ def static_tip(length, section, count, tip_force, steps=1):
     x, dofs, lengths, free = clamped_cantilever(length, section, count)
     sections = np.tile(section, (count, 1))
     n = len(x)
+    entries = (dofs[:, :, None] * n + dofs[:, None, :]).ravel()
     for step in range(1, steps + 1):
         load = np.zeros(n)
         load[n - 9:n - 6] = tip_force * step / steps
         for _ in range(50):
             force = load.copy()
             np.add.at(force, dofs, shear_element.elastic_force(x[dofs], lengths, sections))
-            K = np.zeros((n, n))
-            for d, k in zip(dofs, shear_element.elastic_jacobian(x[dofs], lengths, sections)):
-                K[np.ix_(d, d)] += k
+            K = np.bincount(entries, shear_element.elastic_jacobian(x[dofs], lengths, sections).ravel(),
+                            n * n).reshape(n, n)
             dx = np.linalg.solve(K[np.ix_(free, free)], force[free])
             x[free] += dx
             if np.abs(dx).max() < 1e-13 * length:
@@ -194,7 +184,7 @@ def timoshenko_frequencies(length, E, G, rho, A, I, count):
         conditions = np.array([end[3], end[1] - end[2]])
         return np.linalg.det(conditions)
     euler = np.sqrt(E * I / (rho * A * length**4))
-    grid = np.linspace(0.5, 80.0, 4000) * euler
+    grid = np.linspace(0.5, 70.0, 400) * euler       # the third Euler-Bernoulli root is 61.7
     values = [determinant(w) for w in grid]
     roots = [brentq(determinant, a, b, xtol=1e-12 * euler) for a, b, fa, fb in
              zip(grid[:-1], grid[1:], values[:-1], values[1:]) if fa * fb < 0]
