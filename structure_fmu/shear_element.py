@@ -17,8 +17,9 @@ Elastic energy, written down here because the paper is planar:
   * the energy density W = 1/2 (E eps_11^2 + E eps_22^2 + G gamma_12^2) (Eqs. 8-10 with lambda = 0; the shear
     term is 1/2 G gamma^2 = 2 mu eps_12^2: Eqs. 7 and 9 as printed, D33 = 2 mu on eps_12, give half of it).
     Poisson locking: the Poisson coupling lambda is left out (the paper's nu = 0), because r_y is constant
-    through the chord and cannot carry the linear transverse contraction of bending, so a coupled law would
-    stiffen bending by 1/(1 - nu^2); G = E / (2 (1 + nu)) keeps the material's shear modulus;
+    through the chord and cannot carry the linear transverse contraction of bending, so Eq. 9's law would
+    stiffen bending to lambda + 2 mu = E (1 - nu) / ((1 + nu) (1 - 2 nu)); G = E / (2 (1 + nu)) keeps the
+    material's shear modulus (nu: the section's poissons_ratio, default 0);
   * W is integrated over the section: exactly, 5 Gauss points along x (W is of degree 8 in x) times 3 across
     the chord (degree 4 in y), times the plate thickness h;
   * out of the sheet, where the continuum of the chord has no thickness coordinate, the element keeps the flap
