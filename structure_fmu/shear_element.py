@@ -72,7 +72,7 @@ def _point_basis(length, section):
         section: (n, 7) columns SECTION_COLUMNS.
 
     Returns:
-        (a (n, P, 6) with r_x = sum_j a_j v_j (1/m on r^A, r^B; 1 on r_x; m/m on r_y), b (n, P, 6) with
+        (a (n, P, 6) with r_x = sum_j a_j v_j (1/m on r^A, r^B; dimensionless on r_x, r_y), b (n, P, 6) with
         r_y = sum_j b_j v_j, weights (n, P) m^3), P = 15 points, x-major.
     """
     length = np.asarray(length, dtype=float)
