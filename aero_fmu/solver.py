@@ -115,6 +115,7 @@ class AeroSolver:
         self.U = values["flow.speed"] * self.direction                   # free stream, m/s
         self.density = values["flow.density"]
         self.model = build_model(self.topology, aero, max_wake_rows)
+        self.model_name = aero.model.name
         self.state = self.model.initial_state()
         self.inputs = None          # (e, de) of the last advance, at self.state.time
         self.pairing = PairingCheck(self.topology, spec.structure, self._description(spec))
@@ -230,6 +231,11 @@ class AeroSolver:
                  trailing corners rings[:, -1] along the unit free-stream direction, wake_length chords of
                  each body long (inf: semi-infinite), as `vlm.horseshoe_wake` builds them."""
         return self.model.vortex_geometry(self.state, self.direction)
+
+    def state_identity(self) -> dict:
+        """What a state must have been saved with to be set here, by scene key: {"aero.model": name} (the
+        lattice's sizes are those of the state's arrays, fmu_common.fmi_state.form_mismatch)."""
+        return {"aero.model": self.model_name}
 
     def get_state(self) -> AeroState:
         """Complete state including the wake and the last inputs (for the multi-rate interpolation), arrays

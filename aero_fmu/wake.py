@@ -34,6 +34,7 @@ ring, at most `max_rows` rings; older rings are dropped (their vorticity leaves 
 ring's back segment carries its circulation, as in Otsuka et al. 2019, Sec. VII.A).
 """
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -50,6 +51,7 @@ class ShedWake:
     """corners (B, R + 1, N + 1, 3) m and gamma (B, R, N) m^2/s; see the module docstring."""
     corners: np.ndarray
     gamma: np.ndarray
+    GROWING_AXES: ClassVar[dict] = {"corners": 1, "gamma": 1}   # R grows: a saved wake may have other rows
 
     @classmethod
     def empty(cls, head):

@@ -9,7 +9,9 @@ Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --bac
      scene), 1, 0.5 and 0; the slider travel of a_1 against the rigid mechanism's Lagrange equation
      (tests/scissor_mechanism.py, imported by putting tests/ on sys.path; its data read from the scene), the
      flexible minus rigid positions of the pivots a_2..a_4 and the flexible a_2 - a_3, a_3 - a_4 y differences
-     (Peng et al. 2019, Figs. 7 and 8);
+     (Peng et al. 2019, Figs. 7 and 8); the pivots' velocities and accelerations as the run records them
+     (timeseries.csv columns array_<pivot>_vx .. _ay): flexible against rigid, the flexible a_2..a_4 against each
+     other and a_1's y acceleration against rho_inf (their Figs. 5, 7c-f, 9 and 10);
   2. scissor_wing, rigid: the latch time of its revolute joint "deploy" (the deployment time) with uvlm-flat
      at 0, 5, 10, 15, 20 m/s and in still air without aero (aero.model=none); the flexible plates
      (generalized-alpha, h = 1e-4 s) at 10 m/s with the scene's rho_inf and with rho_inf = 0.
@@ -37,7 +39,11 @@ FLEXIBLE_WING = ("structure.integrator=generalized-alpha", "structure.step=1e-4"
 # Peng et al. 2019, Sec. 5 (their sizes, not given in the paper's text, and a deployment of about 1.5 s):
 # Fig. 7, largest flexible minus rigid difference in x and in y; Fig. 8b, largest flexible a_2 - a_3 and
 # a_3 - a_4 y differences, both at 1.5 s.
-PAPER = {"dx": 0.01498, "dy": 0.02503, "a2_a3": 0.01863, "a3_a4": 0.02203, "at": 1.5}
+PAPER = {"dx": 0.01498, "dy": 0.02503, "a2_a3": 0.01863, "a3_a4": 0.02203, "at": 1.5,
+         # Fig. 7c-f, largest amplitude of the flexible bars' vibration in velocity and acceleration; Figs. 9b and
+         # 10b, largest difference in y velocity and y acceleration between the flexible pivots a_2..a_4
+         "dv": 0.3889, "da": 18.60, "v_apart": 0.7749, "a_apart": 27.20}
+RATES = ("v", "a")                       # the recorded velocity (m/s) and acceleration (m/s^2) columns
 
 
 @dataclass(frozen=True)
@@ -84,7 +90,8 @@ def work(run):
         return out | {"deploy_s": result.latch_times.get("deploy")}
     series = result.series
     out["t"] = series.time
-    out |= {f"{p}_{axis}": series.column(f"array_{p}_{axis}") for p in POINTS for axis in "xy"}
+    out |= {f"{p}_{kind}{axis}": series.column(f"array_{p}_{kind}{axis}") for p in POINTS for kind in ("", *RATES)
+            for axis in "xy"}
     record = result.structure_coordinates
     chosen = instant_indices(record.t)
     out["frames"] = {"t": [record.t[i] for i in chosen], "e": [record.e[i] for i in chosen]}
@@ -151,8 +158,32 @@ def array_rows(res, flexible, rigid, reference, time_to):
         pivot_cells.append(f"{value:.5f} ({at:.3f} s)")
         maxima.append(value)
         times.append(at)
-    return {"travel_row": travel_row, "pivot_row": [rho, *pivot_cells], "t": t, "travel": travel, "d": d,
-            "steps": steps, "maxima": maxima, "at_end": all(at == t[-1] for at in times)}
+    a1_vibration = (np.asarray(f["a1_ay"]) - np.asarray(r["a1_ay"]))[1:]
+    a1_rms = float(np.sqrt(np.mean(a1_vibration**2)))
+    rates, rates_cells = pivot_rates(f, r, t)
+    return {"travel_row": travel_row, "pivot_row": [rho, *pivot_cells],
+            "rates_row": [rho, *rates_cells, fmt(a1_rms, ".1f")], "rates": rates | {"a1_rms": a1_rms}, "t": t,
+            "travel": travel, "d": d, "steps": steps, "maxima": maxima,
+            "at_end": all(at == t[-1] for at in times)}
+
+
+def pivot_rates(f, r, t):
+    """The pivots' velocities and accelerations of one rho_inf, from the flexible `f` and rigid `r` runs' records:
+    {"dv", "da": the largest |flexible - rigid| velocity (m/s) and acceleration (m/s^2) component over a_2..a_4;
+    "v_apart", "a_apart": the largest y velocity and y acceleration difference between two flexible pivots of
+    a_2..a_4} (the keys of PAPER), and their table cells (which pivot, axis or pair, and when)."""
+    values, cells = {}, []
+    for key, kind, digits in (("dv", "v", ".4f"), ("da", "a", ".1f")):
+        value, at, pivot, axis = max(peak(np.asarray(f[f"{p}_{kind}{axis}"]) - np.asarray(r[f"{p}_{kind}{axis}"]), t)
+                                     + (p, axis) for p in PIVOTS for axis in "xy")
+        values[key] = value
+        cells.append(f"{value:{digits}} ({pivot} {axis}, {at:.3f} s)")
+    for key, kind, digits in (("v_apart", "v", ".4f"), ("a_apart", "a", ".1f")):
+        value, at, pair = max(peak(np.asarray(f[f"{p}_{kind}y"]) - np.asarray(f[f"{q}_{kind}y"]), t) + (f"{p} - {q}",)
+                              for i, p in enumerate(PIVOTS) for q in PIVOTS[i + 1:])
+        values[key] = value
+        cells.append(f"{value:{digits}} ({pair}, {at:.3f} s)")
+    return values, cells
 
 
 def main():
@@ -191,12 +222,18 @@ def main():
 
     if not args.no_plots:
         plot(table, reference, res, array[rhos[0]][0], wing, flexible_wing)
+        if scene_rho in table:
+            plot_rates(table, res, array, scene_rho)
     REPORT.render(array_stop=array_stop, data=data, scene_rho=scene_rho, final_angle=np.degrees(theta),
                   lengths=lengths, spread=spread, rho_list=", ".join(f"{r:g}" for r in table), rho_count=len(table),
                   maxima=None if shipped is None else shipped["maxima"],
                   at_end=all(row["at_end"] for row in table.values()),
                   travel_rows=[row["travel_row"] for row in table.values()],
                   pivot_rows=[row["pivot_row"] for row in table.values()], paper=PAPER,
+                  rates_rows=[row["rates_row"] for row in table.values()],
+                  rates={rho: row["rates"] for rho, row in table.items()},
+                  a1_rms_falls_with_rho=all(table[low]["rates"]["a1_rms"] <= table[high]["rates"]["a1_rms"]
+                                            for low, high in zip(sorted(table), sorted(table)[1:])),
                   wing_rows=[wing_row(r) for r in wing + flexible_wing], wing_stop=wing_stop,
                   flexible_wing=[(r.rho_inf, res[r]) for r in flexible_wing], rigid_wing={
                       r.speed if r.model != "none" else "none": res[r].get("deploy_s") for r in wing},
@@ -209,6 +246,35 @@ def short_status(x):
     if "error" in x:
         return "error"
     return "ok" if x["status"] == "ok" else f"{x['status']} at t = {x['simulated_s']:.4g} s"
+
+
+def plot_rates(table, res, array, rho):
+    """img/scissor_pivot_rates.png (the pivots' velocities and accelerations at the scene's rho_inf `rho`:
+    flexible against rigid, Peng et al. 2019, Figs. 7c-f, 9 and 10) and scissor_a1_acceleration.png (a_1's y
+    acceleration, flexible, at every rho_inf run, and rigid: their Fig. 5)."""
+    t = table[rho]["t"]
+    f, r = (res[run] for run in array[rho])
+    fig, axes = REPORT.figure(2, 2, 11, 8)
+    for row, (kind, unit, name) in enumerate((("v", "m/s", "velocity"), ("a", "m/s^2", "acceleration"))):
+        for ax, axis in zip(axes[row], "xy"):
+            for k, p in enumerate(PIVOTS):
+                ax.plot(t, f[f"{p}_{kind}{axis}"], f"C{k}-", linewidth=0.8, label=f"{p} flexible")
+                ax.plot(t, r[f"{p}_{kind}{axis}"], f"C{k}--", linewidth=1.2, label=f"{p} rigid")
+            ax.set(xlabel="t (s)", ylabel=f"{axis} {name} ({unit})", title=f"pivots, {axis} {name}, rho_inf = {rho:g}")
+    REPORT.save(fig, "scissor_pivot_rates", legend=7)
+
+    # every rho_inf, the least dissipative (the highest) drawn first, under the others; then those below 1 after
+    # t = 0 (the initial acceleration, the same for all, dwarfs them)
+    rhos = sorted(table, key=lambda rho_k: -rho_k)
+    fig, axes = REPORT.figure(1, 2, 12, 4)
+    for ax, shown, start in ((axes[0, 0], rhos, 0), (axes[0, 1], [x for x in rhos if x < 1], 1)):
+        for rho_k in shown:
+            ax.plot(t[start:], res[array[rho_k][0]]["a1_ay"][start:], f"C{rhos.index(rho_k)}-", linewidth=0.8,
+                    label=f"flexible, rho_inf {rho_k:g}")
+        ax.plot(t[start:], r["a1_ay"][start:], "k--", label=f"rigid, rho_inf {rho:g}")
+        ax.set(xlabel="t (s)", ylabel="y acceleration of a_1 (m/s^2)",
+               title="slider a_1" + ("" if start == 0 else ", after t = 0, rho_inf < 1"))
+    REPORT.save(fig, "scissor_a1_acceleration", legend=8)
 
 
 def plot(table, reference, res, flexible, wing, flexible_wing):

@@ -4,7 +4,9 @@ tangent, structure_fmu/element_kernels.c; the strain-based sweeps along a body, 
 aero unit's Biot-Savart sums, aero_fmu/biot_savart.c), compiled once per machine by fmu_common.c_library into the
 cache folder, or into an FMU by its build.
 
-The cache folder is $WINGSIM_CACHE_DIR, else $XDG_CACHE_HOME/wingsim, else ~/.cache/wingsim.
+The cache folder is $WINGSIM_CACHE_DIR, else $XDG_CACHE_HOME/wingsim, else ~/.cache/wingsim. A compilation is
+stopped after $WINGSIM_COMPILE_SECONDS seconds (default `COMPILE_SECONDS`), so a compiler that never returns
+cannot hang a run.
 
 $WINGSIM_KERNELS selects the kernels: `compiled` (the default) or `numpy`, the pure-numpy reference that every
 kernel keeps beside it (tests check both agree to 1e-12 relative). `numpy` runs without a C compiler (an FMU
@@ -17,7 +19,11 @@ from pathlib import Path
 
 KERNELS_VARIABLE = "WINGSIM_KERNELS"
 CACHE_VARIABLE = "WINGSIM_CACHE_DIR"
+COMPILE_SECONDS_VARIABLE = "WINGSIM_COMPILE_SECONDS"
 CHOICES = ("compiled", "numpy")
+COMPILE_SECONDS = 60.0
+"""Default time limit of one C kernel's compilation, s: each compiles in under a second; the margin is for a
+loaded machine."""
 
 
 def selected() -> str:
@@ -34,3 +40,18 @@ def cache_folder() -> Path:
         return Path(os.environ[CACHE_VARIABLE])
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "wingsim"
+
+
+def compile_seconds() -> float:
+    """The time limit of one compilation, s: $WINGSIM_COMPILE_SECONDS, else `COMPILE_SECONDS`; ValueError naming
+    the variable for a value that is not a number > 0."""
+    text = os.environ.get(COMPILE_SECONDS_VARIABLE, "").strip()
+    if not text:
+        return COMPILE_SECONDS
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = float("nan")
+    if not 0 < seconds < float("inf"):
+        raise ValueError(f"{COMPILE_SECONDS_VARIABLE}={text!r}: a time limit in seconds, a number > 0")
+    return seconds

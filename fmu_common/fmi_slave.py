@@ -25,7 +25,9 @@ answers fmi2OK (fmi2Discard for do_step) with the error logged, and a host must 
     unit's own time (FMI start time + solver time, within `TIME_TOLERANCE`): the message gives both;
   * fmi2SetFMUstate of anything but a complete state this unit saved, and fmi2DeSerializeFMUstate of bytes
     that do not hold one (`fmi_state.StateUnpickler` builds only numpy arrays and the solvers' state dataclasses, so
-    foreign bytes never run code).
+    foreign bytes never run code): a state of another unit, topology, model or integrator (the solver's
+    `state_identity`, e.g. aero.model), whose solver state has other classes or sizes (`fmi_state.form_mismatch`),
+    or that holds a NaN or infinite number (`fmi_state.non_finite`) is refused naming the mismatch.
 A failure inside a step (non-finite input, `InputError`, `SolverDiverged`, any exception) is logged the
 same way, a `SolverDiverged` in the category `DIVERGED_CATEGORY` (declared in the model description's
 LogCategories) so that a host tells a divergence from other errors without reading the text; a unit that
@@ -74,7 +76,8 @@ from pythonfmu import (Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, F
 from pythonfmu.enums import Fmi2Status
 
 from .errors import InputError, SolverDiverged
-from .fmi_state import STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler
+from .fmi_state import (STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler, form_mismatch,
+                         non_finite)
 from .fmi_units import UnitReal, unit_definitions
 from .interface import (CALCULATED, INPUT, OUTPUT, Block, Interface, Layout, Output, Parameters, Reading, Variable,
                         layout)
@@ -639,7 +642,8 @@ class SolverSlave(Fmi2Slave):
     def _get_fmu_state(self):
         try:
             return {"format": STATE_FORMAT, "unit": self.label, "topology_hash": self.topology_hash,
-                    "solver": self._solver.get_state(), "real": self._real.copy(), "t0": self._t0,
+                    "identity": self._solver.state_identity(), "solver": self._solver.get_state(),
+                    "real": self._real.copy(), "t0": self._t0,
                     "phase": self._phase, "failure": self._failure,
                     "solver_parameters": dict(self._solver_parameters)}
         except Exception as exc:  # noqa: BLE001
@@ -672,11 +676,15 @@ class SolverSlave(Fmi2Slave):
             return "not a state saved by this version of the unit"
         if not isinstance(state["unit"], str) or state["unit"] != cls.label:
             return f"a state of the {state['unit']}, not of the {cls.label}"
+        where = non_finite(state)
+        if where is not None:
+            return f"it holds a number that is not finite: {where}"
         return None
 
     def _state_problem(self, state) -> str | None:
-        """Why `state` cannot be set on this unit, or None: it must be complete and saved by a unit of the
-        same class and topology."""
+        """Why `state` cannot be set on this unit, or None: it must be complete, hold finite numbers only, and be
+        saved by a unit of the same class, topology, model and integrator (the solver's `state_identity`), its
+        solver state of the same form and sizes (`fmi_state.form_mismatch`)."""
         try:
             problem = self._state_form_problem(state)
             if problem is not None:
@@ -684,6 +692,15 @@ class SolverSlave(Fmi2Slave):
             real, parameters, failure = state["real"], state["solver_parameters"], state["failure"]
             if not isinstance(state["topology_hash"], str) or state["topology_hash"] != self.topology_hash:
                 return "a state of a unit of another structural topology"
+            identity, own = state["identity"], self._solver.state_identity()
+            if not isinstance(identity, dict):
+                return "its identity entry is not valid"
+            for key, value in own.items():
+                if identity.get(key) != value:
+                    return f"a state saved with {key} = {identity.get(key)!r}, this unit runs {key} = {value!r}"
+            mismatch = form_mismatch(state["solver"], self._solver.get_state(), "state.solver")
+            if mismatch is not None:
+                return f"its solver state is not of this unit's model and sizes: {mismatch}"
             if not (isinstance(real, np.ndarray) and real.dtype == np.float64 and real.shape == self._real.shape):
                 return f"its value buffer is not {self._real.size} floats"
             if not (isinstance(state["phase"], str) and state["phase"] in PHASES

@@ -119,7 +119,7 @@ def communication_steps(scene: dict) -> int:
 def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     """Rough memory (bytes) a run holds, by part: {part: (the key that sizes it, bytes)}.
 
-    time series: one row per communication step of 8-byte numbers (time, 3 per probe, one per hinge, strain
+    time series: one row per communication step of 8-byte numbers (time, 9 per probe, one per hinge, strain
     gauge, monitor and aero column) plus ROW_BYTES; structure: about 14 dense matrices of the coordinates'
     size (maps, mass, tangent and constraint matrices, the LU and their temporaries); aero: about 12 dense
     matrices of the bound panels' size (influence, their contractions, the LU, temporaries); aero input
@@ -135,7 +135,7 @@ def memory_estimate(scene: dict) -> dict[str, tuple[str, float]]:
     """
     steps = communication_steps(scene)
     hinges = sum(1 for j in scene["structure"]["joints"] if j["type"] == "revolute")
-    columns = 1 + 3 * len(scene["probes"]) + hinges + len(scene["strain_gauges"]) + 3 + 4
+    columns = 1 + 9 * len(scene["probes"]) + hinges + len(scene["strain_gauges"]) + 3 + 4
     n = structure_coordinates(scene)
     kept = min(steps, math.ceil(steps / math.ceil(steps * n / AERO_INPUT_RECORD_VALUES)) + 1)
     parts = {"time series": ("time.stop", steps * (8.0 * columns + ROW_BYTES)),

@@ -43,6 +43,7 @@ SCISSOR_ENDS = ("free", "pin", "slide_across", "slide_along")
 MAX_SCISSORS = 50
 """The joint types that may join a parent body's tip to a child's root (the others hold a root to the ground)."""
 INTEGRATORS = choices.INTEGRATORS
+GAUGE_CURVATURES = ("model", "cubic")
 DAMPING_MODELS = ("deformation", "mass-proportional")
 
 PLATE = ("thickness", "density", "youngs_modulus")
@@ -352,9 +353,9 @@ MOTION = Table({
        "law, no structural solver runs", optional=True, rules=(_motion_rule,))
 
 PROBE = Table({
-    "name": Name("-", REQUIRED, "column prefix in timeseries.csv (`<name>_x`, `_y`, `_z`) and key in "
-                                "summary.json; the structure FMU outputs `<name>_x/_y/_z` (m), "
-                                "`<name>_vx/_vy/_vz` (m/s) and `<name>_ax/_ay/_az` (m/s^2)"),
+    "name": Name("-", REQUIRED, "column prefix in timeseries.csv and key in summary.json: the structure "
+                                "FMU outputs and the run records `<name>_x/_y/_z` (m), `<name>_vx/_vy/_vz` "
+                                "(m/s) and `<name>_ax/_ay/_az` (m/s^2)"),
     "body": Name("-", REQUIRED, _BODY_REF),
     "span": non_negative("m", "position from the body root, at most the body length"),
     "chord": fraction("where on the chord", Absent("the body's section.axis_position")),
@@ -367,6 +368,10 @@ STRAIN_GAUGE = Table({
     "span": non_negative("m", "position from the body root, at most the body length"),
     "surface_distance": positive("m", "distance from the reference line to the gauged surface",
                                  Absent("half the body's section.thickness; required without one")),
+    "curvature": Choice("-", "model", "the curvature it reads: model, the fidelity's own (the ANCF element's cubic "
+                                      "field; the strain-based element's constant kappa_y, as Otsuka et al. 2022, "
+                                      "Sec. 5 read it); cubic, the cubic interpolation of the nodal vectors, the same "
+                                      "instrument in every fidelity", options=GAUGE_CURVATURES),
 }, doc="A surface strain gauge: surface_distance x the bending curvature out of the wing plane (Otsuka et "
        "al. 2022, Sec. 5)")
 

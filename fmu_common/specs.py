@@ -99,13 +99,15 @@ class ProbeSpec:
 @dataclass(frozen=True)
 class StrainGaugeSpec:
     """A strain gauge: the surface strain at `span` (m from the root of `body`), surface_distance (m) from the
-    reference line times the flap curvature (Otsuka et al. 2022, Sec. 5)."""
+    reference line times the flap curvature (Otsuka et al. 2022, Sec. 5): the model's own ("model") or that of
+    the cubic interpolation of the nodal vectors ("cubic")."""
 
     key: str
     name: str
     body: str
     span: float
     surface_distance: float
+    curvature: str = "model"
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,8 @@ class StructureUnitSpec:
         probes = tuple(ProbeSpec(f"probes.{item_label(i, p)}", p["name"], p["body"], p["span"], p["chord"])
                        for i, p in enumerate(scene["probes"]))
         gauges = tuple(StrainGaugeSpec(f"strain_gauges.{item_label(i, g)}", g["name"], g["body"], g["span"],
-                                       g["surface_distance"]) for i, g in enumerate(scene["strain_gauges"]))
+                                       g["surface_distance"], g["curvature"])
+                       for i, g in enumerate(scene["strain_gauges"]))
         return cls(TimeSpec(scene["time"]["stop"]), CouplingSpec(scene["coupling"]["step"]),
                    StructureSpec.from_scene(scene), probes, gauges,
                    tuple(tunable_parameters(scene, "structure").items()), SceneSpec.from_scene(scene))

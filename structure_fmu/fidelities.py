@@ -246,6 +246,15 @@ class StructuralModel(Protocol):
             {hinge: fold angle, rad}.
         """
 
+    def element_curvatures(self, q) -> np.ndarray | None:
+        """Each element's own flap curvature (n_elements,) 1/m, where the model's elements carry one of their own
+        (the strain gauges reading the model's curvature take it); None where it is the cubic field of the nodal
+        vectors, which the gauges read from E.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+        """
+
     def potential_energy(self, q, E, latched, angles) -> float:
         """Elastic, gravity and actuator spring potential, J.
 

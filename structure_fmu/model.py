@@ -490,6 +490,15 @@ class StructureModel:
         return self.top.fold_angles(E)
 
     # ---------------------------------------------------------------- monitors
+    def element_curvatures(self, q):
+        """None: the ANCF element's own flap curvature is the cubic field of its nodal vectors, which the strain
+        gauges read from E (structure_fmu.sensors).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+        """
+        return None
+
     def potential_energy(self, q, E, latched, angles):
         """Elastic + gravity potential + actuator spring potential, J.
 

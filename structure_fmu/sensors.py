@@ -5,7 +5,10 @@ A probe at (body, span x, chord fraction) is a material point: its global positi
 acceleration r'' = S(x, y) dde.
 A strain gauge reads the extensional strain of the plate surface at distance d from the reference line,
 eps = d kappa_y (Euler-Bernoulli: strain = distance from the neutral surface x curvature), kappa_y the
-flap curvature of the reference line at the gauge's span (`structure_fmu.element.flap_curvature`).
+flap curvature of the reference line at the gauge's span: that of the cubic interpolation of the nodal vectors
+(`structure_fmu.element.flap_curvature`; the ANCF element's own field), or, for a gauge reading the model's own
+curvature in a model whose elements carry it (the strain-based element's constant kappa_y, Otsuka et al. 2022,
+Sec. 5), that element's.
 
 The shape rows are built once (`Topology.point_rows`), so that a sample is one matrix product on
 X = e.reshape(-1, 3). Everything is in the global frame: positions in m, velocities in m/s, strains in 1.
@@ -69,6 +72,8 @@ class Sensors:
         self._gauge_rows = np.array([topology.point_rows(g.body, g.span)[1:] for g in gauges]
                                     ).reshape(len(gauges), 3, n_slots)        # r', r'', r_y at each gauge
         self._surface_distance = np.array([g.surface_distance for g in gauges], dtype=float)   # m
+        self._reads_model = np.array([g.curvature == "model" for g in gauges], dtype=bool)
+        self._gauge_elements = np.array([topology.locate(g.body, g.span, 0.0)[0] for g in gauges], dtype=int)
         # the probes' rows, then the gauges' rows: what `outputs` reads from e, in one product
         self._position_rows = np.concatenate([self._probe_rows, self._gauge_rows.reshape(-1, n_slots)])
 
@@ -104,22 +109,27 @@ class Sensors:
         """
         return np.dot(self._probe_rows, np.asarray(de, dtype=float).reshape(-1, 3))
 
-    def strains(self, e: np.ndarray) -> np.ndarray:
+    def strains(self, e: np.ndarray, element_curvatures: np.ndarray | None = None) -> np.ndarray:
         """Surface strain of each gauge: d kappa_y, positive when the gauged (-n) face stretches (`flap_curvature`).
 
         Args:
             e: (n,) exchanged coordinates, m and 1, global frame.
+            element_curvatures: (n_elements,) each element's own flap curvature, 1/m, read by the gauges of
+                curvature "model"; None: the model's own curvature is the cubic field (the ANCF element).
 
         Returns:
             (n_gauges,) 1.
         """
         if not self.gauge_names:
             return np.zeros(0)
-        return self._strains(self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3))
+        return self._strains(self._gauge_rows @ np.asarray(e, dtype=float).reshape(-1, 3), element_curvatures)
 
-    def _strains(self, derivatives):
-        """`strains` from r', r'', r_y at each gauge (n_gauges, 3, 3)."""
-        return self._surface_distance * flap_curvature(derivatives)
+    def _strains(self, derivatives, element_curvatures):
+        """`strains` from r', r'', r_y at each gauge (n_gauges, 3, 3) and the elements' own curvatures."""
+        curvature = flap_curvature(derivatives)
+        if element_curvatures is not None:
+            curvature = np.where(self._reads_model, element_curvatures[self._gauge_elements], curvature)
+        return self._surface_distance * curvature
 
     def output_declarations(self) -> list[tuple[str, str, str]]:
         """(name, unit, description) of each output, in the order of ``outputs`` (`output_names`)."""
@@ -132,7 +142,7 @@ class Sensors:
         accelerations = [(name, "m/s2", f"global {a} acceleration of {w}")
                          for p, w in zip(self.probe_names, where) for name, a in zip(probe_output_names(p)[2], AXES)]
         strains = [(g.name, "1", f"surface strain of strain gauge {g.name} (body {g.body}, span {g.span:g} m, "
-                                 f"{g.surface_distance:g} m from the reference line)")
+                                 f"{g.surface_distance:g} m from the reference line, {g.curvature} curvature)")
                    for g in self._gauges]
         return positions + velocities + accelerations + strains
 
@@ -140,19 +150,22 @@ class Sensors:
         """Names of the outputs, in the order of ``outputs`` (`output_names`)."""
         return output_names(self.probe_names, self.gauge_names)
 
-    def outputs(self, e: np.ndarray, de: np.ndarray, dde: np.ndarray) -> np.ndarray:
+    def outputs(self, e: np.ndarray, de: np.ndarray, dde: np.ndarray,
+                element_curvatures: np.ndarray | None = None) -> np.ndarray:
         """All readings flat, in the order of ``output_names``.
 
         Args:
             e: (n,) exchanged coordinates, m and 1, global frame.
             de: (n,) their rates, per s.
             dde: (n,) their accelerations, per s^2.
+            element_curvatures: (n_elements,) 1/m or None, as in `strains`.
 
         Returns:
             positions (m), velocities (m/s), accelerations (m/s^2), strains (1).
         """
         n_probes, n_gauges = len(self.probe_names), len(self.gauge_names)
         at_e = np.dot(self._position_rows, np.asarray(e, dtype=float).reshape(-1, 3))
-        strains = self._strains(at_e[n_probes:].reshape(n_gauges, 3, 3)) if n_gauges else np.zeros(0)
+        strains = (self._strains(at_e[n_probes:].reshape(n_gauges, 3, 3), element_curvatures) if n_gauges
+                   else np.zeros(0))
         return np.concatenate([at_e[:n_probes].ravel(), self.velocities(de).ravel(), self.velocities(dde).ravel(),
                                strains])

@@ -45,6 +45,7 @@ class StructureSolver:
         self.model = model(self.topology, gravity, hinge_parameters, body_damping, structure.damping_model)
         self.step_size = values["structure.step"]
         self.integrator = integrator_for(structure)
+        self.fidelity_name = structure.fidelity.name
         q0 = self.model.initial_coordinates()
         n_q = len(q0)
         n_c = self.model.constraint_count
@@ -205,7 +206,8 @@ class StructureSolver:
         `self.sensors.output_names()`: probe positions (m), velocities (m/s) and accelerations (m/s^2), gauge
         strains (1)."""
         E, dE, _, _ = self._evaluated(self.state)
-        return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E))
+        return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E),
+                                    self.model.element_curvatures(self.state.q))
 
     def acceleration_E(self) -> np.ndarray:
         """d2E/dt2 (n,) at the current state under the generalized force of the last step (zero before the first):
@@ -240,6 +242,12 @@ class StructureSolver:
                 "constraint_residual": residual,
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
                 "latch_times": dict(self.state.latch_times)}
+
+    def state_identity(self) -> dict:
+        """What a state must have been saved with to be set here, by scene key: {"structure.fidelity": name,
+        "structure.integrator": name} (the sizes are those of the state's arrays,
+        fmu_common.fmi_state.form_mismatch)."""
+        return {"structure.fidelity": self.fidelity_name, "structure.integrator": self.integrator.name}
 
     def get_state(self):
         """Complete internal state, deep-copied, with the integrator's `memory` (generalized-alpha's Newton matrix,

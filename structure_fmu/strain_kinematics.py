@@ -26,7 +26,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from fmu_common import c_library
-from fmu_common.vectors import rotation_about, skew
+from fmu_common.vectors import rodrigues, skew
 
 STRAINS = 4
 """Strain coordinates per element: eps_x, kappa_x, kappa_y, kappa_z."""
@@ -149,6 +149,33 @@ def _large(strains, lengths):
     return ~(theta2 <= THETA_MAX**2)
 
 
+def _closed(strains, rates, lengths):
+    """(Phi, dPhi, Phi', Phi'') by the closed form for elements with theta <= THETA_MAX: the C kernel
+    element_transfers of strain_kernels.c, unless $WINGSIM_KERNELS = numpy (then _transfer_closed and
+    _transfer_second_closed, its reference; tests/units/test_strain_based.py checks both agree to 1e-12).
+    Phi' and Phi'' are None without rates."""
+    library = _c_kernels()
+    if library is None or not len(strains):
+        Phi, dPhi = _transfer_closed(strains, lengths)
+        if rates is None:
+            return Phi, dPhi, None, None
+        return Phi, dPhi, np.einsum("np,npij->nij", rates, dPhi), _transfer_second_closed(strains, rates, lengths)
+    n = len(strains)
+    strains = np.ascontiguousarray(strains, dtype=float)
+    lengths = np.ascontiguousarray(lengths, dtype=float)
+    Phi, dPhi = np.empty((n, 4, 4)), np.empty((n, STRAINS, 4, 4))
+    if rates is None:
+        library.element_transfers(n, _SERIES.ctypes.data, SERIES_TERMS, strains.ctypes.data, None,
+                                  lengths.ctypes.data, Phi.ctypes.data, dPhi.ctypes.data, None, None)
+        return Phi, dPhi, None, None
+    rates = np.ascontiguousarray(rates, dtype=float)
+    Phi_d, Phi_dd = np.empty((n, 4, 4)), np.empty((n, 4, 4))
+    library.element_transfers(n, _SERIES.ctypes.data, SERIES_TERMS, strains.ctypes.data, rates.ctypes.data,
+                              lengths.ctypes.data, Phi.ctypes.data, dPhi.ctypes.data, Phi_d.ctypes.data,
+                              Phi_dd.ctypes.data)
+    return Phi, dPhi, Phi_d, Phi_dd
+
+
 def transfer(strains, lengths):
     """Element transfer matrices and their derivatives along the strains.
 
@@ -166,7 +193,7 @@ def transfer(strains, lengths):
     strains, lengths = np.asarray(strains, dtype=float), np.asarray(lengths, dtype=float)
     large = _large(strains, lengths)
     if not large.any():
-        return _transfer_closed(strains, lengths)
+        return _closed(strains, None, lengths)[:2]
     Phi, dPhi = np.zeros((len(strains), 4, 4)), np.zeros((len(strains), STRAINS, 4, 4))
     small = ~large
     Phi[small], dPhi[small] = _transfer_closed(strains[small], lengths[small])
@@ -190,12 +217,31 @@ def transfer_second(strains, rates, lengths):
     strains, rates, lengths = (np.asarray(x, dtype=float) for x in (strains, rates, lengths))
     large = _large(strains, lengths)
     if not large.any():
-        return _transfer_second_closed(strains, rates, lengths)
+        return _closed(strains, rates, lengths)[3]
     out = np.zeros((len(strains), 4, 4))
     small = ~large
     out[small] = _transfer_second_closed(strains[small], rates[small], lengths[small])
     out[large] = transfer_second_expm(strains[large], rates[large], lengths[large])
     return out
+
+
+def transfers(strains, rates, lengths):
+    """Phi, dPhi (`transfer`), Phi' = sum_p rate_p dPhi/dxi_p and Phi'' (`transfer_second`) of the elements in one
+    pass of the closed form (the block exponential beyond THETA_MAX).
+
+    Args:
+        strains: (n, 4) the elements' strains xi.
+        rates: (n, 4) their rates, per s.
+        lengths: (n,) m.
+
+    Returns:
+        (Phi (n, 4, 4), dPhi (n, 4, 4, 4), Phi' (n, 4, 4) per s, Phi'' (n, 4, 4) per s^2).
+    """
+    strains, rates, lengths = (np.asarray(x, dtype=float) for x in (strains, rates, lengths))
+    if not _large(strains, lengths).any():
+        return _closed(strains, rates, lengths)
+    Phi, dPhi = transfer(strains, lengths)
+    return Phi, dPhi, np.einsum("np,npij->nij", rates, dPhi), transfer_second(strains, rates, lengths)
 
 
 def transfer_expm(strains, lengths):
@@ -258,76 +304,114 @@ def transfer_second_expm(strains, rates, lengths):
 C_SOURCE = Path(__file__).with_name("strain_kernels.c")    # the compiled sweeps (fmu_common.c_library)
 
 
-def body_sweep(Phi, dPhi, H0, dH0, Ht0, columns):
-    """The nodes of one body from its root node: H_{k+1} = Phi_k H_k (Otsuka et al. 2022, Eq. 7) with the
-    derivatives along q, dH_{k+1}/dq = Phi_k dH_k/dq + sum_p dPhi_k/dxi_p H_k e_{c_k + p}^T, and along t at fixed q,
-    dH_{k+1}/dt = Phi_k dH_k/dt. Runs the C kernel of strain_kernels.c unless $WINGSIM_KERNELS = numpy (the
-    numpy form below is its reference; tests/units/test_strain_based.py checks both agree to 1e-12).
+def kinematics(bodies, roots, transfers, dq, n_nodes):
+    """The nodal vectors of every body, parents first: each body's root node from what it hangs from (Otsuka et al.
+    2022, Eq. 8: H_root = C(eta) H_parent, C = blockdiag(1, c)), then along its elements H_{k+1} = Phi_k H_k
+    (Eq. 7) with dH_{k+1}/dq = Phi_k dH_k/dq + sum_p dPhi_k/dxi_p H_k e_{c_k + p}^T and dH_{k+1}/dt = Phi_k dH_k/dt at
+    fixed q; the rates dH/dt = dH/dq q' + dH/dt; the accelerations at q'' = 0, d2H_{k+1}/dt2 = Phi''_k H_k +
+    2 Phi'_k dH_k/dt + Phi_k d2H_k/dt2. Runs the C kernel body_kinematics of strain_kernels.c once per body unless
+    $WINGSIM_KERNELS = numpy (the numpy form `_body_kinematics` is its reference; tests/units/test_strain_based.py
+    checks both agree to 1e-12).
 
     Args:
-        Phi: (n_el, 4, 4) the body's transfer matrices in order from its root (`transfer`).
-        dPhi: (n_el, 4, 4, 4) their derivatives along the element's strains [p, i, j] (`transfer`).
-        H0: (4, 3) the root node's H (m and 1).
-        dH0: (4, 3, n_q) its derivative along q, zero in the columns of the body's strains and beyond.
-        Ht0: (4, 3) its derivative along t at fixed q, per s.
-        columns: (n_el,) int, the column of each element's first strain in q, increasing by 4.
+        bodies: the BodyLine of each body, parents first.
+        roots: the RootTerms of each body's root joint at this state, in the same order.
+        transfers: (Phi, dPhi, Phi', Phi'') of every element (`transfers`).
+        dq: (n_q,) the rates q', per s.
+        n_nodes: the number of nodes.
 
     Returns:
-        (H (n_el + 1, 4, 3), dH/dq (n_el + 1, 4, 3, n_q), dH/dt (n_el + 1, 4, 3)), row 0 the root's.
+        (H, dH/dq, dH/dt at fixed q, dH/dt, d2H/dt2 at q'' = 0): (n_nodes, 4, 3) each but dH/dq (n_nodes, 4, 3,
+        n_q); m, 1 and per s, per s^2.
     """
-    n_el, n_q = len(Phi), dH0.shape[-1]
-    H = np.zeros((n_el + 1, 4, 3))
-    dH = np.zeros((n_el + 1, 4, 3, n_q))
-    Ht = np.zeros((n_el + 1, 4, 3))
-    H[0], dH[0], Ht[0] = H0, dH0, Ht0
+    dq = np.ascontiguousarray(dq, dtype=float)
+    n_q = len(dq)
+    H, Ht, Hd, Hdd = (np.zeros((n_nodes, 4, 3)) for _ in range(4))
+    dH = np.zeros((n_nodes, 4, 3, n_q))
     library = _c_kernels()
-    if library is not None and n_el:
-        Phi = np.ascontiguousarray(Phi, dtype=float)
-        dPhi = np.ascontiguousarray(dPhi, dtype=float)
-        columns = np.ascontiguousarray(columns, dtype=np.int64)
-        library.body_sweep(n_el, n_q, columns.ctypes.data, Phi.ctypes.data, dPhi.ctypes.data, H.ctypes.data,
-                           dH.ctypes.data, Ht.ctypes.data)
-        return H, dH, Ht
-    for k in range(n_el):
-        H[k + 1] = Phi[k] @ H[k]
-        width = columns[k]
-        dH[k + 1, ..., :width] = np.einsum("ij,jkq->ikq", Phi[k], dH[k, ..., :width])
-        dH[k + 1, ..., width:width + STRAINS] = np.einsum("pij,jk->ikp", dPhi[k], H[k])
-        Ht[k + 1] = Phi[k] @ Ht[k]
-    return H, dH, Ht
+    if library is None:
+        for body, root in zip(bodies, roots):
+            _body_kinematics(body, root, transfers, dq, H, dH, Ht, Hd, Hdd)
+        return H, dH, Ht, Hd, Hdd
+    shared = [x.ctypes.data for x in (*transfers, dq, H, dH, Ht, Hd, Hdd)]
+    for body, root in zip(bodies, roots):
+        library.body_kinematics(body.n_el, n_q, body.first, body.first_element, body.parent, body.columns_address,
+                                root.ground.ctypes.data, root.c.ctypes.data, len(root.dc), root.offset,
+                                root.dc.ctypes.data, root.c_dot.ctypes.data, root.c_ddot.ctypes.data, *shared)
+    return H, dH, Ht, Hd, Hdd
 
 
-def body_accelerations(Phi, Phi_d, Phi_dd, H, Hd, Hdd0):
-    """d2H/dt2 of one body's nodes from its root node's: d2H_{k+1}/dt2 = Phi''_k H_k + 2 Phi'_k dH_k/dt +
-    Phi_k d2H_k/dt2 (the time derivatives of Otsuka et al. 2022, Eq. 7). Runs the C kernel of strain_kernels.c
-    unless $WINGSIM_KERNELS = numpy (the numpy form below is its reference; equal to 1e-12).
+class BodyLine:
+    """A body as the sweep sees it: its root node `first` (its nodes first..first + n_el), its first element
+    (its elements first_element..first_element + n_el - 1), the node its root hangs from (the parent's tip; -1:
+    the ground) and the column of each element's first strain in q (n_el,), increasing by 4.
 
     Args:
-        Phi: (n_el, 4, 4) the body's transfer matrices in order from its root (`transfer`).
-        Phi_d: (n_el, 4, 4) their rates, per s.
-        Phi_dd: (n_el, 4, 4) their second time derivatives, per s^2 (`transfer_second`).
-        H: (n_el + 1, 4, 3) the body's nodes, root first, m and 1.
-        Hd: (n_el + 1, 4, 3) their rates, per s.
-        Hdd0: (4, 3) the root node's d2H/dt2, per s^2.
-
-    Returns:
-        (n_el + 1, 4, 3) d2H/dt2, row 0 the root's.
+        first: the root node.
+        first_element: the first element.
+        parent: the parent's tip node, or -1.
+        columns: (n_el,) int.
     """
-    n_el = len(Phi)
-    Hdd = np.zeros((n_el + 1, 4, 3))
-    Hdd[0] = Hdd0
-    library = _c_kernels()
-    if library is not None and n_el:
-        arrays = [np.ascontiguousarray(x, dtype=float) for x in (Phi, Phi_d, Phi_dd, H, Hd)]
-        library.body_accelerations(n_el, *(x.ctypes.data for x in arrays), Hdd.ctypes.data)
-        return Hdd
+
+    def __init__(self, first, first_element, parent, columns):
+        self.first, self.first_element, self.parent = first, first_element, parent
+        self.columns = np.ascontiguousarray(columns, dtype=np.int64)
+        self.n_el = len(self.columns)
+        self.columns_address = self.columns.ctypes.data
+
+
+def _body_kinematics(body, root, transfers, dq, H, dH, Ht, Hd, Hdd):
+    """`kinematics` of one body in numpy, written into the arrays: the reference of the C kernel."""
+    first, first_element, parent, columns = body.first, body.first_element, body.parent, body.columns
+    n_el, n_q = body.n_el, len(dq)
+    Phi, dPhi, Phi_d, Phi_dd = transfers
+    if parent >= 0:
+        Hp, dHp, Htp, Hpd, Hpdd = H[parent], dH[parent], Ht[parent], Hd[parent], Hdd[parent]
+    else:
+        (Hp, Htp, Hpdd), dHp = root.ground, np.zeros((4, 3, n_q))
+        Hpd = Htp
+    c = root.c
+    H[first] = np.vstack([Hp[0], c @ Hp[1:]])
+    dH[first] = np.concatenate([dHp[:1], np.einsum("ij,jkq->ikq", c, dHp[1:])])
+    for k, dc_k in enumerate(root.dc):
+        dH[first, 1:, :, root.offset + k] += dc_k @ Hp[1:]
+    Ht[first] = np.vstack([Htp[0], c @ Htp[1:]])
+    Hdd[first] = np.vstack([Hpdd[0], root.c_ddot @ Hp[1:] + 2.0 * root.c_dot @ Hpd[1:] + c @ Hpdd[1:]])
     for k in range(n_el):
-        Hdd[k + 1] = Phi_dd[k] @ H[k] + 2.0 * Phi_d[k] @ Hd[k] + Phi[k] @ Hdd[k]
-    return Hdd
+        a, e, width = first + k, first_element + k, columns[k]
+        H[a + 1] = Phi[e] @ H[a]
+        dH[a + 1, ..., :width] = np.einsum("ij,jkq->ikq", Phi[e], dH[a, ..., :width])
+        dH[a + 1, ..., width:width + STRAINS] = np.einsum("pij,jk->ikp", dPhi[e], H[a])
+        Ht[a + 1] = Phi[e] @ Ht[a]
+    nodes = slice(first, first + n_el + 1)
+    Hd[nodes] = dH[nodes] @ dq + Ht[nodes]
+    for k in range(n_el):
+        a, e = first + k, first_element + k
+        Hdd[a + 1] = Phi_dd[e] @ H[a] + 2.0 * Phi_d[e] @ Hd[a] + Phi[e] @ Hdd[a]
+
+
+class RootTerms:
+    """What `kinematics` needs of a root joint at a state (Otsuka et al. 2022, Eq. 8).
+
+    Args:
+        c: (3, 3) the joint matrix c(eta).
+        dc: (n_eta, 3, 3) dc/deta.
+        c_dot: (3, 3) dc/dt, per s.
+        c_ddot: (3, 3) d2c/dt2 at zero parameter acceleration, per s^2.
+        offset: the column of eta's first parameter in q.
+        ground: (3, 4, 3) H, dH/dt, d2H/dt2 of the ground point the root hangs from (read when it hangs from no
+            parent).
+    """
+
+    def __init__(self, c, dc, c_dot, c_ddot, offset, ground):
+        as_c = lambda x: np.ascontiguousarray(x, dtype=float)
+        self.c, self.dc, self.c_dot, self.c_ddot = as_c(c), as_c(dc), as_c(c_dot), as_c(c_ddot)
+        self.offset, self.ground = offset, as_c(ground)
 
 
 _N, _ARRAY = ctypes.c_long, ctypes.c_void_p   # a count; a C-contiguous array, passed as its data address
-SIGNATURES = {"body_sweep": (_N, [_N, _N] + [_ARRAY] * 6), "body_accelerations": (_N, [_N] + [_ARRAY] * 6)}
+SIGNATURES = {"body_kinematics": (_N, [_N] * 5 + [_ARRAY] * 3 + [_N] * 2 + [_ARRAY] * 13),
+              "element_transfers": (_N, [_N, _ARRAY, _N] + [_ARRAY] * 7)}
 """The C functions of strain_kernels.c: {name: (restype, argtypes)} (fmu_common.c_library.kernels)."""
 
 
@@ -387,8 +471,8 @@ def quaternion_of(rotation):
     return z if z[0] >= 0 else -z
 
 
-def joint_gradients(kind, eta, axis, orientation):
-    """c(eta) and d c / d eta_k of a joint.
+def joint_terms(kind, eta, rate, axis, orientation):
+    """c(eta), d c / d eta_k, dc/dt and d2 c/dt2 (at zero parameter acceleration) of a joint.
 
     revolute (Otsuka et al. 2022, Eq. 15 for the chord axis): F_child = F_parent R(axis, theta) orientation,
     c = orientation^T R^T; ball (Eqs. 19-21): F_child = F_parent R(zeta), c = R(zeta)^T; universal (Eqs. 16-17):
@@ -397,21 +481,25 @@ def joint_gradients(kind, eta, axis, orientation):
     Args:
         kind: the joint's kind: "revolute", "ball", "universal"; any other is fixed.
         eta: (n_eta,) the joint parameters.
+        rate: (n_eta,) their rates, per s.
         axis: (3,) unit revolute axis, parent frame.
         orientation: (3, 3) the child's frame relative to the parent's at eta's origin.
 
     Returns:
-        (c (3, 3), dc (n_eta, 3, 3)).
+        (c (3, 3), dc (n_eta, 3, 3), c' (3, 3) per s, c'' (3, 3) per s^2).
     """
     if kind == "revolute":
-        R = rotation_about(axis, eta[0])
-        dR = skew(axis) @ R
-        return orientation.T @ R.T, (orientation.T @ dR.T)[None]
+        k = skew(axis)
+        R = rodrigues(k, k @ k, np.sin(eta[0]), np.cos(eta[0]))
+        dR = k @ R
+        dc = orientation.T @ dR.T
+        return orientation.T @ R.T, dc[None], dc * rate[0], orientation.T @ (k @ dR).T * rate[0] ** 2
     if kind == "ball":
-        return quaternion_matrix(eta).T, quaternion_gradient(eta).transpose(0, 2, 1)
+        dc = quaternion_gradient(eta).transpose(0, 2, 1)
+        return quaternion_matrix(eta).T, dc, np.einsum("k,kij->ij", rate, dc), 2.0 * quaternion_matrix(rate).T
     if kind == "universal":
-        return eta.reshape(3, 3).copy(), np.eye(9).reshape(9, 3, 3)
-    return orientation.T.copy(), np.zeros((0, 3, 3))
+        return eta.reshape(3, 3).copy(), np.eye(9).reshape(9, 3, 3), rate.reshape(3, 3).copy(), np.zeros((3, 3))
+    return orientation.T.copy(), np.zeros((0, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
 
 
 def quaternion_gradient(z):
@@ -428,28 +516,6 @@ def quaternion_gradient(z):
                            [[z1, z2, z3], [z2, -z1, -z0], [z3, z0, -z1]],
                            [[-z2, z1, z0], [z1, z2, z3], [-z0, z3, -z2]],
                            [[-z3, -z0, z1], [z0, -z3, z2], [z1, z2, z3]]])
-
-
-def joint_second(kind, eta, rate, axis, orientation):
-    """d2 c/dt2 at zero parameter acceleration.
-
-    Args:
-        kind: the joint's kind: "revolute", "ball", "universal"; any other is fixed.
-        eta: (n_eta,) the joint parameters.
-        rate: (n_eta,) their rates, per s.
-        axis: (3,) unit revolute axis, parent frame.
-        orientation: (3, 3) the child's frame relative to the parent's at eta's origin.
-
-    Returns:
-        (3, 3) per s^2.
-    """
-    if kind == "revolute":
-        R = rotation_about(axis, eta[0])
-        k = skew(axis)
-        return orientation.T @ (k @ k @ R).T * rate[0] ** 2
-    if kind == "ball":
-        return 2.0 * quaternion_matrix(rate).T
-    return np.zeros((3, 3))
 
 
 def initial_parameters(kind, angle, orientation):

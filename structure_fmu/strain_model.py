@@ -42,10 +42,22 @@ class _Root:
         self.child_axis, self.initial_angle = child_axis, initial_angle
         self.point, self.offset, self.motion = point, offset, motion
         self.size = 0 if kind == "driven" else sk.PARAMETERS[kind]
+        self.parent_node = -1           # the parent's tip node (set by the model), -1: the ground
+        self._ground = np.zeros((3, 4, 3))
+        self._ground[0] = self.ground()
 
     def ground(self):
         """H (4, 3) of the ground the root hangs from: its point and the global axes."""
         return np.vstack([self.point, np.eye(3)])
+
+    def terms(self, q, dq, t):
+        """strain_kinematics.RootTerms at q, q', t: a driven root hangs from its own moving ground with c = I."""
+        if self.kind == "driven":
+            zero = np.zeros((3, 3))
+            return sk.RootTerms(np.eye(3), np.zeros((0, 3, 3)), zero, zero, self.offset, np.stack(self.driven(t)))
+        eta, rate = q[self.offset:self.offset + self.size], dq[self.offset:self.offset + self.size]
+        return sk.RootTerms(*sk.joint_terms(self.kind, eta, rate, self.axis, self.orientation), self.offset,
+                            self._ground)
 
     def driven(self, t):
         """(H, dH/dt, d2H/dt2) (4, 3) each of a driven root at t (s): x(t) = pivot + R (x0 - pivot) + h and
@@ -79,6 +91,8 @@ class StrainBasedModel(StructureModel):
         offset = 0
         for name, body in topology.bodies.items():
             root = self._root(name, body, offset)
+            if root.parent is not None:
+                root.parent_node = topology.bodies[root.parent].nodes[-1]
             self.roots[name] = root
             eta0.append(sk.initial_parameters(root.kind, root.initial_angle, root.orientation)
                         if root.size else np.zeros(0))
@@ -97,9 +111,12 @@ class StrainBasedModel(StructureModel):
             self.stiffness_diagonal[self.strain_slices[name]] = (k * self.lengths[body.elements, None]).ravel()
         self._element_columns = {}       # the column of each element's first strain in q, by body
         for name, body in topology.bodies.items():
-            if any(tuple(topology.element_nodes[e]) != (body.nodes[k], body.nodes[k + 1])
-                   for k, e in enumerate(body.elements)):
-                raise ValueError(f"body {name}: its nodes do not follow its elements (strain-based sweep)")
+            first, first_element = body.nodes[0], body.elements[0] if body.elements else 0
+            if (list(body.nodes) != list(range(first, first + len(body.elements) + 1))
+                    or list(body.elements) != list(range(first_element, first_element + len(body.elements)))
+                    or any(tuple(topology.element_nodes[e]) != (body.nodes[k], body.nodes[k + 1])
+                           for k, e in enumerate(body.elements))):
+                raise ValueError(f"body {name}: its nodes and elements are not consecutive (strain-based sweep)")
             start = self.strain_slices[name].start
             self._element_columns[name] = start + sk.STRAINS * np.arange(len(body.elements), dtype=np.int64)
         # generalized-alpha's convergence test on ds eps_x (m) and ds kappa (rad), an element's elongation and
@@ -107,10 +124,15 @@ class StrainBasedModel(StructureModel):
         self.newton_weights = np.ones(self.n_q)
         for name, body in topology.bodies.items():
             self.newton_weights[self.strain_slices[name]] = np.repeat(self.lengths[body.elements], sk.STRAINS)
+        self._body_lines = [sk.BodyLine(body.nodes[0], body.elements[0] if body.elements else 0,
+                                        self.roots[name].parent_node, self._element_columns[name])
+                            for name, body in topology.bodies.items()]
+        self._strain_columns = np.zeros((len(self.lengths), sk.STRAINS), dtype=np.int64)   # q's column of xi_ep
+        for name, body in topology.bodies.items():
+            self._strain_columns[body.elements] = self._element_columns[name][:, None] + np.arange(sk.STRAINS)
         self._constraints = _JointConstraints(self.roots, self.n_q)
         self._mass_E_sparse = scipy.sparse.csr_array(self.mass_E)     # banded: element blocks along the bodies
-        self._cache_configuration = (None, None)
-        self._cache_motion = (None, None)
+        self._cache_evaluation = (None, None)
         self._cache_mass = (None, None)
         self._cache_factor = (None, None)
 
@@ -137,94 +159,32 @@ class StrainBasedModel(StructureModel):
                      initial_angle=line.initial_angle)
 
     # ---------------------------------------------------------------- kinematics
-    def _configuration(self, q, t):
-        """(H (n_nodes, 4, 3), dH/dq (n_nodes, 4, 3, n_q), dH/dt at fixed q (n_nodes, 4, 3), element
-        transfers Phi (n_el, 4, 4)) at q, t; cached for the last q, t."""
-        key = (q.tobytes(), t)
-        if self._cache_configuration[0] == key:
-            return self._cache_configuration[1]
-        top = self.top
-        n_nodes, n_q = top.n_nodes, self.n_q
-        Phi, dPhi = sk.transfer(self._per_element(q), self.lengths)
-        H = np.zeros((n_nodes, 4, 3))
-        dH = np.zeros((n_nodes, 4, 3, n_q))
-        Ht = np.zeros((n_nodes, 4, 3))
-        for name, body in top.bodies.items():
-            root, first = self.roots[name], body.nodes[0]
-            H[first], dH[first], Ht[first] = self._root_state(root, q, t, H, dH, Ht)
-            # the body's nodes follow its elements (checked at construction): one sweep along them
-            nodes, elements = body.nodes, body.elements
-            H[nodes], dH[nodes], Ht[nodes] = sk.body_sweep(Phi[elements], dPhi[elements], H[first], dH[first],
-                                                           Ht[first], self._element_columns[name])
-        value = (H, dH, Ht, Phi, dPhi)
-        self._cache_configuration = (key, value)
+    def _evaluate(self, q, dq, t):
+        """(H, dH/dq, dH/dt at fixed q, dH/dt, d2H/dt2 at q'' = 0) at q, q', t: the nodal vectors (n_nodes, 4, 3;
+        dH/dq (n_nodes, 4, 3, n_q)) by one sweep along each body, parents first (Otsuka et al. 2022, Eqs. 7-8);
+        cached for the last q, q', t."""
+        key = (q.tobytes(), dq.tobytes(), t)
+        if self._cache_evaluation[0] == key:
+            return self._cache_evaluation[1]
+        transfers = sk.transfers(q[self._strain_columns], dq[self._strain_columns], self.lengths)
+        value = sk.kinematics(self._body_lines, [root.terms(q, dq, t) for root in self.roots.values()], transfers,
+                              dq, self.top.n_nodes)
+        self._cache_evaluation = (key, value)
         return value
 
-    def _per_element(self, x):
-        """The strain entries of coordinates (or rates) x (n_q,) by element, (n_el, 4)."""
-        out = np.zeros((len(self.lengths), sk.STRAINS))
-        for name, body in self.top.bodies.items():
-            out[body.elements] = x[self.strain_slices[name]].reshape(-1, sk.STRAINS)
-        return out
-
-    def _parent_state(self, root, H, dH, Ht):
-        """(H, dH/dq, dH/dt) of what the root joint hangs from: the parent's tip node or the ground point."""
-        if root.parent is None:
-            return root.ground(), np.zeros((4, 3, self.n_q)), np.zeros((4, 3))
-        tip = self.top.bodies[root.parent].nodes[-1]
-        return H[tip], dH[tip], Ht[tip]
-
-    def _root_state(self, root, q, t, H, dH, Ht):
-        """(H, dH/dq, dH/dt) of a body's root node (Otsuka et al. 2022, Eq. 8: H_root = C(eta) H_parent)."""
-        if root.kind == "driven":
-            Hr, rate, _ = root.driven(t)
-            return Hr, np.zeros((4, 3, self.n_q)), rate
-        Hp, dHp, Htp = self._parent_state(root, H, dH, Ht)
-        eta = q[root.offset:root.offset + root.size]
-        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
-        Hr = np.vstack([Hp[0], c @ Hp[1:]])
-        dHr = np.concatenate([dHp[:1], np.einsum("ij,jkq->ikq", c, dHp[1:])])
-        for k in range(root.size):
-            dHr[1:, :, root.offset + k] += dc[k] @ Hp[1:]
-        Htr = np.vstack([Htp[0], c @ Htp[1:]])
-        return Hr, dHr, Htr
+    def _configuration(self, q, t):
+        """(H (n_nodes, 4, 3), dH/dq (n_nodes, 4, 3, n_q), dH/dt at fixed q (n_nodes, 4, 3)) at q, t: those of the
+        last evaluation when it was at q, t (whatever its q'), else of one at q' = 0."""
+        key = self._cache_evaluation[0]
+        if key is None or key[0] != q.tobytes() or key[2] != t:
+            return self._evaluate(q, np.zeros_like(q), t)[:3]
+        return self._cache_evaluation[1][:3]
 
     def _motion(self, q, dq, t):
         """(E, dE, a (n,)): exchanged coordinates, their rates and d2E/dt2 at q'' = 0 (dB/dt q' plus a driven
-        root's acceleration), from the nodal H, dH/dt, d2H/dt2 (cached for the last q, q', t)."""
-        key = (q.tobytes(), dq.tobytes(), t)
-        if self._cache_motion[0] == key:
-            return self._cache_motion[1]
-        top = self.top
-        H, dH, Ht, Phi, dPhi = self._configuration(q, t)
-        Hd = dH @ dq + Ht
-        rates = self._per_element(dq)
-        Phi_d = np.einsum("np,npij->nij", rates, dPhi)
-        Phi_dd = sk.transfer_second(self._per_element(q), rates, self.lengths)
-        Hdd = np.zeros_like(H)
-        for name, body in top.bodies.items():
-            root = self.roots[name]
-            nodes, elements = body.nodes, body.elements
-            Hdd[nodes] = sk.body_accelerations(Phi[elements], Phi_d[elements], Phi_dd[elements], H[nodes], Hd[nodes],
-                                               self._root_acceleration(root, q, dq, t, H, Hd, Hdd))
-        value = (_exchanged(H), _exchanged(Hd), _exchanged(Hdd))
-        self._cache_motion = (key, value)
-        return value
-
-    def _root_acceleration(self, root, q, dq, t, H, Hd, Hdd):
-        """d2H/dt2 of a root node at zero parameter accelerations."""
-        if root.kind == "driven":
-            return root.driven(t)[2]
-        if root.parent is None:
-            Hp, Hpd, Hpdd = root.ground(), np.zeros((4, 3)), np.zeros((4, 3))
-        else:
-            tip = self.top.bodies[root.parent].nodes[-1]
-            Hp, Hpd, Hpdd = H[tip], Hd[tip], Hdd[tip]
-        eta, rate = q[root.offset:root.offset + root.size], dq[root.offset:root.offset + root.size]
-        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
-        c_dot = np.einsum("k,kij->ij", rate, dc) if root.size else np.zeros((3, 3))
-        c_ddot = sk.joint_second(root.kind, eta, rate, root.axis, root.orientation)
-        return np.vstack([Hpdd[0], c_ddot @ Hp[1:] + 2.0 * c_dot @ Hpd[1:] + c @ Hpdd[1:]])
+        root's acceleration)."""
+        H, _, _, Hd, Hdd = self._evaluate(q, dq, t)
+        return _exchanged(H), _exchanged(Hd), _exchanged(Hdd)
 
     def acceleration_E(self, q, dq, ddq, t):
         """d2E/dt2 for q'' = ddq: B q'' + dB/dt q' (plus a driven root's acceleration).
@@ -267,49 +227,8 @@ class StrainBasedModel(StructureModel):
             dq: (n_q,) their rates, per s.
             t: time, s.
         """
-        if self._cache_motion[0] == (q.tobytes(), dq.tobytes(), t):
-            E, dE, _ = self._cache_motion[1]
-            return E, dE, None
-        if self._cache_configuration[0] == (q.tobytes(), t):
-            H, dH, Ht = self._cache_configuration[1][:3]
-            return _exchanged(H), _exchanged(dH @ dq + Ht), None
-        H, Hd = self._nodal_rates(q, dq, t)
-        return _exchanged(H), _exchanged(Hd), None
-
-    def _nodal_rates(self, q, dq, t):
-        """(H, dH/dt) (n_nodes, 4, 3) at q, q', t by one sweep of the recursion without dH/dq: H_b = Phi H_a,
-        dH_b/dt = (dPhi/dt) H_a + Phi dH_a/dt (Otsuka et al. 2022, Eqs. 7-8), for a state whose B is not
-        needed (the solver's checks and outputs at a step's end); equal to (H, dH/dq q' + dH/dt) of
-        _configuration to round-off."""
-        top = self.top
-        Phi, dPhi = sk.transfer(self._per_element(q), self.lengths)
-        Phi_d = np.einsum("np,npij->nij", self._per_element(dq), dPhi)
-        H = np.zeros((top.n_nodes, 4, 3))
-        Hd = np.zeros((top.n_nodes, 4, 3))
-        for name, body in top.bodies.items():
-            root, first = self.roots[name], body.nodes[0]
-            H[first], Hd[first] = self._root_rates(root, q, dq, t, H, Hd)
-            for e in body.elements:
-                a, b = top.element_nodes[e]
-                H[b] = Phi[e] @ H[a]
-                Hd[b] = Phi_d[e] @ H[a] + Phi[e] @ Hd[a]
-        return H, Hd
-
-    def _root_rates(self, root, q, dq, t, H, Hd):
-        """(H, dH/dt) of a body's root node: H_root = C(eta) H_parent (Otsuka et al. 2022, Eq. 8) and its rate."""
-        if root.kind == "driven":
-            Hr, rate, _ = root.driven(t)
-            return Hr, rate
-        if root.parent is None:
-            Hp, Hpd = root.ground(), np.zeros((4, 3))
-        else:
-            tip = self.top.bodies[root.parent].nodes[-1]
-            Hp, Hpd = H[tip], Hd[tip]
-        eta, rate = q[root.offset:root.offset + root.size], dq[root.offset:root.offset + root.size]
-        c, dc = sk.joint_gradients(root.kind, eta, root.axis, root.orientation)
-        c_dot = np.einsum("k,kij->ij", rate, dc) if root.size else np.zeros((3, 3))
-        return (np.vstack([Hp[0], c @ Hp[1:]]),
-                np.vstack([Hpd[0], c @ Hpd[1:] + c_dot @ Hp[1:]]))
+        E, dE, _ = self._motion(q, dq, t)
+        return E, dE, None
 
     def mass_matrix(self, q, t):
         """B^T M_E B at q and t (t matters with a driven root); cached for the last q, t.
@@ -454,6 +373,21 @@ class StrainBasedModel(StructureModel):
         return np.linalg.lstsq(B, dE - _exchanged(Ht), rcond=None)[0]
 
     # ---------------------------------------------------------------- monitors
+    def element_curvatures(self, q):
+        """Each element's own flap curvature, the constant -kappa_y / (1 + eps_x) (1/m, by element): the curvature
+        of its reference line toward +n per unit deformed length, as structure_fmu.element.flap_curvature measures
+        it (r'' = (1 + eps_x) r_x' = -(1 + eps_x) kappa_y r_z, Otsuka et al. 2022, Eq. 6), which the strain gauges
+        reading the model's curvature take (Otsuka et al. 2022, Sec. 5: h/2 x kappa_y).
+
+        Args:
+            q: (n_q,) strain-based coordinates.
+
+        Returns:
+            (n_elements,) 1/m.
+        """
+        strains = q[self._strain_columns]
+        return -strains[:, 2] / (1.0 + strains[:, 0])
+
     def potential_energy(self, q, E, latched, angles):
         """ANCF model's gravity and actuator potential plus the strain energy 1/2 q^T K q, J.
 

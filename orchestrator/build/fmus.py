@@ -245,11 +245,12 @@ def _native_binary(fmu: Path, dest: Path) -> None:
 
 
 def _c_kernel(source: Path, folder: Path, dest: Path) -> None:
-    """Put the library of the C kernel `source` (fmu_common.c_library: compiled once per machine) into `folder`
-    beside its copy, so that the FMU loads it without compiling; without a C compiler the FMU compiles it at its
-    first instantiation on a machine that has one, and says so."""
+    """Put the library of the C kernel `source` (fmu_common.c_library: compiled once per machine) and its digest
+    record into `folder` beside its copy, verified there (`c_library.carry`), so that the FMU loads it without
+    compiling; without a C compiler the FMU compiles it at its first instantiation on a machine that has one, and
+    says so."""
     try:
-        shutil.copyfile(c_library.library_file(source), folder / c_library.library_name(source))
+        c_library.carry(source, folder)
     except (c_library.CLibraryUnavailable, OSError) as missing:
         print(f"warning: {dest}: the C kernel {source.name} was not compiled into the FMU ({missing}). The FMU "
               "compiles it at its first instantiation where a C compiler is found, else runs with "

@@ -457,11 +457,11 @@ def pythonfmu_binary() -> Path:
 
 
 def add_kernels(resources: Path) -> None:
-    """Put the Windows library of every C kernel under `resources` beside its source (c_library finds it there
-    on Windows), compiled once per user into the cache folder."""
+    """Put the Windows library of every C kernel under `resources` beside its source with its digest record
+    (c_library finds and verifies it there on Windows), compiled once per user into the cache folder and verified
+    in the FMU before it is packed (`c_library.carry`)."""
     for source in sorted(resources.rglob("*.c")):
-        library = c_library.cross_compiled(source, [COMPILER], KERNEL_PLATFORM)
-        shutil.copyfile(library, source.with_name(c_library.library_name(source, KERNEL_PLATFORM)))
+        c_library.carry(source, source.parent, KERNEL_PLATFORM, [COMPILER])
 
 
 def add_binaries(folder: Path, guid: str, identifier: str, worker_key: str, packages: str, worker: Path,

@@ -4,6 +4,8 @@
   latched there (the structure unit's latch time, the deployment time of a single hinge);
 - ``probe_displacements.png``: displacement of each probe from its initial position (m), per
   global component, vs time (s);
+- ``probe_velocities.png`` and ``probe_accelerations.png``: each probe's global velocity (m/s) and acceleration
+  (m/s^2), per global component, vs time (s), as the structure unit outputs them;
 - ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
 - ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s), with the joints'
   monitors (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
@@ -32,8 +34,8 @@ from matplotlib.figure import Figure
 from orchestrator.run.master import RunResult
 from orchestrator.scene.load import hinge_joints
 
-PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
-              "lift_coefficient.png")
+PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "probe_velocities.png", "probe_accelerations.png",
+              "strain_gauges.png", "energy_residual.png", "lift_coefficient.png")
 DPI = 120
 
 
@@ -68,15 +70,31 @@ def probe_displacements_figure(result: RunResult) -> Figure | None:
     if not series.probe_names:
         return None
     positions = series.positions                               # (samples, probes, 3), m
-    displacement = positions - positions[:1]
+    return _probe_figure(result, positions - positions[:1], "probe displacement from initial position", "d{} (m)")
+
+
+def probe_velocities_figure(result: RunResult) -> Figure | None:
+    return _probe_figure(result, result.series.velocities, "probe velocity", "v{} (m/s)")
+
+
+def probe_accelerations_figure(result: RunResult) -> Figure | None:
+    return _probe_figure(result, result.series.accelerations, "probe acceleration", "a{} (m/s^2)")
+
+
+def _probe_figure(result: RunResult, values: np.ndarray, what: str, label: str) -> Figure | None:
+    """One panel per global component of ``values`` (samples, probes, 3), a line per probe; None without a probe
+    or a finite value (a series built without the probe's rates)."""
+    series = result.series
+    if not series.probe_names or not np.isfinite(values).any():
+        return None
     fig = Figure(figsize=(7, 7))
     axes = fig.subplots(3, 1, sharex=True)
     for c, (ax, axis) in enumerate(zip(axes, "xyz")):
         for i, probe in enumerate(series.probe_names):
-            ax.plot(series.time, displacement[:, i, c], label=probe)
-        ax.set_ylabel(f"d{axis} (m)")
+            ax.plot(series.time, values[:, i, c], label=probe)
+        ax.set_ylabel(label.format(axis))
         ax.grid(True, alpha=0.3)
-    axes[0].set_title(_title(result, "probe displacement from initial position (global frame)"))
+    axes[0].set_title(_title(result, f"{what} (global frame)"))
     axes[0].legend()
     axes[-1].set_xlabel("time (s)")
     return fig
@@ -144,8 +162,8 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     empty = len(result.series) == 0
     figures = dict(zip(PLOT_FILES, (None,) * len(PLOT_FILES) if empty else (
-        fold_angles_figure(result), probe_displacements_figure(result), strain_figure(result),
-        monitors_figure(result), lift_figure(result))))
+        fold_angles_figure(result), probe_displacements_figure(result), probe_velocities_figure(result),
+        probe_accelerations_figure(result), strain_figure(result), monitors_figure(result), lift_figure(result))))
     written = []
     for filename, fig in figures.items():
         path = out_dir / filename

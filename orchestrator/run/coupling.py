@@ -34,7 +34,10 @@ Q is still passed (and checked by the structure unit).
   Only the accepted iterate's aero inputs are recorded (the rejected ones were rolled back). A
   prescribed-motion structure still iterates: Q converges to the aero force of the prescribed motion.
 
-A divergence of an explicitly coupled run is explained by ``explain_divergence`` (``explicit_coupling_hint``).
+A divergence of an explicitly coupled run is explained by ``explain_divergence`` (``explicit_coupling_hint``);
+of any coupled run whose structure takes several internal steps per communication step, also by
+``held_force_hint`` (the aero force held over those steps can feed a structural mode near the communication
+step's Nyquist frequency, whatever the scheme: docs/aero.md, "The held aero force and the structure's steps").
 """
 from __future__ import annotations
 
@@ -104,6 +107,7 @@ class Scheme:
         self.structure, self.aero, self.aero_inputs = structure, aero, aero_inputs
         self.q = np.zeros(structure.n)     # N and N m, the Q the structure steps with next
         self.held = None                   # (e, de) the aero unit holds
+        self.step, self.substeps = None, 1  # s, communication step; the structure's internal steps in it
 
     def start(self) -> CouplingRecord:
         """The exchange at t = 0; returns the coupling record of t = 0."""
@@ -124,7 +128,9 @@ class Scheme:
 
     def explain_divergence(self, message: str, series: TimeSeries) -> str:
         """The message of a run that diverged, with what the scheme can tell about it."""
-        return message
+        if self.aero is None:
+            return message
+        return message.rstrip(" .") + "." + held_force_hint(self.substeps, self.step)
 
 
 class StructureAlone(Scheme):
@@ -141,7 +147,8 @@ class _Explicit(Scheme):
     """Gauss-Seidel and Jacobi: one pass per step, so the exchange itself can make a run diverge."""
 
     def explain_divergence(self, message: str, series: TimeSeries) -> str:
-        return message.rstrip(" .") + "." + explicit_coupling_hint(series, self.name)
+        return (message.rstrip(" .") + "." + explicit_coupling_hint(series, self.name)
+                + held_force_hint(self.substeps, self.step))
 
 
 class GaussSeidel(_Explicit):
@@ -259,9 +266,34 @@ def make_scheme(scene: dict, structure: Any, aero: Any = None, aero_inputs: Aero
     coupling = scene["coupling"]
     scheme = SCHEMES[coupling["algorithm"]]
     if scheme is Implicit:
-        return Implicit(structure, aero, aero_inputs, make_acceleration(coupling), coupling["tolerance"],
+        made = Implicit(structure, aero, aero_inputs, make_acceleration(coupling), coupling["tolerance"],
                         coupling["max_iterations"])
-    return scheme(structure, aero, aero_inputs)
+    else:
+        made = scheme(structure, aero, aero_inputs)
+    made.step = coupling["step"]
+    made.substeps = structure_substeps(coupling["step"], scene["structure"]["step"])
+    return made
+
+
+def structure_substeps(step: float, structure_step: float) -> int:
+    """Internal structure steps (-) in a communication step of ``step`` (s) at ``structure.step`` (s): the last
+    one is shortened to land on the communication point (a remainder below 1e-9 of a step adds none)."""
+    return max(1, math.ceil(step / structure_step - 1e-9))
+
+
+def held_force_hint(substeps: int, step: float | None) -> str:
+    """Text appended to the message of a coupled run that diverged while the structure took ``substeps`` > 1
+    internal steps per communication step of ``step`` (s); empty otherwise. The aero force is held over the
+    communication step, and its apparent-mass part, the backward difference of a circulation proportional to
+    the velocity sampled once per communication step, can feed a structural mode near the Nyquist frequency
+    1/(2 step) that the internal steps of generalized-alpha barely damp, whatever the coupling scheme; one
+    structure step per communication step damps it (docs/aero.md, "The held aero force and the structure's
+    steps")."""
+    if substeps <= 1 or step is None:
+        return ""
+    return (f" The structure took {substeps} steps per communication step, the aero force held over them: a "
+            f"structural mode near 1/(2 coupling.step) = {0.5 / step:.3g} Hz can then be fed by the held force "
+            "faster than those steps damp it, with implicit coupling too; try coupling.step = structure.step.")
 
 
 def explicit_coupling_hint(series: TimeSeries, algorithm: str, window: int = HINT_WINDOW) -> str:

@@ -24,8 +24,8 @@ unit with ``n``, ``topology_hash``, ``get_outputs()`` (structure: ``(e, de)``; a
 ``set_inputs(...)`` (structure: ``Q``; aero: ``e, de``), ``do_step(t, h)`` (raises ``UnitError`` on an
 FMI error or discard, with the unit's logged reason), ``monitors()`` (structure: ``energy``,
 ``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``, ``probe_positions``,
-``probe_velocities``, ``strains``, all outputs of the unit: the master computes no sensor itself; aero:
-``CL``, ``lift``, ...),
+``probe_velocities``, ``probe_accelerations``, ``strains``, all outputs of the unit: the master computes no
+sensor itself; aero: ``CL``, ``lift``, ...),
 ``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
@@ -56,7 +56,7 @@ import numpy as np
 from orchestrator.run.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.run.progress import Progress
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
-from orchestrator.run.timeseries import TimeSeries
+from orchestrator.run.timeseries import PROBE_ROWS, TimeSeries
 from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, hinge_moment_column
 from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
@@ -161,7 +161,8 @@ def new_series(scene: dict) -> TimeSeries:
 def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
             coupling: tuple[int, float] | None = None) -> dict:
     """Append one sample of the units' outputs; returns the hinges' latch times (s) the structure unit
-    reports. The probes' positions and the gauges' strains are the structure unit's own outputs."""
+    reports. The probes' positions, velocities and accelerations and the gauges' strains are the structure unit's
+    own outputs."""
     monitors = structure.monitors()
     loads = None
     if aero is not None:
@@ -169,18 +170,22 @@ def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
         moments = aero_monitors.get("hinge_moments", {})
         loads.update({hinge_moment_column(h): moments.get(h, np.nan) for h in series.hinge_names})
-    probes, strains = monitors.get("probe_positions", {}), monitors.get("strains", {})
-    unread = [p for p in series.probe_names if p not in probes] + [g for g in series.strain_names if g not in strains]
+    probes = {key: monitors.get(key, {}) for key in PROBE_ROWS}
+    strains = monitors.get("strains", {})
+    unread = [f"{key} output for the probe {p!r}" for key in PROBE_ROWS for p in series.probe_names
+              if p not in probes[key]]
+    unread += [f"output for the strain gauge {g!r}" for g in series.strain_names if g not in strains]
     if unread:
-        raise RuntimeError(f"the structure unit reports no output for the probe or strain gauge {unread[0]!r}: "
-                           "rebuild the FMUs (wingsim build)")
-    positions = np.array([probes[p] for p in series.probe_names], dtype=float).reshape(-1, 3)
+        raise RuntimeError(f"the structure unit reports no {unread[0]}: rebuild the FMUs (wingsim build)")
+    positions, velocities, accelerations = (
+        np.array([probes[key][p] for p in series.probe_names], dtype=float).reshape(-1, 3) for key in PROBE_ROWS)
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan),
                   external_work=monitors.get("external_work", np.nan), aero=loads,
                   coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
-                  strains=strains, joints=monitors.get("joints", {}))
+                  strains=strains, joints=monitors.get("joints", {}), velocities=velocities,
+                  accelerations=accelerations)
     return monitors.get("latch_times", {})
 
 

@@ -1,15 +1,16 @@
 """The samples a run records at each communication point.
 
-One row per sample: time (s), each probe's global position (m), each hinge's fold angle (degrees), each strain
-gauge's surface strain (-, a column named as the gauge), each joint monitor (``<joint>_point_mismatch`` in m,
-``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint with a parent), the structure's energy (J),
-its kinetic energy (J), its constraint residual (-) and the work of the point loads and Q on it since t = 0
-(``external_work``, J: energy minus it changes only by damping and driven motions), and, for a scene with an
-aero unit, each hinge's aerodynamic moment about its axis ``hinge_moment_<hinge>`` (N m), the lift coefficient
-``CL`` (-) and the ``lift`` (N), and, for implicit coupling, the iterations
-``coupling_iterations`` the master took in the communication step ending at that sample and the relative
-interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those of
-``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
+One row per sample: time (s), each probe's global position (``<probe>_x/_y/_z``, m), then each probe's global
+velocity (``<probe>_vx/_vy/_vz``, m/s), then each probe's global acceleration (``<probe>_ax/_ay/_az``, m/s^2), each
+hinge's fold angle (degrees), each strain gauge's surface strain (-, a column named as the gauge), each joint
+monitor (``<joint>_point_mismatch`` in m, ``<joint>_axis_product`` or ``<joint>_axis_error``, -, for every joint
+with a parent), the structure's energy (J), its kinetic energy (J), its constraint residual (-) and the work of
+the point loads and Q on it since t = 0 (``external_work``, J: energy minus it changes only by damping and driven
+motions), and, for a scene with an aero unit, each hinge's aerodynamic moment about its axis
+``hinge_moment_<hinge>`` (N m), the lift coefficient ``CL`` (-) and the ``lift`` (N), and, for implicit coupling,
+the iterations ``coupling_iterations`` the master took in the communication step ending at that sample and the
+relative interface residual ``coupling_residual`` (-) it accepted (0 and NaN at t = 0). The column names are those
+of ``timeseries.csv`` (README, Outputs); columns are only ever added, never renamed, and are read back by name
 (``column``), never by a fixed position.
 """
 
@@ -20,6 +21,20 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
+from structure_fmu.interface import PROBES, STRUCTURE
+
+PROBE_ROWS = ("probe_positions", "probe_velocities", "probe_accelerations")
+"""The structure unit's per-probe output rows (``structure_fmu.interface``) the series records, in column order:
+every probe's position (m), then every probe's velocity (m/s), then every probe's acceleration (m/s^2), each
+global x, y, z."""
+_ROWS = {row.key: row for row in STRUCTURE.outputs if row.key in PROBE_ROWS}
+
+
+def probe_columns(probe: str, row: str) -> list[str]:
+    """The ``timeseries.csv`` columns of ``probe`` for the output row ``row`` (one of PROBE_ROWS): the unit's
+    output names with the probe's name in place (``<probe>_x`` .., ``<probe>_vx`` .., ``<probe>_ax`` ..)."""
+    return [name.replace(PROBES.placeholder, probe) for name in _ROWS[row].names]
+
 
 class TimeSeries:
     """Recorded samples; append during the run, read as numpy arrays afterwards."""
@@ -34,10 +49,13 @@ class TimeSeries:
         self.aero_names = self.hinge_moment_names + list(AERO_COLUMNS) if aero else []
         self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
         self._rows: list[np.ndarray] = []
-        # named column positions (time, probes, hinges, strains, monitors, aero), from the layout of ``columns``
+        # named column positions (time, probes' positions, velocities and accelerations, hinges, strains, monitors,
+        # aero), from the layout of ``columns``
         k = 3 * len(self.probe_names)
         self._positions = slice(1, 1 + k)
-        self._folds = slice(1 + k, 1 + k + len(self.hinge_names))
+        self._velocities = slice(1 + k, 1 + 2 * k)
+        self._accelerations = slice(1 + 2 * k, 1 + 3 * k)
+        self._folds = slice(1 + 3 * k, 1 + 3 * k + len(self.hinge_names))
         self._strains = slice(self._folds.stop, self._folds.stop + len(self.strain_names))
         self._joints = slice(self._strains.stop, self._strains.stop + len(self.joint_names))
         self._monitor = {name: self._joints.stop + i for i, name in enumerate(MONITOR_COLUMNS)}
@@ -62,9 +80,11 @@ class TimeSeries:
                     aero: Mapping[str, Sequence[float]] | None = None,
                     coupling: Mapping[str, Sequence[float]] | None = None,
                     strains: Mapping[str, Sequence[float]] | None = None,
-                    joints: Mapping[str, Sequence[float]] | None = None) -> "TimeSeries":
+                    joints: Mapping[str, Sequence[float]] | None = None,
+                    velocities: Sequence | None = None, accelerations: Sequence | None = None) -> "TimeSeries":
         """Build from whole arrays: time (m,), positions (m, probes, 3), fold angles (m, hinges),
-        energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN.
+        energy, constraint residual and kinetic energy (m,) each; no kinetic energy gives NaN;
+        velocities and accelerations (m, probes, 3) likewise (NaN without them).
         ``aero``: {"CL": (m,), "lift": (m,), "hinge_moment_<hinge>": (m,)} for a series with the aero columns (a
         missing one is NaN);
         ``coupling``: {"coupling_iterations": (m,), "coupling_residual": (m,)} likewise; ``strains``:
@@ -78,9 +98,12 @@ class TimeSeries:
         monitors = {"energy": energy, "kinetic_energy": kinetic, "constraint_residual": constraint_residual,
                     "external_work": work}
         aero, coupling = aero or {}, coupling or {}
+        k = 3 * len(series.probe_names)
+        rates = [np.full((m, k), np.nan) if x is None else np.asarray(x, float).reshape(m, k)
+                 for x in (velocities, accelerations)]
         table = np.column_stack([
             np.asarray(time, float),
-            np.asarray(positions, float).reshape(m, 3 * len(series.probe_names)),
+            np.asarray(positions, float).reshape(m, k), *rates,
             np.asarray(fold_angles_deg, float).reshape(m, len(series.hinge_names)),
             *(np.asarray(strains[name], float).reshape(m) for name in series.strain_names),
             *(np.asarray(joints[name], float).reshape(m) for name in series.joint_names),
@@ -96,8 +119,10 @@ class TimeSeries:
                energy: float, constraint_residual: float, kinetic_energy: float = np.nan,
                external_work: float = np.nan,
                aero: Mapping[str, float] | None = None, coupling: Mapping[str, float] | None = None,
-               strains: Mapping[str, float] | None = None, joints: Mapping[str, float] | None = None) -> None:
-        """Add one sample; ``positions`` is (probes, 3) in m, a hinge missing from the dict gives NaN,
+               strains: Mapping[str, float] | None = None, joints: Mapping[str, float] | None = None,
+               velocities: np.ndarray | None = None, accelerations: np.ndarray | None = None) -> None:
+        """Add one sample; ``positions`` is (probes, 3) in m, ``velocities`` (probes, 3) in m/s and
+        ``accelerations`` (probes, 3) in m/s^2 (NaN without them), a hinge missing from the dict gives NaN,
         energies are in J; ``aero`` {"CL": -, "lift": N, "hinge_moment_<hinge>": N m}, ``coupling``
         {"coupling_iterations": -, "coupling_residual": -}, ``strains`` {gauge name: -} and ``joints`` {joint
         monitor: m or -} (missing values, or no dict, give NaN)."""
@@ -106,8 +131,11 @@ class TimeSeries:
         monitors = {"energy": energy, "kinetic_energy": kinetic_energy, "constraint_residual": constraint_residual,
                     "external_work": external_work}
         aero, coupling = aero or {}, coupling or {}
+        k = 3 * len(self.probe_names)
+        rates = [np.full(k, np.nan) if x is None else np.asarray(x, float).reshape(k)
+                 for x in (velocities, accelerations)]
         self._rows.append(np.concatenate((
-            [time], np.asarray(positions, float).reshape(-1), angles,
+            [time], np.asarray(positions, float).reshape(-1), *rates, angles,
             [strains.get(n, np.nan) for n in self.strain_names],
             [joints.get(n, np.nan) for n in self.joint_names],
             [monitors[n] for n in MONITOR_COLUMNS],
@@ -120,7 +148,7 @@ class TimeSeries:
     @property
     def columns(self) -> list[str]:
         """Column names in ``timeseries.csv`` order, ``time`` first."""
-        probes = [f"{p}_{axis}" for p in self.probe_names for axis in "xyz"]
+        probes = [name for key in PROBE_ROWS for p in self.probe_names for name in probe_columns(p, key)]
         hinges = [f"fold_angle_{h}" for h in self.hinge_names]
         return ["time", *probes, *hinges, *self.strain_names, *self.joint_names, *MONITOR_COLUMNS, *self.aero_names,
                 *self.coupling_names]
@@ -147,6 +175,16 @@ class TimeSeries:
     def positions(self) -> np.ndarray:
         """Probe global positions, m, shape (samples, probes, 3)."""
         return self.table()[:, self._positions].reshape(len(self), len(self.probe_names), 3)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Probe global velocities, m/s, shape (samples, probes, 3)."""
+        return self.table()[:, self._velocities].reshape(len(self), len(self.probe_names), 3)
+
+    @property
+    def accelerations(self) -> np.ndarray:
+        """Probe global accelerations, m/s^2, shape (samples, probes, 3)."""
+        return self.table()[:, self._accelerations].reshape(len(self), len(self.probe_names), 3)
 
     @property
     def fold_angles_deg(self) -> np.ndarray:

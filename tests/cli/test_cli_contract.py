@@ -40,6 +40,10 @@ TIME = np.array([0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
 FOLD = np.array([170.0, 150.0, 90.0, 10.0, -5.0, 0.5])
 TIP = np.array([[0.0, 0.0, 0.30], [0.01, 0.0, 0.28], [0.05, -0.01, 0.20],
                 [0.10, 0.02, 0.25], [0.12, 0.01, 0.29], [0.11, 0.0, 0.30]])
+TIP_V = np.array([[1.0, 0.0, -2.0], [1.5, -0.5, -4.0], [5.0, 0.5, 1.0],
+                  [2.0, 3.0, 4.5], [0.5, -1.5, 3.0], [-1.0, -0.5, 0.5]])          # m/s
+TIP_A = np.array([[50.0, 0.0, -200.0], [100.0, -50.0, 80.0], [300.0, 250.0, 500.0],
+                  [-200.0, 10.0, 50.0], [-150.0, -200.0, -100.0], [-100.0, 50.0, -250.0]])   # m/s^2
 ENERGY = np.array([2.0, 1.9, 1.8, 1.7, 1.6, 1.5])
 KINETIC = np.array([0.0, 0.4, 1.2, 0.9, 0.3, 0.1])  # peak 1.2 J < |E_0| = 2 J: the drift is relative to E_0
 RESIDUAL = np.array([0.0, 1e-12, 3e-10, 2e-11, 1e-12, 5e-12])
@@ -49,7 +53,8 @@ def synthetic(scene, status="ok", samples=None):
     samples = len(TIME) if samples is None else samples
     series = TimeSeries.from_arrays(["tip"], ["fold"], TIME[:samples], TIP[:samples, None, :],
                                     FOLD[:samples, None], ENERGY[:samples], RESIDUAL[:samples],
-                                    kinetic_energy=KINETIC[:samples])
+                                    kinetic_energy=KINETIC[:samples], velocities=TIP_V[:samples, None, :],
+                                    accelerations=TIP_A[:samples, None, :])
     reached = float(TIME[samples - 1]) if samples else 0.0
     latch_times = {"fold": LATCH} if reached > LATCH else {}
     return RunResult(status, "a message", 1.25, reached, scene, series, latch_times=latch_times)
@@ -115,13 +120,15 @@ def test_timeseries_csv_columns_and_rows(scene, tmp_path):
     write_results(synthetic(scene), tmp_path)
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "fold_angle_fold", "energy", "kinetic_energy",
-                       "constraint_residual", "external_work"]
+    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz", "tip_ax", "tip_ay", "tip_az",
+                       "fold_angle_fold", "energy", "kinetic_energy", "constraint_residual", "external_work"]
     data = np.array(rows[1:], dtype=float)
-    assert data.shape == (len(TIME), 9)
+    assert data.shape == (len(TIME), 15)
     column = {name: data[:, k] for k, name in enumerate(rows[0])}
     np.testing.assert_allclose(column["time"], TIME)
     np.testing.assert_allclose(data[:, 1:4], TIP)
+    np.testing.assert_allclose(np.column_stack([column[f"tip_v{axis}"] for axis in "xyz"]), TIP_V)
+    np.testing.assert_allclose(np.column_stack([column[f"tip_a{axis}"] for axis in "xyz"]), TIP_A)
     np.testing.assert_allclose(column["fold_angle_fold"], FOLD)
     np.testing.assert_allclose(column["energy"], ENERGY)
     np.testing.assert_allclose(column["kinetic_energy"], KINETIC)
@@ -175,7 +182,8 @@ def test_run_without_samples_writes_nulls(scene, tmp_path):
     assert summary["probes"] == {"tip": {"initial": None, "final": None,
                                          "min_displacement": None, "max_displacement": None}}
     assert (tmp_path / "timeseries.csv").read_text().splitlines() == [
-        "time,tip_x,tip_y,tip_z,fold_angle_fold,energy,kinetic_energy,constraint_residual,external_work"]
+        "time,tip_x,tip_y,tip_z,tip_vx,tip_vy,tip_vz,tip_ax,tip_ay,tip_az,fold_angle_fold,energy,kinetic_energy,"
+        "constraint_residual,external_work"]
 
 
 def test_deployment_time_waits_for_every_latched_hinge(scene):
@@ -195,8 +203,9 @@ class FakeUnitError(RuntimeError):
 
 
 class FakeUnit:
-    """Moves every coordinate (e_k = t + k) and every probe of the example scene (along x at 1 m/s, from
-    (0, 1, 2) m); fails at ``fail_at`` (s) with ``reason``, reporting a divergence if ``diverged``."""
+    """Moves every coordinate (e_k = t + k) and every probe of the example scene (along x, y and z at 1 m/s each,
+    from (0, 1, 2) m, without acceleration); fails at ``fail_at`` (s) with ``reason``, reporting a divergence if
+    ``diverged``."""
 
     n = 18
 
@@ -221,6 +230,8 @@ class FakeUnit:
         return {"energy": 1.0 + self.t, "kinetic_energy": 0.5 * self.t, "constraint_residual": 1e-12,
                 "fold_angles_deg": {"fold": 170 - 1000 * self.t},
                 "probe_positions": {p: self.t + np.arange(3.0) for p in ("bending_100mm", "tip")},
+                "probe_velocities": {p: np.ones(3) for p in ("bending_100mm", "tip")},
+                "probe_accelerations": {p: np.zeros(3) for p in ("bending_100mm", "tip")},
                 "strains": {"strain_20mm": 0.0}}
 
     def terminate(self):
@@ -251,20 +262,23 @@ def test_run_ok_records_every_communication_point(scene):
     assert unit.steps[-1] == pytest.approx(5e-4) and len(unit.steps) == 11
     np.testing.assert_allclose(result.series.time, communication_times(0.0105, 1e-3))
     np.testing.assert_allclose(result.series.positions[:, 0, 0], result.series.time)
+    assert np.all(result.series.velocities == 1.0) and np.all(result.series.accelerations == 0.0)
     np.testing.assert_allclose(result.series.fold_angles_deg[:, 0], 170 - 1000 * result.series.time)
     np.testing.assert_allclose(result.series.energy, 1.0 + result.series.time)
     np.testing.assert_allclose(result.series.kinetic_energy, 0.5 * result.series.time)
     assert np.all(result.series.constraint_residual == 1e-12)
 
 
-def test_a_unit_without_a_probe_output_stops_the_run_naming_the_probe(scene):
+@pytest.mark.parametrize("row", ["probe_positions", "probe_velocities", "probe_accelerations"])
+def test_a_unit_without_a_probe_output_stops_the_run_naming_the_probe(scene, row):
     class Blind(FakeUnit):
         def monitors(self):
             out = super().monitors()
-            del out["probe_positions"]["tip"]
+            del out[row]["tip"]
             return out
     result = fake_run(scene, Blind())
-    assert result.status == "error" and "'tip'" in result.message and len(result.series) == 0
+    assert result.status == "error" and len(result.series) == 0
+    assert f"no {row} output for the probe 'tip'" in result.message
 
 
 def test_diverged_unit_keeps_its_message_and_the_samples(scene, tmp_path):
@@ -314,8 +328,20 @@ def test_progress_is_silent_off_a_terminal_except_the_final_line(scene):
 
 def test_plots_are_written(scene, tmp_path):
     written = write_plots(synthetic(scene), tmp_path)
-    assert {p.name for p in written} == {"fold_angles.png", "probe_displacements.png", "energy_residual.png"}
+    assert {p.name for p in written} == {"fold_angles.png", "probe_displacements.png", "probe_velocities.png",
+                                         "probe_accelerations.png", "energy_residual.png"}
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+def test_a_series_without_probe_rates_has_nan_columns_and_no_rate_plots(scene, tmp_path):
+    # a series built from positions alone (TimeSeries.from_arrays without velocities): its rate columns are NaN,
+    # and a plot of them would be empty, so none is written and a stale one of an earlier run goes
+    write_plots(synthetic(scene), tmp_path)
+    series = TimeSeries.from_arrays(["tip"], ["fold"], TIME, TIP[:, None, :], FOLD[:, None], ENERGY, RESIDUAL)
+    assert np.isnan(series.velocities).all() and np.isnan(series.column("tip_az")).all()
+    written = {p.name for p in write_plots(RunResult("ok", "", 1.0, 0.05, scene, series), tmp_path)}
+    assert written == {"fold_angles.png", "probe_displacements.png", "energy_residual.png"}
+    assert not (tmp_path / "probe_velocities.png").exists() and not (tmp_path / "probe_accelerations.png").exists()
 
 
 def test_fold_angle_plot_marks_the_latch(scene):
@@ -370,11 +396,12 @@ def test_run_example_scene(tmp_path, backend):
     with (tmp_path / "out" / "timeseries.csv").open() as f:
         header = next(csv.reader(f))
     assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header
+    assert {f"tip_{kind}{axis}" for kind in "va" for axis in "xyz"} <= set(header)   # every probe's rates
     assert "strain_20mm" in header and "CL" in header
     assert header[header.index("energy") + 1] == "kinetic_energy" and "constraint_residual" in header
     assert {p.name for p in (tmp_path / "out").glob("*.png")} == {
-        "fold_angles.png", "probe_displacements.png", "strain_gauges.png", "energy_residual.png",
-        "lift_coefficient.png", "wake_3d.png", "mechanism.png"}
+        "fold_angles.png", "probe_displacements.png", "probe_velocities.png", "probe_accelerations.png",
+        "strain_gauges.png", "energy_residual.png", "lift_coefficient.png", "wake_3d.png", "mechanism.png"}
     assert "results in" in proc.stdout
     assert f"deployment time: {summary['deployment_time_s']:.6g} s" in proc.stdout
 

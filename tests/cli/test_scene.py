@@ -129,7 +129,8 @@ def test_resolved_example_keeps_its_values(raw):
                                {"name": "tip", "body": "outer", "span": 0.15, "chord": 0.5}]
     # the surface distance defaults to half the 2 mm plate thickness
     assert scene["strain_gauges"] == [{"name": "strain_20mm", "body": "inner", "span": 0.02,
-                                       "surface_distance": 0.001}]
+                                       "surface_distance": 0.001,
+                                       "curvature": "model"}]
 
 
 def test_probe_chord_defaults_to_the_body_axis(raw):
@@ -186,7 +187,7 @@ MALFORMED = [
     (["strain_gauges.strain_20mm.name=tip_x"], "strain_gauges.tip_x.name", "tip_x",
      "not used by another strain gauge or column of timeseries.csv"),
     (["strain_gauges.strain_20mm.chord=0.5"], "strain_gauges.strain_20mm.chord", 0.5,
-     "allowed in [strain_gauges.strain_20mm]: name, body, span, surface_distance"),
+     "allowed in [strain_gauges.strain_20mm]: name, body, span, surface_distance, curvature"),
     (["flow.speed=1979-05-27"], "flow.speed", "1979-05-27", "not a date or time"),
 ]
 

@@ -466,7 +466,8 @@ class _Topology:
 def _fake_run(algorithm):
     log = []
     scene = {"name": "fake", "time": {"stop": 0.2}, "coupling": {"step": 0.1, "algorithm": algorithm},
-             "aero": {"model": "uvlm-flat"}, "probes": [], "strain_gauges": [], "structure": {"joints": []}}
+             "aero": {"model": "uvlm-flat"}, "probes": [], "strain_gauges": [],
+             "structure": {"joints": [], "step": 0.1}}
     made = {"structure": _Structure(log), "aero": _Aero(log)}
     fake = types.SimpleNamespace(make_unit=lambda **kw: made[kw["kind"]], UnitError=UnitError)
     result = run_scene(scene, backend="direct", units=fake, topology=_Topology())

@@ -483,3 +483,77 @@ def test_reset_returns_the_fmu_to_the_state_after_instantiation(make, scene):
         unit.step(0.0, H)
         refused(unit, "fmi2DoStep", "not initialized yet")
     assert np.array_equal(runs[0], runs[1])
+
+
+FOREIGN_STATES = [  # (unit, the scene's override for the unit that saves the state, words of the refusal)
+    ("aero", "aero.model=strip", "aero.model = 'strip', this unit runs aero.model = 'uvlm-flat'"),
+    ("aero", "aero.model=uvlm-prescribed", "aero.model = 'uvlm-prescribed', this unit runs aero.model = 'uvlm-flat'"),
+    ("aero", "aero.chordwise_panels=3", "state.solver.model.gamma is float64 (42,), this unit's float64 (28,)"),
+    ("structure", "structure.integrator=generalized-alpha",
+     "structure.integrator = 'generalized-alpha', this unit runs structure.integrator = 'rk4'"),
+]
+
+
+def _stepped_twice(unit, kind, scene):
+    """Initialize `unit`, step it once and save its state, step again: (the saved state, the outputs after two
+    steps)."""
+    initialize(unit)
+    set_inputs(unit, kind, scene)
+    unit.step(0.0, H)
+    accepted(unit)
+    saved = unit.get_state()
+    unit.step(H, H)
+    accepted(unit)
+    return saved, outputs(unit)
+
+
+def _repeats_the_second_step(unit, saved, after_two):
+    """The unit, set back to `saved` (a state of its own), repeats its second step bit for bit."""
+    unit.set_state(saved)
+    accepted(unit)
+    unit.step(H, H)
+    accepted(unit)
+    assert np.array_equal(outputs(unit), after_two)
+
+
+@pytest.mark.parametrize("backend", ["direct", "fmu"])
+@pytest.mark.parametrize("kind,override,words", FOREIGN_STATES, ids=[o for _, o, _ in FOREIGN_STATES])
+def test_a_state_of_another_model_integrator_or_size_is_refused_naming_the_mismatch(make, scene, backend, kind,
+                                                                                   override, words, tmp_path):
+    """A state saved by a unit of another aero model, integrator or lattice (same unit, same topology) is read
+    (fmi2DeSerializeFMUstate) and refused when set (fmi2SetFMUstate returns fmi2Error through the shim), and the
+    unit goes on from its own state."""
+    unit = make(backend, kind)
+    other = Direct(kind, load_scene(SCENES / "deploy_rigid.toml", [override]), tmp_path / "other")
+    saved, after_two = _stepped_twice(unit, kind, scene)
+    _stepped_twice(other, kind, other.slave.scene)
+    foreign = unit.deserialize(other.serialize(other.get_state()))
+    accepted(unit)
+    unit.set_state(foreign)
+    refused(unit, "fmi2SetFMUstate refused", words, "state unchanged")
+    assert np.array_equal(outputs(unit), after_two)
+    _repeats_the_second_step(unit, saved, after_two)
+
+
+@pytest.mark.parametrize("backend", ["direct", "fmu"])
+@pytest.mark.parametrize("kind", ["structure", "aero"])
+def test_a_state_holding_nan_is_refused_and_the_unit_goes_on_from_its_own(make, scene, backend, kind):
+    """The unit's own state, serialized, with one number of its solver state made NaN: refused at
+    fmi2DeSerializeFMUstate (fmi2Error through the shim, which drops it) and, in-process, at fmi2SetFMUstate."""
+    unit = make(backend, kind)
+    saved, after_two = _stepped_twice(unit, kind, scene)
+    state = pickle.loads(unit.serialize(saved))
+    accepted(unit)
+    if kind == "structure":
+        state["solver"][0].dq[1] = np.nan
+        where = "state['solver'][0].dq[1] = nan"
+    else:
+        state["solver"].model.gamma[2] = np.nan
+        where = "state['solver'].model.gamma[2] = nan"
+    restored = unit.deserialize(pickle.dumps(state))
+    refused(unit, "fmi2DeSerializeFMUstate refused", f"not finite: {where}")
+    if backend == "direct":
+        unit.set_state(restored)
+        refused(unit, "fmi2SetFMUstate refused", f"not finite: {where}", "state unchanged")
+    assert np.array_equal(outputs(unit), after_two)
+    _repeats_the_second_step(unit, saved, after_two)

@@ -15,6 +15,7 @@ The slow set adds every shipped scene built standalone (its first steps equal th
 whose Python has numpy 1.26 and no scipy, two builds from different sources in one process, and two instances
 stepping in parallel in libcosim; tests/fmi/test_no_python.py runs the FMUs on a system without Python.
 """
+import hashlib
 import json
 import os
 import signal
@@ -29,6 +30,7 @@ import pytest
 from fmpy import extract
 
 from fmi_hosts import all_gone, processes
+from fmu_common.c_library import record_file
 from orchestrator.build import runtime
 from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
@@ -134,6 +136,8 @@ def test_a_kernel_that_crashes_kills_the_worker_not_the_host(rigid, tmp_path):
     data = bytearray(library.read_bytes())
     data[offset:offset + size] = b"\x0f\x0b" * (size // 2) + b"\x0f" * (size % 2)    # ud2: an illegal instruction
     library.write_bytes(bytes(data))
+    # a kernel that crashes, not a damaged file: its digest record says these are the bytes compiled
+    record_file(library).write_text(hashlib.sha256(bytes(data)).hexdigest() + "\n")
     out = host(folder, "instantiate", "step:1", "free")
     failed = [entry for entry in out if entry["status"] == FATAL]
     assert failed, out

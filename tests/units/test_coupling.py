@@ -304,3 +304,16 @@ def test_unknown_acceleration_is_refused_with_the_allowed_names():
     from orchestrator.run.acceleration import make_acceleration
     with pytest.raises(ValueError, match="aitken, iqn-ils"):
         make_acceleration({"acceleration": "broyden"})
+
+
+def test_the_held_force_hint_counts_the_structure_steps_of_a_communication_step():
+    """The structure's steps in a communication step as the slave takes them (the last one shortened to land on
+    the communication point): 1 ms over 0.1 ms is 10, over 0.3 ms is 4 (three and a shortened one); a step equal
+    to or longer than the communication step is 1, and then the hint is empty."""
+    from orchestrator.run.coupling import held_force_hint, structure_substeps
+    assert structure_substeps(1e-3, 1e-4) == 10
+    assert structure_substeps(1e-3, 3e-4) == 4
+    assert structure_substeps(5e-4, 5e-4) == structure_substeps(5e-4, 1e-3) == 1
+    assert held_force_hint(1, 5e-4) == ""
+    assert "10 steps per communication step" in held_force_hint(10, 1e-3)
+    assert "500 Hz" in held_force_hint(10, 1e-3)

@@ -98,9 +98,10 @@ def test_the_sensor_outputs_are_declared_as_the_timeseries_columns_with_units(ri
         v = variables[fmi_name(name)]
         assert (v.causality, v.variability, v.type, v.unit) == ("output", "continuous", "Real", unit), name
         assert v.description
-    position_and_strain_columns = [c for c in columns if c.rsplit("_", 1)[0] in probes or c in gauges]
-    assert position_and_strain_columns == [f"{p}_{a}" for p in probes for a in "xyz"] + gauges
-    assert all(fmi_name(c) in variables for c in position_and_strain_columns)
+    # every sensor output is a column, in the unit's order: the probes' positions, velocities, accelerations
+    sensor_columns = [c for c in columns if c.rsplit("_", 1)[0] in probes or c in gauges]
+    assert sensor_columns == [f"{p}_{kind}{a}" for kind in ("", "v", "a") for p in probes for a in "xyz"] + gauges
+    assert all(fmi_name(c) in variables for c in sensor_columns)
     # contiguous after the latch times, before the joint monitors and the parameters
     refs = [variables[fmi_name(n)].valueReference for n in
             [f"{p}_{a}" for p in probes for a in "xyz"] + [f"{p}_v{a}" for p in probes for a in "xyz"]
@@ -204,7 +205,7 @@ def test_timeseries_columns_are_the_units_outputs_through_the_fmu_backend(rigid)
     columns = [c for c in result.series.columns
                if c.rsplit("_", 1)[0] in {p["name"] for p in scene["probes"]}
                or c in {g["name"] for g in scene["strain_gauges"]}]
-    assert len(columns) == 3 * len(scene["probes"]) + len(scene["strain_gauges"])
+    assert len(columns) == 9 * len(scene["probes"]) + len(scene["strain_gauges"])   # position, velocity, acceleration
     times = communication_times(scene["time"]["stop"], scene["coupling"]["step"])
     out = drive(fmu, times, [fmi_name(c) for c in columns])
     np.testing.assert_array_equal(result.series.time, times)

@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 
 from fmu_common.errors import SceneError, SolverDiverged
-from fmu_common.specs import StructureUnitSpec
+from fmu_common.specs import StrainGaugeSpec, StructureUnitSpec
 from fmu_common.wing_spec import StructureSpec
 from orchestrator.scene.load import load_scene
 from repository import SCENES
 from structure_fmu import strain_kinematics as sk
 from structure_fmu.modes import natural_frequencies
+from structure_fmu.sensors import Sensors
 from structure_fmu.solver import StructureSolver
 from structure_fmu.strain_model import StrainBasedModel
 from structure_fmu.topology import StructureTopology
@@ -84,7 +85,8 @@ def test_the_rotation_series_are_rodrigues_coefficients():
 
 def test_the_revolute_joint_matrix_is_eq_15_for_the_chord_axis():
     theta = 0.4
-    c, dc = sk.joint_gradients("revolute", np.array([theta]), np.array([0.0, 1.0, 0.0]), np.eye(3))
+    c, dc, _, _ = sk.joint_terms("revolute", np.array([theta]), np.zeros(1), np.array([0.0, 1.0, 0.0]),
+                                 np.eye(3))
     co, si = np.cos(theta), np.sin(theta)
     assert c == pytest.approx(np.array([[co, 0, -si], [0, 1, 0], [si, 0, co]]), abs=1e-15)
     assert dc[0] == pytest.approx(np.array([[-si, 0, -co], [0, 0, 0], [co, 0, -si]]), abs=1e-15)
@@ -138,33 +140,34 @@ def test_the_rates_sweep_without_b_matches_the_configuration(path, overrides):
     assert np.abs(dE - dE_full).max() < 1e-13 * np.abs(dE_full).max()
 
 
-def test_the_c_body_sweeps_equal_the_numpy_reference(monkeypatch):
-    """strain_kernels.c against strain_kinematics.body_sweep's and body_accelerations' numpy forms: a 5-element
-    body hanging from a parent (nonzero root derivatives in the first 9 columns), its strains from column 9 on,
-    random transfers: equal to 1e-12 of the largest entry."""
+def test_the_c_kinematics_equal_the_numpy_reference(monkeypatch):
+    """strain_kernels.c against the numpy forms of strain_kinematics.transfers and kinematics: two bodies of
+    5 and 3 elements with random strains and rates, the first hanging from a moving ground point by one joint
+    parameter, the second from the first's tip by four (random c, dc/deta, c', c''); every array equal to 1e-12 of
+    its largest entry, and no node depending on a later strain."""
     rng = np.random.default_rng(12)
-    n_el, n_q, start = 5, 9 + 4 * 5 + 3, 9
-    Phi, dPhi = sk.transfer(0.4 * rng.standard_normal((n_el, 4)), rng.uniform(0.05, 0.5, n_el))
-    H0, Ht0 = rng.standard_normal((4, 3)), rng.standard_normal((4, 3))
-    dH0 = np.zeros((4, 3, n_q))
-    dH0[..., :start] = rng.standard_normal((4, 3, start))
-    columns = start + 4 * np.arange(n_el)
+    n_el = (5, 3)
+    n_q = 1 + 4 * n_el[0] + 4 + 4 * n_el[1]
+    columns = (1 + 4 * np.arange(n_el[0]), 1 + 4 * n_el[0] + 4 + 4 * np.arange(n_el[1]))
+    strains = 0.4 * rng.standard_normal((sum(n_el), 4))
+    rates = rng.standard_normal((sum(n_el), 4))
+    lengths = rng.uniform(0.05, 0.5, sum(n_el))
+    dq = rng.standard_normal(n_q)
+    roots = (sk.RootTerms(rng.standard_normal((3, 3)), rng.standard_normal((1, 3, 3)),
+                          *rng.standard_normal((2, 3, 3)), 0, rng.standard_normal((3, 4, 3))),
+             sk.RootTerms(rng.standard_normal((3, 3)), rng.standard_normal((4, 3, 3)), *rng.standard_normal((2, 3, 3)),
+                          1 + 4 * n_el[0], np.zeros((3, 4, 3))))
     out = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
-        out[kind] = sk.body_sweep(Phi, dPhi, H0, dH0, Ht0, columns)
+        transfers = sk.transfers(strains, rates, lengths)
+        bodies = (sk.BodyLine(0, 0, -1, columns[0]), sk.BodyLine(n_el[0] + 1, n_el[0], n_el[0], columns[1]))
+        out[kind] = transfers + sk.kinematics(bodies, roots, transfers, dq, sum(n_el) + 2)
     for compiled, reference in zip(out["compiled"], out["numpy"]):
         assert np.abs(compiled - reference).max() <= 1e-12 * np.abs(reference).max()
-    assert not out["numpy"][1][..., start + 4 * n_el:].any()     # no node depends on the last columns
-    Phi_d = np.einsum("np,npij->nij", rng.standard_normal((n_el, 4)), dPhi)
-    Phi_dd = rng.standard_normal((n_el, 4, 4))
-    H, Hd, Hdd0 = out["numpy"][0], rng.standard_normal((n_el + 1, 4, 3)), rng.standard_normal((4, 3))
-    accelerations = {}
-    for kind in ("numpy", "compiled"):
-        monkeypatch.setenv("WINGSIM_KERNELS", kind)
-        accelerations[kind] = sk.body_accelerations(Phi, Phi_d, Phi_dd, H, Hd, Hdd0)
-    reference = accelerations["numpy"]
-    assert np.abs(accelerations["compiled"] - reference).max() <= 1e-12 * np.abs(reference).max()
+    dH = out["numpy"][5]
+    assert not dH[:n_el[0] + 1, ..., 1 + 4 * n_el[0]:].any()     # the first body depends on none of the second's
+    assert not dH[n_el[0] + 1, ..., 1 + 4 * n_el[0] + 4:].any()  # the second's root on none of its strains
 
 
 def test_linear_stiffness_gives_the_piecewise_constant_curvature_cantilever():
@@ -183,6 +186,35 @@ def test_linear_stiffness_gives_the_piecewise_constant_curvature_cantilever():
     l = L / n
     midpoints = l * (np.arange(n) + 0.5)
     assert deflection == pytest.approx(force / EI * np.sum(l * (L - midpoints) ** 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("n", [5, 40])
+def test_strain_gauges_read_the_elements_own_curvature(n):
+    """Under a tip force F the elements take the curvature of their midpoints, F (L - x_i) / EI (see the test
+    above), and a gauge reading the model's curvature reads d times its element's: exactly the midpoint value.
+    The cubic reading of the same state has the same sign (both positive toward the section normal), and both are
+    within d F (l / 2) / EI of Euler-Bernoulli's d F (L - s) / EI at the gauge's own span s (l the element length:
+    the distance from the span to its element's midpoint)."""
+    force, L, EI, d = 10.0, 2.0, 1e5, 0.01
+    model = model_of(SCENES / "cantilever_static.toml", "structure.fidelity=strain-based",
+                     f"structure.elements_per_body={n}")
+    q0 = model.initial_coordinates()
+    Q = np.zeros(model.top.n_coordinates)
+    Q[9 * model.top.n_nodes - 9 + 2] = force              # tip node, r_z
+    q = q0 + np.linalg.solve(np.diag(model.stiffness_diagonal), model.velocity_map(q0, 0.0).T @ Q)
+    spans = (0.11, 1.31)
+    gauges = [StrainGaugeSpec(f"g{k}", f"g{k}", "beam", s, d, curvature) for k, s in enumerate(spans)
+              for curvature in ("model", "cubic")]
+    sensors = Sensors((), tuple(gauges), model.top)
+    E = model.coordinates(q, np.zeros_like(q), 0.0)[0]
+    strains = sensors.strains(E, model.element_curvatures(q)).reshape(len(spans), 2)
+    l = L / n
+    midpoints = l * (np.floor(np.array(spans) / l) + 0.5)
+    assert strains[:, 0] == pytest.approx(d * force * (L - midpoints) / EI, rel=1e-9)
+    assert np.all(strains[:, 1] > 0)
+    # both within the discretization's bound d F (l / 2) / EI of Euler-Bernoulli at the gauge's own span
+    beam_theory = d * force * (L - np.array(spans)) / EI
+    assert np.all(np.abs(strains - beam_theory[:, None]) <= d * force * (l / 2) / EI)
 
 
 @pytest.mark.parametrize("overrides", [[], UNIVERSAL, REVOLUTE], ids=["ball", "universal", "revolute"])
