@@ -21,12 +21,15 @@ class Fidelity:
     solver runs (prescribed); `deformable`, its bodies have structure.elements_per_body elements, free nodes
     and damping of deformation (the others one element per body, whose |r_x| stays 1: Otsuka et al. 2019,
     Eq. 17); `nodes_anywhere`, its pins and sliders may hold any node (scissor chains need it; else a pin
-    holds a root to the ground)."""
+    holds a root to the ground); `shear_deformable`, its elements strain in shear and across the chord (Peng et
+    al. 2019): a node's r_y is free (no unit-length and orthogonality rows, Otsuka et al. 2019, Eq. 6) and its
+    sections are plates (the continuum is integrated over the plate's chord and thickness)."""
 
     name: str
     moved_by_law: bool
     deformable: bool
     nodes_anywhere: bool
+    shear_deformable: bool = False
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,7 @@ FIDELITIES = {f.name: f for f in (
     Fidelity("prescribed", moved_by_law=True, deformable=False, nodes_anywhere=False),
     Fidelity("rigid", moved_by_law=False, deformable=False, nodes_anywhere=True),
     Fidelity("flexible", moved_by_law=False, deformable=True, nodes_anywhere=True),
+    Fidelity("shear-deformable", moved_by_law=False, deformable=True, nodes_anywhere=True, shear_deformable=True),
     Fidelity("strain-based", moved_by_law=False, deformable=True, nodes_anywhere=False),
 )}
 """structure.fidelity: name -> Fidelity, in the order docs/scenes.md lists them."""

@@ -153,6 +153,9 @@ SECTION = Table({
                                         Absent("E h c^3 / 12 of the plate")),
     "mass_per_length": positive("kg/m", "rho A, spread uniformly over the chord; overrides the plate's",
                                 Absent("rho c h of the plate")),
+    "poissons_ratio": Number("-", 0.0, "plate Poisson's ratio nu: the shear modulus G = E / (2 (1 + nu)) of "
+                                      "structure.fidelity = 'shear-deformable' (0: Peng et al. 2019's)", low=0.0,
+                             high=0.5, high_open=True),
     "rotary_inertia": non_negative("kg m", "rho I_yy: rotary inertia of the section about its chord axis per unit "
                                            "length (Otsuka et al. 2022, Table 4), kinetic energy 1/2 rho I_yy "
                                            "|dr'/dt|^2 (a thin plate's rho c h^3 / 12 is negligible)", 0.0),
@@ -416,9 +419,12 @@ SCENE = Table({
     }),
     "structure": Table({
         "fidelity": Choice("-", "flexible", "prescribed (rigid motion by a law), rigid (one ANCF element per body, "
-                                            "Otsuka et al. 2019, Eq. 17), flexible (ANCF) or strain-based (constant "
-                                            "strains per element, Otsuka et al. 2022)", options=FIDELITIES),
-        "elements_per_body": Integer("-", 4, "elements per body (flexible and strain-based fidelities)", low=1,
+                                            "Otsuka et al. 2019, Eq. 17), flexible (ANCF), shear-deformable (ANCF "
+                                            "with shear in the chord plane, Peng et al. 2019; plate sections) or "
+                                            "strain-based (constant strains per element, Otsuka et al. 2022)",
+                           options=FIDELITIES),
+        "elements_per_body": Integer("-", 4, "elements per body (flexible, shear-deformable and strain-based "
+                                             "fidelities)", low=1,
                                      high=MAX_ELEMENTS_PER_BODY, why=DENSE_STRUCTURE),
         "integrator": Choice("-", "generalized-alpha", "time integrator", options=INTEGRATORS),
         "step": positive("s", "internal time step; the last one in a communication step is shortened to land "

@@ -27,8 +27,9 @@ def _vector(value) -> Vector | None:
 class SectionSpec:
     """A body's cross-section table: chord c (m), reference line at axis_position a (fraction of the chord from
     the leading edge), torsional rigidity GJ (N m^2), rotary inertia rho I_yy (kg m); a rectangular plate
-    (thickness h, m; density rho, kg/m^3; Young's modulus E, Pa) and explicit properties EA (N), EI_yy, EI_zz
-    (N m^2), rho A (kg/m), each None when not given (structure_fmu.section derives the missing ones)."""
+    (thickness h, m; density rho, kg/m^3; Young's modulus E, Pa; Poisson's ratio nu) and explicit properties EA
+    (N), EI_yy, EI_zz (N m^2), rho A (kg/m), each None when not given (structure_fmu.section derives the missing
+    ones)."""
 
     key: str
     chord: float
@@ -42,6 +43,7 @@ class SectionSpec:
     bending_stiffness_chord: float | None
     mass_per_length: float | None
     rotary_inertia: float
+    poissons_ratio: float = 0.0
 
     @classmethod
     def from_table(cls, key: str, table: dict) -> "SectionSpec":
@@ -54,7 +56,7 @@ class SectionSpec:
         return cls(key, table["chord"], table["axis_position"], table["torsional_rigidity"], table["thickness"],
                    table["density"], table["youngs_modulus"], table["axial_stiffness"],
                    table["bending_stiffness_flap"], table["bending_stiffness_chord"], table["mass_per_length"],
-                   table["rotary_inertia"])
+                   table["rotary_inertia"], table["poissons_ratio"])
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
-"""Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV), the strain-based beam with
-joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
+"""Structure unit: the 18-DoF ANCF multibody solver (Otsuka et al. 2019, Secs. II-IV), the shear-deformable ANCF
+element (Peng et al. 2019, Eqs. 1-10), the strain-based beam with joint parameters (Otsuka et al. 2022, Secs. 2-3),
+and its FMI 2.0 slave.
 
   solver.py          StructureSolver, the API of docs/solver_api.md (spec, parameters, inputs Q, state, outputs)
   interface.py       the unit's FMI interface, declared once: blocks, monitors, sensors, parameters
@@ -9,10 +10,13 @@ joint parameters (Otsuka et al. 2022, Secs. 2-3), and its FMI 2.0 slave.
   section.py         beam cross-section properties from a plate or explicit stiffnesses
   element.py         the ANCF element: mass matrix, elastic energy, force and Jacobian (Eqs. 5, 7-11)
   element_kernels.c  the elastic force and tangent in C (compiled and loaded by fmu_common.c_library)
+  shear_element.py   the shear-deformable element (Peng et al. 2019): the chord plane's continuum with the Green
+                     strain, plus the flap bending and torsion of element.py; energy, force and Jacobian
+  shear_element_kernels.c  its continuum's force and tangent in C (compiled and loaded by fmu_common.c_library)
   iteration_lu.py    the LU of generalized-alpha's iteration matrix, banded where its sparsity allows
   fidelities.py      the registry of the structural fidelities (their model classes) and the model contract
                      StructuralModel the integrators call
-  model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4)
+  model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4), either element
   slots.py           the exchanged coordinates as combinations of free and prescribed vectors; shared slots
   pins.py            pins at any node (shared points, rows closing a loop of rigid bodies) and sliders
   constraints.py     the nonlinear internal constraints (Eqs. 6, 17), linear rows and the joints' axis rows

@@ -329,6 +329,7 @@ class Constraints:
         multipliers = np.asarray(multipliers)
         values = multipliers[self._hessian_multiplier]
         out = np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
+        out = out.astype(float, copy=False)   # without quadratic rows (shear-deformable) bincount gives integers
         if self.axes.count:
             out += self.axes.hessian_sum(multipliers[self.blocks["axis"]], E)
         if self.sliding.count:

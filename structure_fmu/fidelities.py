@@ -5,6 +5,8 @@ contract every such model keeps (`StructuralModel`), which the integrators and `
   prescribed     StructureModel: every body follows structure.motion, nothing is integrated
   rigid          StructureModel: one ANCF element per body, |r_x| = 1 (Otsuka et al. 2019, Eq. 17)
   flexible       StructureModel: N ANCF elements per body with their elastic force (Otsuka et al. 2019, Eqs. 7-11)
+  shear-deformable  StructureModel: N shear-deformable ANCF elements per body (Peng et al. 2019, Eqs. 1-10),
+                 no internal constraints
   strain-based   StrainBasedModel: constant strains per element and joint parameters (Otsuka et al. 2022, Eq. 9)
 
 What both units ask of a fidelity (its bodies' element count, whether pins may hold any node, whether a law
@@ -265,7 +267,7 @@ class StructuralModel(Protocol):
 
 
 MODELS: dict[str, type] = {"prescribed": StructureModel, "rigid": StructureModel, "flexible": StructureModel,
-                           "strain-based": StrainBasedModel}
+                           "shear-deformable": StructureModel, "strain-based": StrainBasedModel}
 """structure.fidelity -> the model class (a StructuralModel) built from the topology and the parameters."""
 
 

@@ -13,7 +13,7 @@ from scipy.linalg import cho_factor, cho_solve
 from fmu_common.errors import SceneError
 from fmu_common.shape_functions import shape_row
 
-from . import element
+from . import element, shear_element
 from .constraints import Constraints
 from .motion import Fixed
 from .damping import deformation_damping_force, deformation_damping_matrix
@@ -23,7 +23,9 @@ from .joints import actuator_energy, actuator_terms
 class StructureModel:
     """Mass, forces, constraints and energy of a StructureTopology with given tunable parameters.
 
-    The model of the prescribed, rigid and flexible fidelities (structure_fmu.fidelities).
+    The model of the prescribed, rigid, flexible and shear-deformable fidelities (structure_fmu.fidelities): the
+    flexible bodies' elastic force is that of `element` (Otsuka et al. 2019), or of `shear_element` (Peng et al.
+    2019) for a shear-deformable fidelity.
 
     Args:
         topology: the StructureTopology.
@@ -49,6 +51,9 @@ class StructureModel:
         self.lengths = topology.element_lengths()
         sections = [topology.bodies[b].section for b in topology.element_body]
         self.stiffness = np.array([s.stiffness for s in sections])
+        # the element law: (module with elastic_energy, elastic_force, elastic_jacobian; its per-element table)
+        self._law = ((shear_element, shear_element.section_table(sections)) if topology.fidelity.shear_deformable
+                     else (element, self.stiffness))
         mu = np.array([s.mass_per_length for s in sections])
         mu1 = np.array([s.first_moment for s in sections])
         mu2 = np.array([s.chord_inertia for s in sections])
@@ -206,7 +211,8 @@ class StructureModel:
         F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
         if self.flexible:
             e_el = E[self.dofs]
-            F += np.bincount(self._dofs_flat, element.elastic_force(e_el, self.lengths, self.stiffness).ravel(), self.n)
+            law, table = self._law
+            F += np.bincount(self._dofs_flat, law.elastic_force(e_el, self.lengths, table).ravel(), self.n)
         for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
         if self.mass_damping is not None:
@@ -230,7 +236,8 @@ class StructureModel:
         """
         n = self.n
         if self.flexible:
-            jac = element.elastic_jacobian(E[self.dofs], self.lengths, self.stiffness)
+            law, table = self._law
+            jac = law.elastic_jacobian(E[self.dofs], self.lengths, table)
             K = np.bincount(self._element_entries, jac.ravel(), n * n).reshape(n, n)
         else:
             K = np.zeros((n, n))
@@ -505,8 +512,8 @@ class StructureModel:
             latched: {hinge: latched}.
             angles: {hinge: fold angle, rad} of E (`StructureTopology.fold_angles`).
         """
-        elastic = float(np.sum(element.elastic_energy(E[self.dofs], self.lengths, self.stiffness))) \
-            if self.flexible else 0.0
+        law, table = self._law
+        elastic = float(np.sum(law.elastic_energy(E[self.dofs], self.lengths, table))) if self.flexible else 0.0
         potential = -float(np.dot(self.gravity_E, E))
         spring = 0.0
         for h in self.hinges:

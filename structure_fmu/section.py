@@ -3,6 +3,7 @@ import math
 from dataclasses import dataclass
 
 from fmu_common.errors import SceneError
+from fmu_common.schema import MISSING
 from fmu_common.scene_schema import EXPLICIT, PLATE
 from fmu_common.wing_spec import SectionSpec
 
@@ -16,7 +17,9 @@ class Section:
     chord_inertia (rho I_zz, kg m), chord (m), axis_position (reference line, fraction of chord from the
     leading edge), thickness (h, m; None for a section given by explicit stiffnesses), rotary_inertia (rho I_yy,
     kg m: the rotary inertia of the section about its chord axis, kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit
-    length, Otsuka et al. 2022, Table 4; element.mass_matrix).
+    length, Otsuka et al. 2022, Table 4; element.mass_matrix), youngs_modulus (E, Pa) and poissons_ratio (nu) of
+    a plate (None for a section given by explicit stiffnesses; the shear-deformable element integrates E over the
+    plate, shear_element).
     """
 
     axial: float
@@ -30,6 +33,8 @@ class Section:
     axis_position: float
     thickness: float | None = None
     rotary_inertia: float = 0.0
+    youngs_modulus: float | None = None
+    poissons_ratio: float | None = None
 
     @property
     def stiffness(self):
@@ -67,4 +72,29 @@ def section_from_spec(spec: SectionSpec) -> Section:
                    chordwise=values["bending_stiffness_chord"], torsion=spec.torsional_rigidity,
                    mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
-                   thickness=h, rotary_inertia=spec.rotary_inertia)
+                   thickness=h, rotary_inertia=spec.rotary_inertia, youngs_modulus=spec.youngs_modulus,
+                   poissons_ratio=spec.poissons_ratio if h is not None else None)
+
+
+SHEET_DERIVED = ("axial_stiffness", "bending_stiffness_chord")
+"""The explicit section properties the shear-deformable element derives from the plate itself (its continuum over
+the chord and thickness gives EA and EI_zz)."""
+
+
+def require_plate(spec: SectionSpec, fidelity_name: str) -> None:
+    """SceneError naming the key unless `spec` is a plate without the overrides the shear-deformable element
+    cannot follow (SHEET_DERIVED): that element integrates E over the plate's chord and thickness.
+
+    Args:
+        spec: the section table (fmu_common.wing_spec.SectionSpec).
+        fidelity_name: the structure's fidelity, for the message.
+    """
+    if spec.thickness is None:
+        raise SceneError(f"{spec.key}.thickness", MISSING, f"a plate (thickness, density, youngs_modulus) with "
+                                                        f"structure.fidelity = '{fidelity_name}': its element "
+                                                        "integrates E over the plate's chord and thickness")
+    for name in SHEET_DERIVED:
+        if getattr(spec, name) is not None:
+            raise SceneError(f"{spec.key}.{name}", getattr(spec, name),
+                             f"absent with structure.fidelity = '{fidelity_name}' (its element derives it from the "
+                             "plate's E, chord and thickness)")

@@ -39,7 +39,7 @@ from .joint_rows import SlidingRow
 from .joints import hinge_angle
 from .motion import Fixed, HeavePitch, SpinUp
 from .pins import add_pins, add_sliders
-from .section import Section, section_from_spec
+from .section import Section, require_plate, section_from_spec
 from .slots import RX, RY, R, Slot, compact
 
 
@@ -145,6 +145,8 @@ class StructureTopology(topology.Topology):
         return top
 
     def _new_body(self, spec):
+        if self.fidelity.shear_deformable:
+            require_plate(spec.section, self.fidelity.name)
         section = section_from_spec(spec.section)
         return StructureBody(spec.name, spec.length, section.chord, section.axis_position, section=section,
                              damping=spec.damping)
@@ -278,6 +280,8 @@ class StructureTopology(topology.Topology):
             else:
                 self.orthogonal_slots.append(tuple(slots))
 
+        if self.fidelity.shear_deformable:      # r_y is free: its length and angle to r_x are strains
+            return
         for body in self.bodies.values():
             nodes = body.nodes if self.fidelity.deformable else body.nodes[:1]
             for node in nodes:

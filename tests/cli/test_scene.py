@@ -109,7 +109,7 @@ def test_defaults_of_a_minimal_scene():
                      "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "elements": None, "angular_velocity": None,
                      "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
-                                 "mass_per_length": None, "rotary_inertia": 0.0}}]
+                                 "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",

@@ -3,11 +3,10 @@ import json
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from orchestrator.cli import main
 from orchestrator.scene.load import load_scene
+from elastica import elastica_tip
 from repository import SCENES
 
 
@@ -29,21 +28,6 @@ def test_quasi_static_cantilever_is_locking_free(tmp_path):
     assert scene["structure"]["elements_per_body"] == 3
     tip = summary["probes"]["tip"]
     assert tip["final"][2] - tip["initial"][2] == pytest.approx(expected, rel=0.01)
-
-
-def elastica_tip(k):
-    """(dx, dz) / L of the tip of an inextensible cantilever under a dead transverse tip load, k = P L^2 / EI.
-
-    Shooting on theta'' = -k cos(theta), theta(0) = 0, theta'(1) = 0 (no moment at the free end).
-    """
-    def rhs(s, y):
-        return [y[1], -k * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])]
-
-    def end_moment(c):
-        return solve_ivp(rhs, (0, 1), [0, c, 0, 0], rtol=1e-12, atol=1e-12).y[1, -1]
-    slope = brentq(end_moment, 0.0, k)
-    end = solve_ivp(rhs, (0, 1), [0, slope, 0, 0], rtol=1e-12, atol=1e-12).y[:, -1]
-    return end[2] - 1.0, end[3]
 
 
 @pytest.mark.parametrize("parameter", [1.0, 10.0])

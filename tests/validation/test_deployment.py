@@ -43,6 +43,17 @@ def test_strain_based_deployment_reaches_zero_at_otsuka_2022_time():
     assert result.latch_times["fold"] == pytest.approx(0.120, rel=0.05)
 
 
+def test_shear_deformable_deployment_reaches_zero_near_otsuka_2022():
+    """The shear-deformable fidelity (Peng et al. 2019's element) in still air: the fold angle reaches 0 within 10%
+    of Otsuka et al. 2022's 0.120 s, as the flexible fidelity does (the fast sibling of the coupled shear-deformable
+    deployments in test_coupled_deployment.py)."""
+    result = run_scene(load_scene(SCENES / "deploy_flexible.toml", [*STILL_AIR, "time.stop=0.13",
+                                                                     "structure.fidelity=shear-deformable"]),
+                       backend="direct")
+    assert result.status == "ok", result.message
+    assert result.latch_times["fold"] == pytest.approx(0.120, rel=0.10)
+
+
 def test_fifteen_elements_per_body_start_like_seven():
     """Otsuka et al. 2022 used 15 elements per body. Their short elements give the gradient coordinates at the hinge
     initial accelerations near 1e8 m/s^2, which once made the first Newton iteration of generalized-alpha
