@@ -15,14 +15,13 @@ benchmarks/fidelity.py. Every scene run is `orchestrator.run.master.run_scene(sc
 the median of --repeats interleaved repeats (every configuration once, then again), imports excluded.
 --quick: one repeat, short runs, no errors of part 2.
 """
-import statistics
 import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from fidelity import reference_rms
-from report import Report, fmt, status
+from report import Report, fmt, medians, status
 
 from orchestrator.scene.load import load_scene
 from orchestrator.studies import metrics
@@ -198,18 +197,6 @@ def beam_work(task):
         z = fsc.free_end_z(task.n, samples)
         cpu = time.process_time() - cpu
     return {"status": "ok", "message": "", "cpu_s": cpu, "rms": rms(z)}
-
-
-def medians(tasks, res):
-    """{config: (median CPU s, [CPU s], first repeat's row)} of the tasks that ran ok in every repeat."""
-    out = {}
-    for config in dict.fromkeys(t.config() for t in tasks):
-        rows = [(t, res[t]) for t in tasks if t.config() == config]
-        rows.sort(key=lambda tr: tr[0].repeat)
-        ok = all("error" not in r and r["status"] == "ok" for _, r in rows)
-        cpus = [r["cpu_s"] for _, r in rows] if ok else []
-        out[config] = (statistics.median(cpus) if ok else None, cpus, rows[0][1])
-    return out
 
 
 def saving(cheap, costly):

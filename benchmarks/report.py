@@ -3,6 +3,7 @@ the markdown report rendered from benchmarks/templates/<name>.md (Jinja2)."""
 import argparse
 import math
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -134,6 +135,19 @@ def span(values, spec):
 def ratio(value, ref):
     """value / ref, or None."""
     return None if value is None or not ref else value / ref
+
+
+def medians(tasks, res):
+    """{config: (median CPU s, [CPU s], first repeat's row)} of the tasks that ran ok in every repeat: the tasks
+    (with `config()` and `repeat`) of interleaved repeats and their results `res` ({task: row with "cpu_s"})."""
+    out = {}
+    for config in dict.fromkeys(t.config() for t in tasks):
+        rows = [(t, res[t]) for t in tasks if t.config() == config]
+        rows.sort(key=lambda tr: tr[0].repeat)
+        ok = all("error" not in r and r["status"] == "ok" for _, r in rows)
+        cpus = [r["cpu_s"] for _, r in rows] if ok else []
+        out[config] = (statistics.median(cpus) if ok else None, cpus, rows[0][1])
+    return out
 
 
 def table(header, rows):

@@ -2,7 +2,7 @@
 independent one-degree-of-freedom model) and the scissor-deployed wing in the wind (deployment time against
 flow speed).
 
-    python benchmarks/scissor.py [--quick] [--jobs 2] [--resume] [--no-plots]
+    python benchmarks/scissor.py [--quick] [--jobs 2] [--resume] [--no-plots] [--repeats 3]
 
 Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --backend direct --set ...` runs:
   1. scissor_array, 0-0.6 s, flexible (the scene) and rigid (structure.fidelity=rigid) at rho_inf = 0.8 (the
@@ -12,10 +12,17 @@ Every run is `run_scene(scene, backend="direct")`, what `wingsim run SCENE --bac
      (Peng et al. 2019, Figs. 7 and 8); the pivots' velocities and accelerations as the run records them
      (timeseries.csv columns array_<pivot>_vx .. _ay): flexible against rigid, the flexible a_2..a_4 against each
      other and a_1's y acceleration against rho_inf (their Figs. 5, 7c-f, 9 and 10);
+     the element models at the scene's rho_inf: rigid bars, the element of Otsuka et al. 2019 (flexible) and the
+     shear-deformable element of Peng et al. 2019 (structure.fidelity=shear-deformable): their coordinate and
+     constraint row counts (summary.json's structure_counts), their motion against the rigid bars' and the
+     shear-deformable against the flexible, and their cost: the median CPU time (time.process_time, in the
+     worker) of --repeats interleaved repeats of the three (every model once, then again), run after the
+     other tasks so that every worker has imported the units;
   2. scissor_wing, rigid: the latch time of its revolute joint "deploy" (the deployment time) with uvlm-flat
      at 0, 5, 10, 15, 20 m/s and in still air without aero (aero.model=none); the flexible plates
      (generalized-alpha, h = 1e-4 s) at 10 m/s with the scene's rho_inf and with rho_inf = 0.
---quick: the array to 0.3 s at the scene's rho_inf only, the wing rigid at 0 and 10 m/s and without aero.
+--quick: the array to 0.3 s at the scene's rho_inf only, one cost repeat, the wing rigid at 0 and 10 m/s and
+without aero.
 """
 import shutil
 import sys
@@ -24,8 +31,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from report import ROOT, Report, fmt, status
+from report import ROOT, Report, fmt, medians, status
 
+from orchestrator.output.structure_counts import structure_counts
 from orchestrator.run.master import RunResult, StructureCoordinates, run_scene
 from orchestrator.output.mechanism_view import instant_indices, write_mechanism_view
 from orchestrator.scene.load import load_scene
@@ -44,18 +52,25 @@ PAPER = {"dx": 0.01498, "dy": 0.02503, "a2_a3": 0.01863, "a3_a4": 0.02203, "at":
          # 10b, largest difference in y velocity and y acceleration between the flexible pivots a_2..a_4
          "dv": 0.3889, "da": 18.60, "v_apart": 0.7749, "a_apart": 27.20}
 RATES = ("v", "a")                       # the recorded velocity (m/s) and acceleration (m/s^2) columns
+ELEMENTS = {"rigid": "rigid bars", "flexible": "Otsuka et al. 2019 (flexible)",
+            "shear-deformable": "Peng et al. 2019 (shear-deformable)"}   # the array's element models
 
 
 @dataclass(frozen=True)
 class Run:
     """One run: `scene` (file stem), structure `fidelity`, `rho_inf` (None: the scene's), flow `speed` (m/s,
-    None: the scene's), aero `model` ("": the scene's), `stop` (s)."""
+    None: the scene's), aero `model` ("": the scene's), `stop` (s); `repeat` > 0 numbers a repeat that only
+    measures the CPU time."""
     scene: str
     fidelity: str
     rho_inf: float | None
     speed: float | None
     model: str
     stop: float
+    repeat: int = 0
+
+    def config(self):
+        return (self.scene, self.fidelity, self.rho_inf, self.speed, self.model, self.stop)
 
     def overrides(self):
         out = [f"structure.fidelity={self.fidelity}", f"time.stop={self.stop!r}"]
@@ -71,7 +86,8 @@ class Run:
         flow = ("" if self.scene == "scissor_array" else ", still air, no aero" if self.model == "none"
                 else f", uvlm-flat {self.speed:g} m/s")
         rho = "" if self.rho_inf is None else f", rho_inf {self.rho_inf:g}"
-        return f"{self.scene} {self.fidelity}{rho}{flow}"
+        repeat = f", cost repeat {self.repeat}" if self.repeat else ""
+        return f"{self.scene} {self.fidelity}{rho}{flow}{repeat}"
 
 
 def load(run):
@@ -86,6 +102,8 @@ def work(run):
     cpu = time.process_time() - cpu
     out = {"status": result.status, "message": result.message, "cpu_s": cpu,
            "simulated_s": result.simulated_time_s}
+    if run.repeat:
+        return out
     if run.scene == "scissor_wing":
         return out | {"deploy_s": result.latch_times.get("deploy")}
     series = result.series
@@ -186,21 +204,70 @@ def pivot_rates(f, r, t):
     return values, cells
 
 
+def element_rows(res, runs, configs, costs, counts, reference, time_to):
+    """The element models' table rows at the scene's rho_inf, from the runs {fidelity: Run} (their results
+    `res`), the cost repeats' medians `costs` ({config: (median CPU s, [CPU s], row)}, `configs` {fidelity:
+    config}) and `counts` ({fidelity: structure_counts}); the largest |shear-deformable - flexible| pivot
+    position (m) and velocity (m/s), and the models' median CPU times {fidelity: s}."""
+    rigid, flexible, shear = (runs[f] for f in ELEMENTS)
+    pairs = {f: array_rows(res, runs[f], rigid, reference, time_to) for f in ("flexible", "shear-deformable")}
+    cpu = {f: costs[configs[f]][0] for f in ELEMENTS}
+    size_rows, motion_rows = [], []
+    for f, name in ELEMENTS.items():
+        c, spent = counts[f], costs[configs[f]]
+        size_rows.append([name, c["exchanged_coordinates"], c["coordinates"], c["constraint_rows"],
+                          c["coordinates"] - c["constraint_rows"], fmt(cpu[f], ".2f"),
+                          ", ".join(f"{x:.2f}" for x in spent[1]) or "-",
+                          fmt(None if cpu[f] is None or not cpu["flexible"] else cpu[f] / cpu["flexible"], ".2f")])
+        row = pairs.get(f)
+        travel = row["travel_row"][3] if row else fmt(
+            float(res[rigid]["a1_y"][0] - res[rigid]["a1_y"][-1]) if "t" in res[rigid] else None, ".5f")
+        motion_rows.append([name, travel, *(row["pivot_row"][1:] if row else ["-"] * 4),
+                            *(row["rates_row"][1:2] if row else ["-"])])
+    d = {}
+    if "t" in res[flexible] and "t" in res[shear]:
+        t = np.asarray(res[flexible]["t"])
+        s, f = res[shear], res[flexible]
+        for key, kind in (("position", ""), ("velocity", "v")):
+            d[key] = max(peak(np.asarray(s[f"{p}_{kind}{axis}"]) - np.asarray(f[f"{p}_{kind}{axis}"]), t) + (p, axis)
+                         for p in PIVOTS for axis in "xy")
+    return size_rows, motion_rows, d, cpu
+
+
+def shear_correction(section, length):
+    """Timoshenko's shear deflection over the bending deflection of a bar of depth h (m, in the plane of its
+    bending) and span `length` (m), loaded at its end: (E I / (k G A)) / (L^2 / 3) = (E / (4 k G)) (h / L)^2 for a
+    rectangle, with k = 1 (the element's uniform shear strain) and G = E / (2 (1 + nu)); with the section's data
+    (chord, thickness, youngs_modulus, poissons_ratio)."""
+    h, nu = section["thickness"], section["poissons_ratio"]
+    return 2 * (1 + nu) / 4 * (h / length) ** 2
+
+
 def main():
-    args = REPORT.arguments()
+    args = REPORT.arguments(**{"--repeats": {"type": int, "default": 3,
+                                             "help": "interleaved repeats of the element models' runs for their "
+                                                     "cost (default 3)"}})
+    repeats = 1 if args.quick else args.repeats
     scene_rho = load_scene(ROOT / "scenes" / "scissor_array.toml")["structure"]["rho_inf"]
     rhos = (scene_rho, *(r for r in RHOS if r != scene_rho))
     array_stop, rhos = (0.3, rhos[:1]) if args.quick else (0.6, rhos)
     array = {rho: (Run("scissor_array", "flexible", rho, None, "", array_stop),
                    Run("scissor_array", "rigid", rho, None, "", array_stop)) for rho in rhos}
+    elements = {"rigid": array[scene_rho][1], "flexible": array[scene_rho][0],
+                "shear-deformable": Run("scissor_array", "shear-deformable", scene_rho, None, "", array_stop)}
+    # interleaved: every model once, then again
+    repeated = [Run("scissor_array", f, scene_rho, None, "", array_stop, k) for k in range(1, repeats + 1)
+                for f in ELEMENTS]
     wing_scene = load_scene(ROOT / "scenes" / "scissor_wing.toml")
     wing_stop = wing_scene["time"]["stop"]
     wing = [Run("scissor_wing", "rigid", None, v, "", wing_stop) for v in ((0.0, 10.0) if args.quick else SPEEDS)]
     wing.append(Run("scissor_wing", "rigid", None, 0.0, "none", wing_stop))
     flexible_wing = [] if args.quick else [Run("scissor_wing", "flexible", rho, 10.0, "", wing_stop)
                                            for rho in (wing_scene["structure"]["rho_inf"], 0.0)]
-    runs = [r for pair in array.values() for r in pair] + wing + flexible_wing
-    res = REPORT.run(runs, work, cost=lambda r: 10 if r.fidelity == "flexible" else 1,
+    runs = ([r for pair in array.values() for r in pair] + [elements["shear-deformable"]] + wing + flexible_wing
+            + repeated)
+    # the most costly first, the cost repeats last (cost 0, a stable sort keeps them interleaved)
+    res = REPORT.run(runs, work, cost=lambda r: 0 if r.repeat else 1 if r.fidelity == "rigid" else 10,
                      describe=lambda r, x: f"{x['status']}, CPU {x['cpu_s']:.1f} s"
                      + (f", deployment {fmt(x['deploy_s'], '.4f')} s" if "deploy_s" in x else ""))
     failed = [r.label for r in runs if "error" in res[r] or res[r]["status"] != "ok"]
@@ -212,6 +279,18 @@ def main():
     theta = np.arcsin(np.sin(np.radians(data["theta0"])) - reference[-1] / data["L"])   # rad, rigid, at the stop
     lengths = [data["n"] * data["L"] * np.cos(a) for a in (np.radians(data["theta0"]), theta)]   # m, b_1 to b_n+1
     spread = max(np.ptp([row["maxima"][k] for row in table.values()]) for k in range(4)) if table else None
+    counts = {f: structure_counts(load(r)) for f, r in elements.items()}
+    size_rows, motion_rows, shear_vs_flexible, element_cpu = element_rows(
+        res, elements, {f: r.config() for f, r in elements.items()}, medians(repeated, res), counts, reference,
+        time_to)
+    section = load(elements["flexible"])["structure"]["scissors"][0]["section"]
+    wing_section = wing_scene["structure"]["scissors"][0]["section"]
+    wing_length = wing_scene["structure"]["scissors"][0]["bar_length"]
+    shear = {"array": {"L": data["L"], "h": section["thickness"], "c": section["chord"],
+                       "half": shear_correction(section, data["L"] / 2), "whole": shear_correction(section, data["L"]),
+                       "E_G": 2 * (1 + section["poissons_ratio"])},
+             "wing": {"L": wing_length, "h": wing_section["thickness"],
+                      "half": shear_correction(wing_section, wing_length / 2)}}
     shipped = table.get(scene_rho)
 
     def wing_row(run):
@@ -224,6 +303,7 @@ def main():
         plot(table, reference, res, array[rhos[0]][0], wing, flexible_wing)
         if scene_rho in table:
             plot_rates(table, res, array, scene_rho)
+        plot_elements(res, elements)
     REPORT.render(array_stop=array_stop, data=data, scene_rho=scene_rho, final_angle=np.degrees(theta),
                   lengths=lengths, spread=spread, rho_list=", ".join(f"{r:g}" for r in table), rho_count=len(table),
                   maxima=None if shipped is None else shipped["maxima"],
@@ -234,6 +314,8 @@ def main():
                   rates={rho: row["rates"] for rho, row in table.items()},
                   a1_rms_falls_with_rho=all(table[low]["rates"]["a1_rms"] <= table[high]["rates"]["a1_rms"]
                                             for low, high in zip(sorted(table), sorted(table)[1:])),
+                  size_rows=size_rows, motion_rows=motion_rows, shear_vs_flexible=shear_vs_flexible,
+                  element_cpu=element_cpu, counts=counts, repeats=repeats, shear=shear,
                   wing_rows=[wing_row(r) for r in wing + flexible_wing], wing_stop=wing_stop,
                   flexible_wing=[(r.rho_inf, res[r]) for r in flexible_wing], rigid_wing={
                       r.speed if r.model != "none" else "none": res[r].get("deploy_s") for r in wing},
@@ -275,6 +357,29 @@ def plot_rates(table, res, array, rho):
         ax.set(xlabel="t (s)", ylabel="y acceleration of a_1 (m/s^2)",
                title="slider a_1" + ("" if start == 0 else ", after t = 0, rho_inf < 1"))
     REPORT.save(fig, "scissor_a1_acceleration", legend=8)
+
+
+def plot_elements(res, runs):
+    """img/scissor_elements.png: the pivots' y, flexible - rigid and shear-deformable - rigid, and the
+    shear-deformable - flexible positions and velocities of the pivots, from the runs {fidelity: Run}."""
+    r, f, s = (res[runs[k]] for k in ELEMENTS)
+    if any("t" not in x for x in (r, f, s)):
+        return
+    t = np.asarray(r["t"])
+    fig, axes = REPORT.figure(1, 3, 15, 4)
+    ax = axes[0, 0]
+    for k, p in enumerate(PIVOTS):
+        ax.plot(t, np.asarray(f[f"{p}_y"]) - np.asarray(r[f"{p}_y"]), f"C{k}-", linewidth=2.5, alpha=0.4,
+                label=f"{p} flexible")
+        ax.plot(t, np.asarray(s[f"{p}_y"]) - np.asarray(r[f"{p}_y"]), f"C{k}--", label=f"{p} shear-deformable")
+    ax.set(xlabel="t (s)", ylabel="model - rigid y (m)", title="pivots against the rigid bars")
+    for ax, kind, unit, name in ((axes[0, 1], "", "m", "position"), (axes[0, 2], "v", "m/s", "velocity")):
+        for k, p in enumerate(PIVOTS):
+            for axis, style in (("x", "-"), ("y", ":")):
+                ax.plot(t, np.asarray(s[f"{p}_{kind}{axis}"]) - np.asarray(f[f"{p}_{kind}{axis}"]), f"C{k}{style}",
+                        linewidth=0.8, label=f"{p} {axis}")
+        ax.set(xlabel="t (s)", ylabel=f"shear-deformable - flexible {name} ({unit})", title=f"pivots, {name}")
+    REPORT.save(fig, "scissor_elements", legend=7)
 
 
 def plot(table, reference, res, flexible, wing, flexible_wing):

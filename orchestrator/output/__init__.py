@@ -1,6 +1,7 @@
 """Output stage: what a run leaves in its output folder.
 
 - ``results``         ``timeseries.csv`` and ``summary.json`` (README, Outputs), also for a failed run
+- ``structure_counts`` summary.json's ``structure_counts``: the structure's coordinates and constraint rows
 - ``plots``           PNG plots of a run
 - ``run_record``      ``run.json``: which run wrote the folder, and whether it finished writing it
 - ``mechanism_view``  the mechanism at several instants (``mechanism.png``)

@@ -22,6 +22,12 @@ Summary fields (SI units, angles in degrees):
   between communication points, where the latch has already arrested the fold); null if a hinge never
   latches or no hinge has a stop;
 - ``max_constraint_residual``: the largest constraint residual over the run;
+- ``structure_counts``: the size of the structural equations (``orchestrator.output.structure_counts``):
+  ``fidelity``, ``coordinates`` (n_q, the generalized coordinates the integrator advances, after pins and
+  prescribed motions have eliminated theirs), ``exchanged_coordinates`` (n, the unit's E: 9 per node) and
+  ``constraint_rows`` (m, the constraint rows it solves, redundant rows of planar rigid loops left out; 0: an
+  ODE); derived from the resolved scene by the structure unit's own construction, not by running it; null
+  only for a failed run whose structure could not be built (its message says why);
 - ``energy_drift``: (E_final - E_0 - W_external) / max(|E_0|, max over the run of the kinetic energy,
   1e-12 J), with E_0 and E_final the first and last samples with a finite energy and external work,
   W_external the work the structure unit integrated over the same span (``external_work``: the point loads
@@ -63,12 +69,13 @@ import numpy as np
 
 from fmu_common.errors import SceneError
 from orchestrator.files import WriteError, write_file
+from orchestrator.output.structure_counts import structure_counts
 from orchestrator.run.master import RunResult, new_series
 from orchestrator.scene.load import hinge_joints
 from orchestrator.run.timeseries import TimeSeries
 
 SUMMARY_FIELDS = ("status", "message", "wall_time_s", "stepping_wall_time_s", "simulated_time_s", "scene",
-                  "deployment_time_s", "max_constraint_residual", "energy_drift", "probes")
+                  "deployment_time_s", "max_constraint_residual", "structure_counts", "energy_drift", "probes")
 """The fields of every summary; a scene with strain gauges adds STRAIN_FIELD, an aero scene AERO_FIELD, an
 implicitly coupled one COUPLING_FIELD."""
 STRAIN_FIELD = "strain_gauges"
@@ -206,6 +213,17 @@ def coupling_summary(series: TimeSeries, scene: dict) -> dict[str, Any]:
     return out
 
 
+def run_structure_counts(result: RunResult) -> dict[str, Any] | None:
+    """`structure_counts` of the run's scene; None for a run that failed and whose structure cannot be built
+    (the run's message says why). A run that ran built the same structure, so its counts cannot fail."""
+    try:
+        return structure_counts(result.scene)
+    except Exception:
+        if result.status in ("ok", "diverged"):
+            raise
+        return None
+
+
 def summarize(result: RunResult) -> dict[str, Any]:
     """The summary.json content (SUMMARY_FIELDS, STRAIN_FIELD for a scene with strain gauges, AERO_FIELD
     for an aero scene, COUPLING_FIELD for an implicitly coupled one), JSON-safe."""
@@ -219,6 +237,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
         "scene": result.scene,
         "deployment_time_s": deployment_time(result.latch_times, result.scene),
         "max_constraint_residual": max_constraint_residual(series.constraint_residual),
+        "structure_counts": run_structure_counts(result),
         "energy_drift": energy_drift(series.energy, series.kinetic_energy, series.external_work),
         "probes": probe_summary(series),
     }
