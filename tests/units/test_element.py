@@ -63,21 +63,26 @@ def rigid_transform(e, rotation, shift):
     return v.reshape(-1, 18)
 
 
-def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
-    stiffness = np.array([[2e5, 3.0, 40.0, 1.5]])
+def assert_rigid_motion_free_and_objective(law, table, scale):
+    """An element law (`element` or `shear_element`: elastic_energy, elastic_force of (e, l, table)) gives no force
+    on a straight element moved rigidly (below 1e-9 of `scale`, N), and on a deformed one the same energy and the
+    force rotated with it."""
     l = np.array([0.4])
     R = Rotation.from_rotvec([0.4, -1.1, 2.0]).as_matrix()
     moved = rigid_transform(straight(0.4)[None], R, np.array([1.0, -2.0, 0.5]))
-    force = element.elastic_force(moved, l, stiffness)
-    assert np.max(np.abs(force)) < 1e-9 * stiffness.max()
-    # a deformed element moved rigidly: same energy, force rotated with it
+    assert np.max(np.abs(law.elastic_force(moved, l, table))) < 1e-9 * scale
     deformed = straight(0.4)[None] + 0.02 * RNG.standard_normal((1, 18))
     moved = rigid_transform(deformed, R, np.array([0.3, 0.2, 0.1]))
-    energy = element.elastic_energy(deformed, l, stiffness)
-    assert element.elastic_energy(moved, l, stiffness) == pytest.approx(energy, rel=1e-12)
-    rotated_force = (element.elastic_force(deformed, l, stiffness).reshape(6, 3) @ R.T).ravel()
-    np.testing.assert_allclose(element.elastic_force(moved, l, stiffness)[0], rotated_force,
+    energy = law.elastic_energy(deformed, l, table)
+    assert law.elastic_energy(moved, l, table) == pytest.approx(energy, rel=1e-12)
+    rotated_force = (law.elastic_force(deformed, l, table).reshape(6, 3) @ R.T).ravel()
+    np.testing.assert_allclose(law.elastic_force(moved, l, table)[0], rotated_force,
                                atol=1e-9 * np.abs(rotated_force).max())
+
+
+def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
+    stiffness = np.array([[2e5, 3.0, 40.0, 1.5]])
+    assert_rigid_motion_free_and_objective(element, stiffness, stiffness.max())
 
 
 def test_force_is_gradient_of_energy_and_jacobian_is_its_derivative():

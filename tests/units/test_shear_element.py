@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 from scipy.linalg import eigh, expm
 from scipy.optimize import brentq
-from scipy.spatial.transform import Rotation
 
 from elastica import elastica_tip
 from structure_fmu import element, shear_element
-from test_element import rigid_transform, straight
+from test_element import assert_rigid_motion_free_and_objective, straight
 
 RNG = np.random.default_rng(5)
 E_AL, G_AL, RHO_AL = 70e9, 26.3e9, 2700.0      # aluminium, Pa and kg/m^3
@@ -22,18 +21,7 @@ def plate(chord, thickness, count=1, leading_edge=None):
 
 
 def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
-    section, l = plate(0.02, 0.005), np.array([0.4])
-    R = Rotation.from_rotvec([0.4, -1.1, 2.0]).as_matrix()
-    moved = rigid_transform(straight(0.4)[None], R, np.array([1.0, -2.0, 0.5]))
-    scale = E_AL * 0.02 * 0.005
-    assert np.abs(shear_element.elastic_force(moved, l, section)).max() < 1e-9 * scale
-    deformed = straight(0.4)[None] + 0.02 * RNG.standard_normal((1, 18))
-    moved = rigid_transform(deformed, R, np.array([0.3, 0.2, 0.1]))
-    energy = shear_element.elastic_energy(deformed, l, section)
-    assert shear_element.elastic_energy(moved, l, section) == pytest.approx(energy, rel=1e-12)
-    rotated = (shear_element.elastic_force(deformed, l, section).reshape(6, 3) @ R.T).ravel()
-    np.testing.assert_allclose(shear_element.elastic_force(moved, l, section)[0], rotated,
-                               atol=1e-9 * np.abs(rotated).max())
+    assert_rigid_motion_free_and_objective(shear_element, plate(0.02, 0.005), E_AL * 0.02 * 0.005)
 
 
 def test_sheet_force_and_tangent_are_the_complex_step_derivatives():
