@@ -49,6 +49,8 @@ DAMPING_MODELS = ("deformation", "mass-proportional")
 
 PLATE = ("thickness", "density", "youngs_modulus")
 EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
+TAPERED = ("chord", "thickness", "torsional_rigidity", "rotary_inertia", *EXPLICIT)
+"""The section keys that may vary linearly along a body: each has a key `<name>_tip` with its tip value."""
 
 
 def positive(unit, doc, default=REQUIRED, **options):
@@ -112,6 +114,15 @@ def _section_rule(key: str, section: dict) -> None:
                                  "required unless thickness, density and youngs_modulus describe a plate")
 
 
+def _tip_rule(key: str, section: dict) -> None:
+    """A tip value varies a value given at the root: thickness_tip needs the plate's thickness, an explicit
+    property's tip its root value (a plate-derived root would vary by the plate's formula, not linearly)."""
+    for name in TAPERED:
+        if section[f"{name}_tip"] is not None and section[name] is None:
+            raise SceneError(f"{key}.{name}_tip", section[f"{name}_tip"],
+                             f"absent unless {key}.{name} gives the root value it varies from")
+
+
 def _slider_rule(key: str, slider: dict) -> None:
     """A slider keeps its node on a line or on a plane: exactly one of the two."""
     given = [name for name in ("line", "plane_normal") if slider[name] is not None]
@@ -141,26 +152,47 @@ def _motion_rule(key: str, motion: dict) -> None:
 
 SECTION = Table({
     "chord": positive("m", "chord c"),
+    "chord_tip": positive("m", "chord at the tip; the chord varies linearly from section.chord at the root",
+                          Absent("section.chord: a constant chord")),
     "axis_position": fraction("position a of the reference line (the beam axis)", 0.5),
     "torsional_rigidity": positive("N m^2", "GJ"),
+    "torsional_rigidity_tip": positive("N m^2", "GJ at the tip; GJ varies linearly from the root's",
+                                       Absent("section.torsional_rigidity: a constant GJ")),
     "thickness": positive("m", "plate thickness h", Absent("no plate: the explicit properties below")),
+    "thickness_tip": positive("m", "plate thickness at the tip; h varies linearly from section.thickness at the "
+                                   "root (the plate's properties follow their formulas of the local c and h)",
+                              Absent("section.thickness: a constant thickness")),
     "density": positive("kg/m^3", "plate material density rho", Absent("no plate")),
     "youngs_modulus": positive("Pa", "plate Young's modulus E", Absent("no plate")),
     "axial_stiffness": positive("N", "EA; overrides the plate's", Absent("E c h of the plate")),
+    "axial_stiffness_tip": positive("N", "EA at the tip; EA varies linearly from section.axial_stiffness at the "
+                                         "root", Absent("section.axial_stiffness: a constant EA")),
     "bending_stiffness_flap": positive("N m^2", "EI_yy, out of the wing plane; overrides the plate's",
                                        Absent("E c h^3 / 12 of the plate")),
+    "bending_stiffness_flap_tip": positive("N m^2", "EI_yy at the tip; EI_yy varies linearly from "
+                                                    "section.bending_stiffness_flap at the root",
+                                           Absent("section.bending_stiffness_flap: a constant EI_yy")),
     "bending_stiffness_chord": positive("N m^2", "EI_zz, in the chord plane; overrides the plate's",
                                         Absent("E h c^3 / 12 of the plate")),
+    "bending_stiffness_chord_tip": positive("N m^2", "EI_zz at the tip; EI_zz varies linearly from "
+                                                     "section.bending_stiffness_chord at the root",
+                                            Absent("section.bending_stiffness_chord: a constant EI_zz")),
     "mass_per_length": positive("kg/m", "rho A, spread uniformly over the chord; overrides the plate's",
                                 Absent("rho c h of the plate")),
+    "mass_per_length_tip": positive("kg/m", "rho A at the tip; rho A varies linearly from section.mass_per_length "
+                                            "at the root", Absent("section.mass_per_length: a constant rho A")),
     "poissons_ratio": Number("-", 0.0, "plate Poisson's ratio nu: the shear modulus G = E / (2 (1 + nu)) of "
                                       "structure.fidelity = 'shear-deformable' (0: Peng et al. 2019's)", low=0.0,
                              high=0.5, high_open=True),
     "rotary_inertia": non_negative("kg m", "rho I_yy: rotary inertia of the section about its chord axis per unit "
                                            "length (Otsuka et al. 2022, Table 4), kinetic energy 1/2 rho I_yy "
                                            "|dr'/dt|^2 (a thin plate's rho c h^3 / 12 is negligible)", 0.0),
+    "rotary_inertia_tip": non_negative("kg m", "rho I_yy at the tip; rho I_yy varies linearly from "
+                                               "section.rotary_inertia at the root",
+                                       Absent("section.rotary_inertia: a constant rho I_yy")),
 }, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
-       "properties, which override the plate's", rules=(_section_rule,))
+       "properties, which override the plate's; a key `*_tip` makes its property vary linearly along the body from "
+       "the root's value to the tip's", rules=(_section_rule, _tip_rule))
 
 BODY = Table({
     "name": Name("-", REQUIRED, "body name, referenced by joints, masses, loads, probes and strain gauges"),

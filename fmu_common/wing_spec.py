@@ -14,6 +14,7 @@ from typing import ClassVar
 
 from .choices import Fidelity, fidelity
 from .scene_bounds import body_elements
+from .scene_schema import TAPERED
 from .schema import item_label
 
 Vector = tuple[float, float, float]
@@ -29,7 +30,8 @@ class SectionSpec:
     the leading edge), torsional rigidity GJ (N m^2), rotary inertia rho I_yy (kg m); a rectangular plate
     (thickness h, m; density rho, kg/m^3; Young's modulus E, Pa; Poisson's ratio nu) and explicit properties EA
     (N), EI_yy, EI_zz (N m^2), rho A (kg/m), each None when not given (structure_fmu.section derives the missing
-    ones)."""
+    ones); `tips` the tip values of the keys of scene_schema.TAPERED that vary linearly along the body
+    ((name, value) pairs, each given as `<name>_tip`; empty: a constant section)."""
 
     key: str
     chord: float
@@ -44,6 +46,12 @@ class SectionSpec:
     mass_per_length: float | None
     rotary_inertia: float
     poissons_ratio: float = 0.0
+    tips: tuple = ()
+
+    def tip(self, name: str) -> float | None:
+        """The value of the property `name` (a key of scene_schema.TAPERED) at the tip: its `<name>_tip`, else the
+        root's (None where the root's is not given)."""
+        return dict(self.tips).get(name, getattr(self, name))
 
     @classmethod
     def from_table(cls, key: str, table: dict) -> "SectionSpec":
@@ -56,7 +64,8 @@ class SectionSpec:
         return cls(key, table["chord"], table["axis_position"], table["torsional_rigidity"], table["thickness"],
                    table["density"], table["youngs_modulus"], table["axial_stiffness"],
                    table["bending_stiffness_flap"], table["bending_stiffness_chord"], table["mass_per_length"],
-                   table["rotary_inertia"], table["poissons_ratio"])
+                   table["rotary_inertia"], table["poissons_ratio"],
+                   tuple((name, table[f"{name}_tip"]) for name in TAPERED if table.get(f"{name}_tip") is not None))
 
 
 @dataclass(frozen=True)

@@ -266,7 +266,7 @@ def test_the_c_kernels_refuse_arguments_they_cannot_read(monkeypatch):
     with pytest.raises(ValueError, match=r"stiffness \(3, 3\)"):
         element.elastic_force(e, length, stiffness[:, :3])
     kernels, out = element.c_kernels(), np.full((3, 18, 18), 7.0)
-    table, address = element._table(length, stiffness)
+    table, address, _ = element._table(length, stiffness)
     for g in (0, 9):                            # the table holds 5 points: the kernel must not read it at all
         assert kernels.elastic_force(3, g, address, e.ctypes.data, out.ctypes.data) == -1
         assert kernels.elastic_jacobian(3, g, address, e.ctypes.data, out.ctypes.data) == -1
