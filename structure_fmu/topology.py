@@ -31,7 +31,7 @@ import numpy as np
 from fmu_common import topology
 from fmu_common.errors import SceneError
 from fmu_common.choices import fidelity_names
-from fmu_common.wing_spec import ParentJointSpec, StructureSpec
+from fmu_common.wing_spec import ParentJointSpec, SectionSpec, StructureSpec
 from fmu_common.vectors import perpendiculars, unit
 
 from .constraints import AxisProduct, LinearRow
@@ -46,10 +46,12 @@ from .slots import RX, RY, R, Slot, compact
 
 @dataclass
 class StructureBody(topology.Body):
-    """A Body with its beam section (stiffness, mass) and its damping alpha (1/s)."""
+    """A Body with its beam section (stiffness, mass; the root's), the section table it comes from (a section that
+    varies along the span: structure_fmu.section.section_at) and its damping alpha (1/s)."""
 
     section: Section = None
     damping: float = 0.0
+    section_spec: SectionSpec = None
 
 
 @dataclass(frozen=True)
@@ -149,7 +151,7 @@ class StructureTopology(topology.Topology):
             require_plate(spec.section, self.fidelity.name)
         section = section_from_spec(spec.section)
         return StructureBody(spec.name, spec.length, section.chord, section.axis_position, section=section,
-                             damping=spec.damping)
+                             damping=spec.damping, section_spec=spec.section)
 
     def _new_free(self, value, position=False):
         """A slot of a new free vector with initial `value` (3,); `position`: a point (m), else a gradient."""
