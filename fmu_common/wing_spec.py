@@ -49,8 +49,12 @@ class SectionSpec:
     tips: tuple = ()
 
     def tip(self, name: str) -> float | None:
-        """The value of the property `name` (a key of scene_schema.TAPERED) at the tip: its `<name>_tip`, else the
-        root's (None where the root's is not given)."""
+        """The value of the property `name` at the tip: its `<name>_tip`, else the root's (None where the root's is
+        not given).
+
+        Args:
+            name: a key of scene_schema.TAPERED.
+        """
         return dict(self.tips).get(name, getattr(self, name))
 
     @classmethod

@@ -50,7 +50,11 @@ VARYING_POINTS = 7
 
 @functools.cache
 def gauss_rule(points):
-    """Gauss-Legendre points and weights on [0, 1]: (xi (points,), w (points,)), exact to degree 2 points - 1."""
+    """Gauss-Legendre points and weights on [0, 1]: (xi (points,), w (points,)), exact to degree 2 points - 1.
+
+    Args:
+        points: the number of points.
+    """
     xi, w = np.polynomial.legendre.leggauss(points)
     return 0.5 * (xi + 1.0), 0.5 * w
 
@@ -62,7 +66,11 @@ GAUSS_XI, GAUSS_W = gauss_rule(CONSTANT_POINTS)
 def axial_shapes(points):
     """The assumed axial strain's shapes at the Gauss points of `points`, (3, points): eps(xi) = eps_A phi_A +
     eps_B phi_B + eps_arc phi_C, phi_A, phi_B linear minus the mean-free bubble, phi_C = 6 xi (1 - xi) carrying
-    the mean."""
+    the mean.
+
+    Args:
+        points: the number of Gauss points (`gauss_rule`).
+    """
     xi, _ = gauss_rule(points)
     return np.stack([1 - xi - 3 * xi * (1 - xi), xi - 3 * xi * (1 - xi), 6 * xi * (1 - xi)])
 
@@ -119,7 +127,12 @@ def points_of(*properties):
 
 
 def at_points(values, points):
-    """Per-element section values (n,) spread over the Gauss points, (n, points); (n, points) as they are."""
+    """Per-element section values (n,) spread over the Gauss points, (n, points); (n, points) as they are.
+
+    Args:
+        values: (n,) or (n, points).
+        points: the number of Gauss points per element.
+    """
     values = np.asarray(values, dtype=float)
     return values if values.ndim == 2 else np.repeat(values[:, None], points, axis=1)
 

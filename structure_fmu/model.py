@@ -545,7 +545,12 @@ def element_sections(topology):
 
 def section_property(sections, name):
     """The property `name` of a Section (its attribute) for every element: (n,) (or (n, k) for a tuple) from the
-    per-element Sections of `element_sections`, (n, g) (or (n, g, k)) from Sections at Gauss points."""
+    per-element Sections of `element_sections`, (n, g) (or (n, g, k)) from Sections at Gauss points.
+
+    Args:
+        sections: `element_sections`'s list.
+        name: an attribute of structure_fmu.section.Section (mass_per_length, stiffness, ...).
+    """
     return np.array([[getattr(p, name) for p in row] if isinstance(row, list) else getattr(row, name)
                      for row in sections])
 

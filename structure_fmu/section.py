@@ -63,7 +63,11 @@ def section_from_spec(spec: SectionSpec) -> Section:
 
 
 def varies(spec: SectionSpec) -> bool:
-    """Whether the section of `spec` varies along the body (a tip value is given)."""
+    """Whether the section of `spec` varies along the body (a tip value is given).
+
+    Args:
+        spec: the section table (fmu_common.wing_spec.SectionSpec).
+    """
     return bool(spec.tips)
 
 
@@ -110,8 +114,12 @@ def _linear(root, tip, s):
 
 
 def element_points(specs, fractions):
-    """The Sections of elements at their Gauss points: `specs` (n,) the SectionSpec of each element's body,
-    `fractions` (n, g) the Gauss points' fractions of their body's length from its root; (n, g) nested lists."""
+    """The Sections of elements at their Gauss points (`section_at`), (n, g) nested lists.
+
+    Args:
+        specs: (n,) the SectionSpec of each element's body.
+        fractions: (n, g) the Gauss points' fractions of their body's length from its root.
+    """
     return [[section_at(spec, float(s)) for s in row] for spec, row in zip(specs, np.asarray(fractions))]
 
 
