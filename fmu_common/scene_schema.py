@@ -363,7 +363,7 @@ LOAD = Variants("law", {
 
 _LOAD_CASE = {
     "parameter": non_negative("-", "P L^2 / EI_yy of the body: the force magnitude P in units of its flap "
-                                   "stiffness and length"),
+                                   "stiffness (the root's, where the section varies) and length"),
     "direction": Vector("-", REQUIRED, "direction of the force, global frame", nonzero=True),
     "body": Name("-", Absent("the last body of structure.bodies"), _BODY_REF),
     "span": non_negative("m", "position from the body root", Absent("the body's length: its tip")),
@@ -400,7 +400,8 @@ STRAIN_GAUGE = Table({
     "body": Name("-", REQUIRED, _BODY_REF),
     "span": non_negative("m", "position from the body root, at most the body length"),
     "surface_distance": positive("m", "distance from the reference line to the gauged surface",
-                                 Absent("half the body's section.thickness; required without one")),
+                                 Absent("half the body's section.thickness at the gauge's span (linear to "
+                                        "section.thickness_tip); required without a thickness")),
     "curvature": Choice("-", "model", "the curvature it reads: model, the fidelity's own (the ANCF element's cubic "
                                       "field; the strain-based element's constant kappa_y, as Otsuka et al. 2022, "
                                       "Sec. 5 read it); cubic, the cubic interpolation of the nodal vectors, the same "
@@ -655,4 +656,7 @@ def fill_derived_defaults(scene: dict) -> None:
                 raise SceneError(f"{key}.surface_distance", MISSING,
                                  f"required: body '{body['name']}' has no section.thickness (a distance > 0 from "
                                  "the reference line to the gauged surface, m)")
+            tip = body["section"]["thickness_tip"]
+            if tip is not None:         # the plate's thickness at the gauge, linear from the root's to the tip's
+                thickness += (tip - thickness) * gauge["span"] / body["length"]
             gauge["surface_distance"] = 0.5 * thickness

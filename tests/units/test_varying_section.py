@@ -285,3 +285,15 @@ def test_tapered_cantilever_twist_under_a_tip_torque_is_the_integral_of_t_over_g
         twist, torque = tip_twist(fidelity, n, 1e-3)
         errors.append(twist / (torque * compliance) - 1)
     assert_converges(errors, 2e-3, 2)
+
+
+def test_a_strain_gauge_on_a_tapered_plate_reads_the_local_half_thickness():
+    """A gauge's default surface distance is half the plate's thickness where it sits: h(x) / 2 of the linear
+    thickness, at the root, a third of the span and the tip."""
+    scene = resolve_scene({"time": {"stop": 1.0},
+                           "structure": {"bodies": [{"name": "wing", "length": LENGTH, "section": TAPERED}],
+                                         "joints": [{"type": "clamp", "body": "wing"}]},
+                           "strain_gauges": [{"name": f"g{k}", "body": "wing", "span": x}
+                                             for k, x in enumerate((0.0, LENGTH / 3, LENGTH))]}, "gauged")
+    distances = [g["surface_distance"] for g in scene["strain_gauges"]]
+    assert distances == pytest.approx([thickness(x) / 2 for x in (0.0, LENGTH / 3, LENGTH)], rel=1e-15)
