@@ -56,7 +56,9 @@ def gauss_rule(points):
         points: the number of points.
     """
     xi, w = np.polynomial.legendre.leggauss(points)
-    return 0.5 * (xi + 1.0), 0.5 * w
+    xi, w = 0.5 * (xi + 1.0), 0.5 * w
+    xi.flags.writeable = w.flags.writeable = False      # shared by every caller (cached)
+    return xi, w
 
 
 GAUSS_XI, GAUSS_W = gauss_rule(CONSTANT_POINTS)
