@@ -162,7 +162,11 @@ class StructureTopology(topology.Topology):
         return Slot(free={len(self.free_initial) - 1: 1.0})
 
     def new_scalar(self, direction):
-        """A slot d s of a new free scalar s (m, 0 at t = 0) along the constant `direction` d (3,), global frame."""
+        """A slot d s of a new free scalar s (m, 0 at t = 0) along a constant direction d.
+
+        Args:
+            direction: d (3,), unit, global frame.
+        """
         self.scalar_initial.append(0.0)
         return Slot(along={len(self.scalar_initial) - 1: np.asarray(direction, float)})
 
