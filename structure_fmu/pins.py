@@ -15,7 +15,7 @@ A slider keeps a node's r on a line or plane through its position at t = 0. Fixe
 affine, r = r_0 + d s (r_0 + d_1 s_1 + d_2 s_2), so the node's free point vector is eliminated for one (two) free
 scalars, the slider's travel along d (slots.eliminate with that difference; the specification of a coordinate by
 a linear map, as Peng et al. 2019, Secs. 2-3 do for pins): no constraint row, for any direction of the line. A
-node whose r has no free point vector left (a second slider on it, or a rigid body whose point another slider
+node whose r has no free point vector left (a second slider on it, or a rigid body whose point a pin or slider
 already holds) keeps the slider as linear rows (r - r_0) . n = 0 instead. Carried by the frame of a node of
 another body, the line moves with that node's gradients and the condition is cubic in E: rows (SlidingRow).
 """
