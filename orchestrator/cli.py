@@ -370,7 +370,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
     from orchestrator.files import folder_lock, process_record, remove_partials
     from orchestrator.output.results import check_out_dir
-    from orchestrator.run.folders import run_folder
+    from orchestrator.output.run_folders import run_folder
     from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene, args.overrides)
@@ -553,7 +553,7 @@ def cmd_init(args: argparse.Namespace) -> int:
 
 
 def cmd_results(args: argparse.Namespace) -> int:
-    from orchestrator.run.folders import describe_runs, find_runs
+    from orchestrator.output.run_folders import describe_runs, find_runs
 
     name = _scene_name(args.scene) if args.scene else None
     entries = find_runs(RESULTS_ROOT, name)

@@ -8,7 +8,7 @@ import re
 from orchestrator.cli import main
 from orchestrator.clean import clean
 from orchestrator.files import folder_lock, process_record
-from orchestrator.run.folders import MAX_LABEL, run_folder, variant_label
+from orchestrator.output.run_folders import MAX_LABEL, run_folder, variant_label
 
 SHORT = ["--set", "time.stop=0.006"]
 README_VARIANTS = [[], ["flow.speed=20"], ["aero.model=uvlm-free"], ["aero.model=none"],
