@@ -9,16 +9,13 @@ removed as a link, never followed. A folder a running wingsim process holds (its
 """
 from __future__ import annotations
 
-import contextlib
-import fcntl
-import os
 import re
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from orchestrator.build.fmus import BUILD_LOCK
-from orchestrator.files import LOCK_FILE
+from orchestrator.files import LOCK_FILE, held
 
 LOCKS = (LOCK_FILE, BUILD_LOCK)
 
@@ -49,22 +46,11 @@ def _inside(path: Path, root: Path) -> bool:
     return parent == root.resolve() or root.resolve() in parent.parents
 
 
-def held(folder: Path) -> bool:
-    """True when a live process holds a run or build lock anywhere in `folder` (a lock a killed process left
-    behind is not held: the kernel released its flock)."""
+def in_use(folder: Path) -> bool:
+    """True when a live process holds a run or build lock anywhere in `folder` (``orchestrator.files.held``)."""
     if folder.is_symlink() or not folder.is_dir():
         return False
-    for name in LOCKS:
-        for lock in folder.rglob(name):
-            with contextlib.suppress(OSError):
-                fd = os.open(lock, os.O_RDONLY)
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    return True
-                finally:
-                    os.close(fd)
-    return False
+    return any(held(lock) for name in LOCKS for lock in folder.rglob(name))
 
 
 def clean(roots: list[Path], scene_name: str | None = None, dry_run: bool = False) -> Cleaning:
@@ -76,7 +62,7 @@ def clean(roots: list[Path], scene_name: str | None = None, dry_run: bool = Fals
         for entry in targets(root, scene_name):
             if not _inside(entry, Path(root)):
                 continue
-            if held(entry):
+            if in_use(entry):
                 done.busy.append(entry)
                 continue
             if not dry_run:

@@ -5,8 +5,16 @@
   ``--standalone``: FMUs that carry their Python runtime; ``--win64``: with binaries and a runtime for 64-bit
   Windows too).
 - ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
-  run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
-- ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
+  run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``, and
+  ``results/<scene>/<overrides>/`` for a ``--set`` variant: ``orchestrator.output.run_folders``); notes first for
+  implausible flow values and a large timeseries.csv (the run goes ahead).
+- ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU; compliance
+  and the physics of the simulation reported apart.
+- ``wingsim scenes``: the shipped scenes with their headlines; ``wingsim init NAME [--from SCENE]``: copy one to
+  ``./NAME.toml`` (``orchestrator.scene.shipped``). SCENE everywhere is a file or a shipped scene's name.
+- ``wingsim results [SCENE]``: the run folders under ``results/`` with status, key figures and overrides;
+  ``wingsim clean [SCENE] [--fmus] [--results] [--export] [--dry-run]``: remove them (``orchestrator.clean``).
+- ``wingsim --version``.
 - ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--aero FMU] [--standalone [--win64]]``: build the
   FMUs if needed (into the folder ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as
   one FMU, ``DIR/wing.fmu``; ``--aero``: with that aero unit FMU (built for the same structure, e.g. by
@@ -32,7 +40,8 @@ a build of the same folder (``orchestrator.build.fmus.build_lock``).
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), a results
 file could not be written (the message names it), or an unexpected error; 2 bad scene or bad arguments
 (nothing runs); 130 interrupted by Ctrl-C (SIGINT), 143 terminated by SIGTERM: both are handled alike,
-the results so far are written (128 + the signal number, as a shell reports a process killed by it).
+the results so far are written with status "interrupted" (128 + the signal number, as a shell reports a process
+killed by it).
 Errors are one line, ``error: ...``; set ``WINGSIM_DEBUG=1`` to see tracebacks.
 """
 

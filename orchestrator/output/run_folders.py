@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+from orchestrator.files import LOCK_FILE, held
 from orchestrator.output.run_record import RUN_RECORD, complete_record
 
 MAX_LABEL = 96
@@ -56,7 +57,8 @@ class RunEntry:
 
     folder: Path
     overrides: tuple[str, ...]
-    status: str             # the summary's status; "incomplete" when run.json says the run did not finish
+    status: str             # the summary's status; "running" while a process holds the folder, "incomplete"
+                            # for a run that did not finish (killed) or whose files changed since
     summary: dict           # summary.json ({} if missing or unreadable)
 
     def figures(self) -> dict[str, float | None]:
@@ -89,8 +91,10 @@ def find_runs(root: Path, scene_name: str | None = None) -> list[RunEntry]:
         folder = record_path.parent
         record = _read_json(record_path)
         summary = _read_json(folder / SUMMARY)
-        complete = complete_record(folder) is not None
-        status = summary.get("status", "?") if complete else "incomplete"
+        if complete_record(folder) is not None:
+            status = summary.get("status", "?")
+        else:   # not finished: still running, or killed (or its files changed since)
+            status = "running" if held(folder / LOCK_FILE) else "incomplete"
         entries.append(RunEntry(folder, tuple(record.get("overrides", ())), status, summary))
     return entries
 

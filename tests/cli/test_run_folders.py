@@ -8,6 +8,7 @@ import re
 from orchestrator.cli import main
 from orchestrator.clean import clean
 from orchestrator.files import folder_lock, process_record
+from orchestrator.output.run_record import start_record
 from orchestrator.output.run_folders import MAX_LABEL, run_folder, variant_label
 
 SHORT = ["--set", "time.stop=0.006"]
@@ -113,3 +114,15 @@ def test_clean_without_a_choice_is_refused(tmp_path, capsys, monkeypatch):
     assert main(["clean"]) == 2
     assert "--fmus/--results/--export" in capsys.readouterr().err
     assert (tmp_path / "results" / "x").is_dir()
+
+
+def test_a_run_not_finished_is_listed_as_running_while_held_else_incomplete(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "results" / "deploy_rigid" / "flow.speed=8"
+    holder = process_record()
+    with folder_lock(folder, holder):
+        start_record(folder, holder, ["flow.speed=8"])
+        assert main(["results"]) == 0
+        assert capsys.readouterr().out == "deploy_rigid/flow.speed=8: running; --set flow.speed=8\n"
+    assert main(["results", "deploy_rigid"]) == 0   # the holder gone without finishing: killed
+    assert capsys.readouterr().out == "deploy_rigid/flow.speed=8: incomplete; --set flow.speed=8\n"
