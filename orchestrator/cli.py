@@ -426,7 +426,7 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
         folder = fmu_dir(scene, _file_scene(args, scene), args.standalone)
         result = _build_if_needed(scene, folder, args.standalone) if args.backend == "fmu" else None
         if result is None:
-            progress = Progress(scene["time"]["stop"], label=scene["name"])
+            progress = Progress(scene["time"]["stop"], label=scene["name"], interrupted=lambda: bool(_received))
             result = run_scene(scene, backend=args.backend, fmu_dir=folder, progress=progress)
     except KeyboardInterrupt as err:
         result = RunResult("interrupted", f"interrupted ({err or 'SIGINT'}) before the first communication step",

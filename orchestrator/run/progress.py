@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import sys
 import time as _time
-from typing import TextIO
+from typing import Callable, TextIO
 
 CLEAR_TO_END = "\x1b[K"
 """ANSI: erase the rest of the terminal line (a shorter line leaves no stale characters)."""
@@ -49,13 +49,14 @@ class Progress:
 
     def __init__(self, stop: float, label: str = "", stream: TextIO | None = None,
                  min_interval: float = 0.1, live: bool | None = None, warm_up: float = WARM_UP_S,
-                 long_run: float = LONG_RUN_S):
+                 long_run: float = LONG_RUN_S, interrupted: Callable[[], bool] | None = None):
         self.stop = float(stop)
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.min_interval = min_interval
         self.live = is_interactive(self.stream) if live is None else live
         self.warm_up, self.long_run = warm_up, long_run
+        self.interrupted = interrupted   # True once a signal stopped the run: a failure is then the interruption
         self._start = _time.perf_counter()
         self._last_draw = -float("inf")
         self._first: tuple[float, float] | None = None   # (t, wall clock) of the first reported step
@@ -106,7 +107,10 @@ class Progress:
         self.stream.flush()
 
     def finish(self, t: float, status: str) -> None:
-        """Write the final line (always, TTY or not) with the run's status."""
+        """Write the final line (always, TTY or not) with the run's status ("interrupted" for a run that failed
+        after `interrupted` turned true: an FMU reports the signal that reached it as a failure of its call)."""
+        if status != "ok" and self.interrupted is not None and self.interrupted():
+            status = "interrupted"
         start, clear = ("\r", CLEAR_TO_END) if self.live else ("", "")
         self.stream.write(f"{start}{self._line(t, eta=False)}: {status}{clear}\n")
         self.stream.flush()

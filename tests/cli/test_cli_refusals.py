@@ -455,3 +455,4 @@ def test_ctrl_c_on_the_fmu_backend_is_recorded_as_interrupted(tmp_path):
     assert summary["status"] == "interrupted" and summary["message"].startswith("interrupted (SIGINT)")
     assert "Fatal" not in summary["message"] and "Traceback" not in err
     assert summary["simulated_time_s"] < 200
+    assert f"t = {summary['simulated_time_s']:.4g} / 200 s" in err and err.endswith(": interrupted\n")   # progress
