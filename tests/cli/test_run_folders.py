@@ -5,13 +5,15 @@ import json
 import os
 import re
 
+import orchestrator.output.plots
+
 from orchestrator.cli import main
 from orchestrator.clean import clean
 from orchestrator.files import folder_lock, process_record
 from orchestrator.output.run_record import start_record
 from orchestrator.output.run_folders import MAX_LABEL, run_folder, variant_label
 
-SHORT = ["--set", "time.stop=0.006"]
+SHORT = ["--set", "time.stop=0.004"]
 README_VARIANTS = [[], ["flow.speed=20"], ["aero.model=uvlm-free"], ["aero.model=none"],
                    ["structure.fidelity=strain-based"]]
 """The five `wingsim run scenes/deploy_flexible.toml` commands of the README, by their --set items."""
@@ -25,16 +27,17 @@ def sets(overrides):
 def test_the_readmes_five_deploy_flexible_variants_leave_five_folders_listed_then_cleaned(tmp_path, capsys,
                                                                                           monkeypatch):
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out: [])   # the folders are the point
     for overrides in README_VARIANTS:
         assert main(["run", "deploy_flexible", *SHORT, *sets(overrides), "--backend", "direct"]) == 0
     capsys.readouterr()
     scene_folder = tmp_path / "results" / "deploy_flexible"
-    expected = {"time.stop=0.006" + "".join(f",{o}" for o in overrides) for overrides in README_VARIANTS}
+    expected = {"time.stop=0.004" + "".join(f",{o}" for o in overrides) for overrides in README_VARIANTS}
     assert {p.name for p in scene_folder.iterdir()} == expected
     for overrides in README_VARIANTS:   # each folder holds its own run: the resolved scene has its overrides
-        summary = json.loads((scene_folder / variant_label(["time.stop=0.006", *overrides]) / "summary.json")
+        summary = json.loads((scene_folder / variant_label(["time.stop=0.004", *overrides]) / "summary.json")
                              .read_text())
-        assert summary["status"] == "ok" and summary["scene"]["time"]["stop"] == 0.006
+        assert summary["status"] == "ok" and summary["scene"]["time"]["stop"] == 0.004
         for item in overrides:
             key, value = item.split("=")
             section, leaf = key.split(".")
@@ -45,10 +48,10 @@ def test_the_readmes_five_deploy_flexible_variants_leave_five_folders_listed_the
     listed = capsys.readouterr().out.splitlines()
     assert len(listed) == 5
     for overrides in README_VARIANTS:
-        label = variant_label(["time.stop=0.006", *overrides])
+        label = variant_label(["time.stop=0.004", *overrides])
         line = next(x for x in listed if x.startswith(f"deploy_flexible/{label}:"))
-        assert ": ok; t_sim_s 0.006," in line
-        assert line.endswith("; " + " ".join(f"--set {o}" for o in ["time.stop=0.006", *overrides]))
+        assert ": ok; t_sim_s 0.004," in line
+        assert line.endswith("; " + " ".join(f"--set {o}" for o in ["time.stop=0.004", *overrides]))
     assert "CL_final" not in next(x for x in listed if "aero.model=none" in x)   # no aero unit, no lift
 
     assert main(["clean", "deploy_flexible", "--results", "--dry-run"]) == 0

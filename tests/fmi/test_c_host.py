@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, numeric_env, run_c_host
+from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, host_input, numeric_env, run_c_host
 from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
 from repository import ROOT, SCENES
@@ -193,6 +193,22 @@ def test_runs_with_an_empty_environment(c_host, unzipped, scene, tmp_path):
         np.testing.assert_allclose(c["round1"][:, solved], reference[:, solved], rtol=1e-8, atol=1e-9)
 
 
+def test_host_input_writes_the_input_of_the_coupled_run(fmus, unzipped, scene, tmp_path):
+    """tests/fmi/c_host/host_input.py (the docs' way to the host's input file) writes the input the coupled test
+    above runs the host on (the host's rows equal fmpy's and the master's there), but for the unzipped folders."""
+    proc = subprocess.run([sys.executable, str(ROOT / "tests" / "fmi" / "c_host" / "host_input.py"),
+                           str(fmus["structure"].parent), str(tmp_path)], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(CODE_ROOT)}, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    h, stop = scene["coupling"]["step"], scene["time"]["stop"]
+    expected = host_input(coupled_units(unzipped), round(stop / h), h, stop)
+    for kind, folder in unzipped.items():
+        expected = expected.replace(str(folder), str(tmp_path.resolve() / kind))
+        expected = expected.replace(folder.as_uri(), (tmp_path.resolve() / kind).as_uri())
+    assert proc.stdout == expected
+
+
+@pytest.mark.slow
 def test_the_c_host_example_of_the_docs_runs_as_written(c_compiler, scene, tmp_path):
     """docs/fmu.md, "A plain C host": its commands, run in an empty folder with the repository's paths and
     virtual environment put in, build the FMUs, write the input file, compile and run the host; the host's rows
