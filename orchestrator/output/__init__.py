@@ -4,6 +4,7 @@
 - ``structure_counts`` summary.json's ``structure_counts``: the structure's coordinates and constraint rows
 - ``plots``           PNG plots of a run
 - ``run_record``      ``run.json``: which run wrote the folder, and whether it finished writing it
+- ``run_folders``     the folder of each ``--set`` variant, and the run folders ``wingsim results`` lists
 - ``mechanism_view``  the mechanism at several instants (``mechanism.png``)
 - ``wake_view``       the wing and its wake in 3D (``wake_3d.png``), by replaying the aero unit
 """

@@ -11,11 +11,11 @@ file that exists is complete (a failed write leaves the previous summary in plac
 
 Summary fields (SI units, angles in degrees):
 
-- ``status`` ("ok" | "diverged" | "error"; "running" only in the summary written before the run, which
-  a run that was killed leaves behind), ``message``, ``wall_time_s`` (s, the whole run: loading the
-  units included), ``stepping_wall_time_s`` (s, the communication steps alone, null if none ran; over
-  ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
-  after ``--set``);
+- ``status`` ("ok" | "diverged" | "error" | "interrupted" (Ctrl-C or SIGTERM); "running" only in the summary
+  written before the run, which a run that was killed leaves behind), ``message``, ``wall_time_s`` (s, the
+  whole run: loading the units included), ``stepping_wall_time_s`` (s, the communication steps alone, null
+  if none ran; over ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the
+  resolved scene, after ``--set``);
 - ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has latched
   (for a single hinge: the first time its fold angle reaches the stop, from either side), as the
   structure unit reports it (output ``latch_time_<hinge>``: interpolated within its internal step, not

@@ -382,7 +382,7 @@ def test_a_signal_to_a_run_writes_its_results_so_far(signum, code, tmp_path):
     assert proc.returncode == code, err
     assert "Traceback" not in err
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "error" and "interrupted" in summary["message"]
+    assert summary["status"] == "interrupted" and "interrupted" in summary["message"]
     assert summary["simulated_time_s"] < 200
     assert (out / "timeseries.csv").read_text().startswith("time,")
 
@@ -435,3 +435,24 @@ def test_concurrent_runs_of_tunable_variants_share_one_build(tmp_path):
         with open(tmp_path / f"out{speed}" / "timeseries.csv", newline="") as handle:
             lift[speed] = float(list(csv.DictReader(handle))[-1]["lift"])
     assert lift["8"] != lift["12"]   # each run got its own speed
+
+
+def test_ctrl_c_on_the_fmu_backend_is_recorded_as_interrupted(tmp_path):
+    """SIGINT while the FMUs run: the signal reaches the slave's Python inside an FMI call, which the FMI layer
+    turns into fmi2Fatal; the run is still recorded as interrupted (not as an error quoting the FMU), exit 130."""
+    overrides = ["--set", "aero.model=none", "--set", "time.stop=200"]
+    out = tmp_path / "out"
+    built = subprocess.run([sys.executable, "-m", "orchestrator", "build", SCENE, *overrides], cwd=tmp_path,
+                           env={**os.environ, "PYTHONPATH": str(CODE_ROOT)}, capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr
+    proc = start("run", SCENE, *overrides, "--out", out, cwd=tmp_path, marker=uuid.uuid4().hex)
+    wait_for(lambda: b"structure.so" in _proc(proc.pid, "maps"), "the structure FMU's binary loaded")
+    time.sleep(1.0)   # into the steps (an earlier signal is an interruption too, before the first step)
+    proc.send_signal(signal.SIGINT)
+    err = ended(proc, "the run")
+    assert proc.returncode == 130, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["message"].startswith("interrupted (SIGINT)")
+    assert "Fatal" not in summary["message"] and "Traceback" not in err
+    assert summary["simulated_time_s"] < 200
+    assert f"t = {summary['simulated_time_s']:.4g} / 200 s" in err and err.endswith(": interrupted\n")   # progress
