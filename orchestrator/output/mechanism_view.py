@@ -159,7 +159,7 @@ def mechanism_figure(result, topology=None):
         ax.set_ylabel(plane.labels[1])
         ax.grid(True, alpha=0.3)
     else:
-        _equal_3d(ax, points)
+        equal_3d(ax, points)
     ax.legend(fontsize=8)
     instants = f"{len(times)} instants" if len(times) > 1 else "t = 0"
     where = f"in {plane.name}" if plane is not None else "in 3D"
@@ -169,7 +169,7 @@ def mechanism_figure(result, topology=None):
     return fig
 
 
-def _equal_3d(ax, points: np.ndarray) -> None:
+def equal_3d(ax, points: np.ndarray) -> None:
     """Limits and box aspect of a 3D axis with equal scales on x, y, z (m), labelled; a view thin along an axis
     looks nearly along it (``VIEWS``)."""
     from matplotlib.ticker import MaxNLocator
