@@ -79,15 +79,15 @@ def legend(fig: Figure, ax) -> None:
         fig.legend(handles, labels, loc="outside right upper", fontsize=LEGEND_FONT, ncols=-(-len(handles) // 20))
 
 
-def note_flat_panels(fig: Figure) -> None:
-    """Write FLAT_NOTE (NO_VALUE_NOTE) at the centre of each 2D axis of ``fig`` whose every line is zero (has no
+def note_flat_panels(fig: Figure, no_value: str = NO_VALUE_NOTE) -> None:
+    """Write FLAT_NOTE (``no_value``) at the centre of each 2D axis of ``fig`` whose every line is zero (has no
     finite value) at every sample."""
     for ax in fig.axes:
         if ax.name != "rectilinear" or not ax.lines:
             continue
         values = np.concatenate([np.asarray(line.get_ydata(), dtype=float).ravel() for line in ax.lines])
         finite = values[np.isfinite(values)]
-        note = NO_VALUE_NOTE if finite.size == 0 else FLAT_NOTE if not finite.any() else None
+        note = no_value if finite.size == 0 else FLAT_NOTE if not finite.any() else None
         if note is not None:
             ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center", fontsize=10, color="0.3",
                     bbox={"boxstyle": "round", "facecolor": "white", "edgecolor": "0.6", "alpha": 0.9})
