@@ -39,6 +39,7 @@ def _array(parent: ET.Element, name: str | None, values: np.ndarray, vtk_type: s
         attributes["NumberOfComponents"] = str(components)
     array = ET.SubElement(parent, "DataArray", attributes)
     flat = np.asarray(values).ravel()
+    # 12 significant digits, as timeseries.csv
     array.text = " ".join(f"{v:.12g}" for v in flat) if vtk_type.startswith("Float") else " ".join(map(str, flat))
 
 
