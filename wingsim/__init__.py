@@ -24,4 +24,4 @@ from wingsim.running import SweepResult, run, sweep
 from wingsim.scene import Scene, load_scene, shipped_scenes
 
 __all__ = ["Scene", "SceneError", "Result", "SweepResult", "load_scene", "load_result", "run", "shipped_scenes",
-           "sweep"]
+           "sweep", "scene", "result", "running"]   # the modules too: the API reference (pdoc) has a page for each
