@@ -17,18 +17,13 @@ import numpy as np
 from orchestrator.files import write_file
 from orchestrator.output.geometry_history import Frame, geometry_history
 from orchestrator.output.mechanism_view import equal_3d
+from orchestrator.output.wake_view import quads
 
 ANIMATION_FILE = "animation.gif"
 ANIMATION_FRAMES = 60
 FPS = 12
 DPI = 90
 FONT_SIZE = 10
-
-
-def _quads(grid: np.ndarray) -> np.ndarray:
-    """The quadrilaterals (Q, 4, 3) of a structured grid (B, rows, cols, 3)."""
-    g = np.asarray(grid, dtype=float)
-    return np.stack([g[:, :-1, :-1], g[:, 1:, :-1], g[:, 1:, 1:], g[:, :-1, 1:]], axis=3).reshape(-1, 4, 3)
 
 
 def frame_points(frame: Frame) -> np.ndarray:
@@ -50,10 +45,10 @@ def draw_frame(ax, frame: Frame, points: np.ndarray, norm, title: str) -> None:
     ax.cla()
     if frame.wake is not None and frame.wake.shape[1] > 1:
         gamma = np.asarray(frame.wake_gamma, dtype=float).ravel()
-        ax.add_collection3d(Poly3DCollection(_quads(frame.wake), facecolors=colormaps["RdBu_r"](norm(gamma)),
+        ax.add_collection3d(Poly3DCollection(quads(frame.wake), facecolors=colormaps["RdBu_r"](norm(gamma)),
                                              edgecolors="none", alpha=0.8))
     if frame.wing is not None:
-        ax.add_collection3d(Poly3DCollection(_quads(frame.wing), facecolors="0.75", edgecolors="0.35",
+        ax.add_collection3d(Poly3DCollection(quads(frame.wing), facecolors="0.75", edgecolors="0.35",
                                              linewidths=0.3, alpha=0.9))
     colors = colormaps["tab10"]
     for k, (body, line) in enumerate(frame.lines.items()):

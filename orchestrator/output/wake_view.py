@@ -114,7 +114,7 @@ def instant_steps(n_steps: int, count: int = INSTANTS) -> list[int]:
 
 
 # ---- drawing -------------------------------------------------------------------------------------------
-def _quads(grid: np.ndarray) -> np.ndarray:
+def quads(grid: np.ndarray) -> np.ndarray:
     """The quadrilaterals (Q, 4, 3) of a structured grid (B, rows, cols, 3), row-major per body."""
     g = np.asarray(grid, dtype=float)
     quads = np.stack([g[:, :-1, :-1], g[:, 1:, :-1], g[:, 1:, 1:], g[:, :-1, 1:]], axis=3)
@@ -194,8 +194,8 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
     from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    wings = [_quads(s.wing) for s in snapshots]
-    wakes = [None if s.vortex["wake"] is None else _quads(s.vortex["wake"]) for s in snapshots]
+    wings = [quads(s.wing) for s in snapshots]
+    wakes = [None if s.vortex["wake"] is None else quads(s.vortex["wake"]) for s in snapshots]
     gammas = [None if s.vortex["wake_gamma"] is None else s.vortex["wake_gamma"].ravel() for s in snapshots]
     legs = [_legs(s) for s in snapshots]
     points = np.concatenate([w.reshape(-1, 3) for w in wings]

@@ -192,12 +192,7 @@ def test_the_lattice_history_holds_the_wing_panels_and_the_wake_rings(tmp_path):
     # the files carry 12 significant digits, as timeseries.csv does
     np.testing.assert_allclose(arrays["circulation"][50:], snapshots[0].vortex["wake_gamma"].ravel(), rtol=1e-11)
     np.testing.assert_allclose(points[cells[:50]].reshape(-1, 3),
-                               _corners(snapshots[0].wing).reshape(-1, 3), rtol=0, atol=1e-12)
-
-
-def _corners(grid):
-    g = np.asarray(grid)
-    return np.stack([g[:, :-1, :-1], g[:, 1:, :-1], g[:, 1:, 1:], g[:, :-1, 1:]], axis=3).reshape(-1, 4, 3)
+                               wake_view.quads(snapshots[0].wing).reshape(-1, 3), rtol=0, atol=1e-12)
 
 
 def test_a_run_asked_for_pictures_lists_them_in_its_record(pendulum_run):
