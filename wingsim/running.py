@@ -3,8 +3,9 @@
 
 ``run`` loads the scene, builds its FMUs when ``backend="fmu"`` needs them (into ``fmus/<scene>/`` of the working
 folder, as ``wingsim run`` does), runs it (``orchestrator.run.master.run_scene``), writes its outputs
-(``summary.json``, ``timeseries.csv``; with ``out`` the plots, animation and VTK files asked for) and reads them
-back. Without ``out`` the outputs go to a temporary folder that is removed once they are read.
+(``summary.json``, ``timeseries.csv``; with ``out`` the plots, animation and VTK files asked for, and ``run.json``
+last, as ``wingsim run`` does) and reads them back. Without ``out`` the outputs go to a temporary folder that is
+removed once they are read.
 """
 
 from __future__ import annotations
@@ -33,9 +34,11 @@ def _check_backend(backend: str) -> None:
 
 
 @contextmanager
-def _output_folder(out: str | Path | None, option: str, wanted: Sequence[str] = ()) -> Iterator[Path]:
-    """``out`` checked and held (``orchestrator.files.folder_lock``), or a temporary folder removed afterwards;
-    SceneError naming the first of ``wanted`` (outputs asked for) without ``out``, where they would be lost."""
+def _output_folder(out: str | Path | None, option: str, wanted: Sequence[str] = (), hold: bool = True
+                   ) -> Iterator[Path]:
+    """``out`` checked and, with ``hold``, held (``orchestrator.files.folder_lock``; a sweep holds its folder
+    itself), or a temporary folder removed afterwards; SceneError naming the first of ``wanted`` (outputs asked
+    for) without ``out``, where they would be lost."""
     from orchestrator.files import folder_lock, process_record
     from orchestrator.output.results import check_out_dir
 
@@ -49,6 +52,9 @@ def _output_folder(out: str | Path | None, option: str, wanted: Sequence[str] = 
             shutil.rmtree(folder, ignore_errors=True)
         return
     folder = check_out_dir(Path(out), option)
+    if not hold:
+        yield folder
+        return
     with folder_lock(folder, process_record()):
         yield folder
 
@@ -90,28 +96,32 @@ def run(scene: Scene | str | Path, overrides: Mapping[str, Any] | None = None, b
         The Result, read back from the files written. SceneError naming the key (nothing run) for a bad scene,
         override, backend, or an output asked for without ``out``.
     """
+    from orchestrator.files import process_record
     from orchestrator.output.results import write_results
+    from orchestrator.output.run_record import finish_record, start_record
     from orchestrator.run.master import run_scene
 
     _check_backend(backend)
     scene = load_scene(scene, overrides)
     wanted = [name for name, asked in (("plots", plots), ("animate", animate), ("vtk", vtk)) if asked]
     with _output_folder(out, "out", wanted) as folder:
+        record = start_record(folder, process_record(), scene.overrides, scene_file=str(scene.path), backend=backend)
         fmu_folder = _fmu_folder(scene) if backend == "fmu" else None
         result = run_scene(scene.resolved, backend=backend, fmu_dir=fmu_folder)
-        write_results(result, folder)
+        written = write_results(result, folder)
         if plots:
             from orchestrator.output.plots import write_plots
 
-            write_plots(result, folder)
+            written += write_plots(result, folder)
         if animate:
             from orchestrator.output.animation import write_animation
 
-            write_animation(result, folder)
+            written += [p for p in [write_animation(result, folder)] if p is not None]
         if vtk:
             from orchestrator.output.vtk import write_vtk
 
-            write_vtk(result, folder)
+            written += write_vtk(result, folder)
+        finish_record(folder, record, written)    # last: the folder is complete, as wingsim run leaves it
         return Result.load(folder, keep_folder=out is not None)
 
 
@@ -196,7 +206,7 @@ def sweep(scene: Scene | str | Path, grid: Mapping[str, Sequence[Any]], override
     items = [f"{key}=" + ",".join(override_text(key, v).partition("=")[2] for v in values)
              for key, values in grid.items()]
     runs = plan_sweep(scene.path, items, scene.overrides)      # every combination checked before any runs
-    with _output_folder(out, "out", ["plots"] if plots else []) as folder:
+    with _output_folder(out, "out", ["plots"] if plots else [], hold=False) as folder:   # run_sweep holds it
         run_sweep(runs, folder, backend=backend, jobs=jobs, plots=plots, stream=sys.stderr)
         with (folder / SWEEP_CSV).open(newline="") as handle:
             rows = [{k: _cell(v) for k, v in row.items()} for row in csv.DictReader(handle)]

@@ -124,3 +124,16 @@ def test_import_wingsim_from_an_empty_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     path, count = proc.stdout.split()
     assert path.startswith(str(ROOT)) and int(count) == len(list(SCENES.glob("*.toml")))
+
+
+def test_outputs_kept_in_a_folder_are_complete_and_a_sweep_there_resumes(tmp_path, capsys):
+    from orchestrator.output.run_record import complete_record
+
+    result = wingsim.run("pendulum_rigid", {"time.stop": 0.05}, out=tmp_path / "run", vtk=True)
+    assert result.folder == tmp_path / "run" and complete_record(result.folder) is not None
+    assert "vtk/structure.pvd" in complete_record(result.folder)["files"]
+    grid = {"probes.tip.span": [1.0]}
+    first = wingsim.sweep("pendulum_rigid", grid, overrides={"time.stop": 0.05}, out=tmp_path / "sweep", jobs=1)
+    again = wingsim.sweep("pendulum_rigid", grid, overrides={"time.stop": 0.05}, out=tmp_path / "sweep", jobs=1)
+    assert "1/1 runs already done" in capsys.readouterr().err             # the second found the first's run
+    assert again.rows == first.rows and (tmp_path / "sweep" / "sweep.png").is_file()
