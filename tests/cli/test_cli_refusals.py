@@ -384,7 +384,7 @@ def test_a_signal_to_a_run_writes_its_results_so_far(signum, code, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "error" and "interrupted" in summary["message"]
     assert summary["simulated_time_s"] < 200
-    assert (out / "timeseries.csv").read_text().startswith("time,")
+    assert (out / "timeseries.csv").read_text().startswith("time [s],")
 
 
 # --- FMU folders of --set variants ------------------------------------------------------------------------
