@@ -376,19 +376,21 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
         print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
         print(f"error: {err}", file=sys.stderr)
         return interrupt_exit_code() or 1
+    plotted = True
     try:
         written += write_plots(result, out)
     except Exception as err:  # the data are written; a plotting problem must not hide them
         if _debug():
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
-    else:
-        requested, failure = _write_requested(args, result, out)
-        written += requested
-        if failure:
-            print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
-            print(f"error: {failure}", file=sys.stderr)
-            return interrupt_exit_code() or 1
+        plotted = False
+    requested, failure = _write_requested(args, result, out)   # asked for by name: a failure is an error
+    written += requested
+    if failure:
+        print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
+        print(f"error: {failure}", file=sys.stderr)
+        return interrupt_exit_code() or 1
+    if plotted:
         try:
             finish_record(out, record, written)   # last: the folder is complete
         except WriteError as err:

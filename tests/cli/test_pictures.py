@@ -225,3 +225,15 @@ def test_the_sweep_plot_draws_each_figure_against_each_grid_key(tmp_path):
     for line in span_panel.lines:
         np.testing.assert_allclose(line.get_xdata(), [0.5, 1.0])
         np.testing.assert_allclose(line.get_ydata(), 2 * np.array([0.5, 1.0]), rtol=1e-4)
+
+
+def test_an_animation_asked_for_and_not_written_fails_the_command(tmp_path, capsys, monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("no frames")
+
+    monkeypatch.setattr(animation, "write_animation", broken)
+    code = cli.main(["run", str(SCENES / "pendulum_rigid.toml"), "--backend", "direct", "--out", str(tmp_path),
+                     "--set", "time.stop=0.05", "--animate", "--vtk"])
+    err = capsys.readouterr().err
+    assert code == 1 and "error: animation.gif not written: RuntimeError: no frames" in err
+    assert (tmp_path / "summary.json").is_file() and (tmp_path / "timeseries.csv").is_file()   # the data stay
