@@ -59,9 +59,9 @@ def _output_folder(out: str | Path | None, option: str, wanted: Sequence[str] = 
         yield folder
 
 
-def _fmu_folder(scene: Scene) -> Path | None:
-    """Build the scene's FMUs when they are missing or stale, as ``wingsim run`` does; their folder.
-    RuntimeError with the build's message when the build fails."""
+def _fmu_folder(scene: Scene) -> tuple[Path, Any]:
+    """Build the scene's FMUs when they are missing or stale, as ``wingsim run`` does: (their folder, None), or
+    (the folder, a failed RunResult saying why) when the build fails."""
     from orchestrator.cli import _build_if_needed, fmu_dir
 
     file_scene = scene.resolved
@@ -71,15 +71,13 @@ def _fmu_folder(scene: Scene) -> Path | None:
         except SceneError:
             file_scene = None     # the file alone is not a scene: the overrides complete it
     folder = fmu_dir(scene.resolved, file_scene)
-    failed = _build_if_needed(scene.resolved, folder)
-    if failed is not None:
-        raise RuntimeError(failed.message)
-    return folder
+    return folder, _build_if_needed(scene.resolved, folder)
 
 
 def run(scene: Scene | str | Path, overrides: Mapping[str, Any] | None = None, backend: str = "direct",
         out: str | Path | None = None, plots: bool = False, animate: bool = False, vtk: bool = False) -> Result:
-    """Run a scene and return its Result; a failed run (diverged, error) returns its Result too, with its status.
+    """Run a scene and return its Result; a failed run (diverged, error, or FMUs that could not be built) returns its
+    Result too, with its status and message.
 
     Args:
         scene: a Scene, a scene file or the name of a shipped scene.
@@ -106,8 +104,9 @@ def run(scene: Scene | str | Path, overrides: Mapping[str, Any] | None = None, b
     wanted = [name for name, asked in (("plots", plots), ("animate", animate), ("vtk", vtk)) if asked]
     with _output_folder(out, "out", wanted) as folder:
         record = start_record(folder, process_record(), scene.overrides, scene_file=str(scene.path), backend=backend)
-        fmu_folder = _fmu_folder(scene) if backend == "fmu" else None
-        result = run_scene(scene.resolved, backend=backend, fmu_dir=fmu_folder)
+        fmu_folder, result = _fmu_folder(scene) if backend == "fmu" else (None, None)
+        if result is None:        # else the build failed: its Result says why, as wingsim run writes it
+            result = run_scene(scene.resolved, backend=backend, fmu_dir=fmu_folder)
         written = write_results(result, folder)
         if plots:
             from orchestrator.output.plots import write_plots

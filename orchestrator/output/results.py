@@ -310,11 +310,11 @@ def read_timeseries(path: Path) -> tuple[np.ndarray, dict[str, str]]:
     """A ``timeseries.csv`` read back: (samples, {column: unit}), the samples a numpy structured array with one
     float field per column named as the column (``time``, ``tip_z``, ...), shape (samples,). A header cell
     without a unit (a file written before the header carried units) gets the unit ``""``."""
-    path = Path(path)
-    with path.open() as handle:
+    with Path(path).open() as handle:
         cells = handle.readline().rstrip("\n").split(",")
+        lines = handle.read().splitlines()
     names, units = zip(*(split_header_cell(cell) for cell in cells))
-    rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2).reshape(-1, len(names))
+    rows = np.loadtxt(lines, delimiter=",", ndmin=2).reshape(-1, len(names)) if lines else np.empty((0, len(names)))
     samples = np.empty(len(rows), dtype=[(name, float) for name in names])
     for k, name in enumerate(names):
         samples[name] = rows[:, k]

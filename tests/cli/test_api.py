@@ -137,3 +137,15 @@ def test_outputs_kept_in_a_folder_are_complete_and_a_sweep_there_resumes(tmp_pat
     again = wingsim.sweep("pendulum_rigid", grid, overrides={"time.stop": 0.05}, out=tmp_path / "sweep", jobs=1)
     assert "1/1 runs already done" in capsys.readouterr().err             # the second found the first's run
     assert again.rows == first.rows and (tmp_path / "sweep" / "sweep.png").is_file()
+
+
+def test_a_failed_fmu_build_returns_a_result_that_says_why(monkeypatch):
+    import orchestrator.build.fmus
+
+    def no_compiler(*args, **kwargs):
+        raise OSError("no C compiler")
+
+    monkeypatch.setattr(orchestrator.build.fmus, "build_fmus", no_compiler)
+    result = wingsim.run("pendulum_rigid", {"time.stop": 0.05}, backend="fmu")
+    assert result.status == "error" and "building the FMUs" in result.message and "no C compiler" in result.message
+    assert len(result.timeseries) == 0 and result.columns[0] == "time"
