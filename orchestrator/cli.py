@@ -4,10 +4,12 @@
   build the scene's FMUs, or only the one unit, into DIR (default: the folder ``run`` uses, ``fmu_dir``;
   ``--standalone``: FMUs that carry their Python runtime; ``--win64``: with binaries and a runtime for 64-bit
   Windows too).
-- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
-  run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``, and
-  ``results/<scene>/<overrides>/`` for a ``--set`` variant: ``orchestrator.output.run_folders``); notes first for
-  implausible flow values and a large timeseries.csv (the run goes ahead).
+- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone] [--animate] [--vtk]``:
+  build if needed, run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default
+  ``results/<scene>/``, and ``results/<scene>/<overrides>/`` for a ``--set`` variant:
+  ``orchestrator.output.run_folders``); notes first for implausible flow values and a large timeseries.csv (the run
+  goes ahead); ``--animate``: ``animation.gif`` too, ``--vtk``: the geometry history for ParaView in ``DIR/vtk/``
+  (``orchestrator.output.animation``, ``orchestrator.output.vtk``).
 - ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU; compliance
   and the physics of the simulation reported apart.
 - ``wingsim scenes``: the shipped scenes with their headlines; ``wingsim init NAME [--from SCENE]``: copy one to
@@ -136,6 +138,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--backend", choices=("fmu", "direct"), default="fmu",
                      help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
     run.add_argument("--standalone", action="store_true", help=STANDALONE_HELP + " (with --backend fmu)")
+    run.add_argument("--animate", action="store_true",
+                     help="also write animation.gif: the deployment from the recorded geometry, with the wake")
+    run.add_argument("--vtk", action="store_true",
+                     help="also write the geometry history for ParaView: vtk/structure.pvd (and vtk/lattice.pvd for "
+                          "an aero scene), one .vtu per frame")
     run.set_defaults(func=cmd_run)
 
     validate = commands.add_parser("validate", help="check built FMUs: model description and a short simulation",
@@ -438,13 +445,21 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
         print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
         print(f"error: {err}", file=sys.stderr)
         return interrupt_exit_code() or 1
+    plotted = True
     try:
         written += write_plots(result, out)
     except Exception as err:  # the data are written; a plotting problem must not hide them
         if _debug():
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
-    else:
+        plotted = False
+    requested, failure = _write_requested(args, result, out)   # asked for by name: a failure is an error
+    written += requested
+    if failure:
+        print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
+        print(f"error: {failure}", file=sys.stderr)
+        return interrupt_exit_code() or 1
+    if plotted:
         try:
             finish_record(out, record, written)   # last: the folder is complete
         except WriteError as err:
@@ -473,6 +488,28 @@ def _as_interrupted(result):
     name = signal.Signals(_received[0]).name
     return dataclasses.replace(result, status="interrupted",
                                message=f"interrupted ({name}) after t = {result.simulated_time_s:g} s")
+
+
+def _write_requested(args: argparse.Namespace, result, out: Path) -> tuple[list[Path], str]:
+    """The outputs asked for with ``--animate`` and ``--vtk``: (paths written, "" or why one was not written)."""
+    from orchestrator.output.animation import ANIMATION_FILE, write_animation
+    from orchestrator.output.vtk import VTK_FOLDER, write_vtk
+
+    written: list[Path] = []
+    asked = [(ANIMATION_FILE, lambda: [p for p in [write_animation(result, out)] if p is not None])] \
+        if args.animate else []
+    asked += [(f"{VTK_FOLDER}/", lambda: write_vtk(result, out))] if args.vtk else []
+    for what, write in asked:
+        try:
+            paths = write()
+        except Exception as err:
+            if _debug():
+                raise
+            return written, f"{what} not written: {type(err).__name__}: {err}"
+        if not paths:
+            return written, f"{what} not written: the run recorded no geometry"
+        written += paths
+    return written, ""
 
 
 def cmd_export(args: argparse.Namespace) -> int:

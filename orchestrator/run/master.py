@@ -233,7 +233,13 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     ``topology`` (default the scene's ``fmu_common.topology.Topology``) gives the number of coordinates the
     structure unit must have (``n_coordinates``).
     Both are parameters so that the loop can be tested without the physics.
+    ``backend="fmu"`` needs ``fmu_dir``, the folder of the scene's built FMUs: ValueError without it, before
+    anything runs (``wingsim.run(scene, backend="fmu")`` builds them when needed).
     """
+    if backend == "fmu" and fmu_dir is None:
+        raise ValueError("run_scene(backend='fmu') needs fmu_dir, the folder of the scene's built FMUs (wingsim build "
+                         "SCENE writes them; wingsim.run(scene, backend='fmu') builds them when needed); "
+                         "backend='direct' runs the units in this process without FMUs")
     start = _time.perf_counter()
     if units is None:
         units = importlib.import_module("orchestrator.run.units")  # lazy: loads fmpy and the slaves
