@@ -112,8 +112,9 @@ def test_defaults_of_a_minimal_scene():
                                  "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
+    assert scene["record"] == {"probes": "acceleration", "monitors": "all"}     # everything timeseries.csv holds
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",
-                           "strain_gauges"]
+                           "strain_gauges", "record"]
     json.dumps(scene, allow_nan=False)
 
 

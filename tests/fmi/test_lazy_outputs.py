@@ -8,10 +8,10 @@ import json
 
 import numpy as np
 import pytest
-
-from aero_fmu.aero_slave import AeroSlave
 from pythonfmu import Real
 
+from aero_fmu.aero_slave import AeroSlave
+from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
 from fmu_common.interface import fmi_name
 from orchestrator.run.master import has_aero, run_scene
@@ -86,7 +86,7 @@ def test_every_output_read_is_what_the_solver_gives_evaluated_all_at_once(name, 
     h = scene["coupling"]["step"]
     structure = _slave(StructureSlave, scene, tmp_path / "structure")
     aero = _slave(AeroSlave, scene, tmp_path / "aero") if has_aero(scene) else None
-    vr_s, vr_a = _outputs(structure), _outputs(aero) if aero else {}
+    vr_s = _outputs(structure)
     n = structure.n
     names = {v.name: vr for vr, v in aero.vars.items()} if aero else {}
     e_in = [names[f"{block}[{k}]"] for block in ("e", "de") for k in range(1, n + 1)] if aero else []
@@ -173,3 +173,9 @@ def test_the_run_records_only_what_the_record_table_asks_for_and_the_units_compu
             assert np.isnan(lean_table[:, j]).all() and np.isfinite(table[:, j]).all(), column
         else:          # reading less changes nothing else: the same run, bit for bit
             assert np.array_equal(lean_table[:, j], table[:, j], equal_nan=True), column
+
+
+@pytest.mark.parametrize("key, value", [("record.probes", "jerk"), ("record.monitors", "energy")])
+def test_a_record_value_not_declared_is_refused_naming_the_key(key, value):
+    with pytest.raises(SceneError, match=key.replace(".", r"\.")):
+        load_scene(SCENES / "deploy_rigid.toml", [f"{key}={value!r}".replace("'", '"')])
