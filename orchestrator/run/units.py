@@ -160,10 +160,11 @@ class Unit:
                             "the FMU)")
         output_vrs = [vr[name] for block in blocks if block.causality == OUTPUT for name in block.names(n)]
         monitor_vrs = [vr[name] for name in monitor_names]
-        # get_outputs reads the monitors in the same call and keeps both until the unit steps or is set (its
-        # outputs change only then): one fmi2GetReal per unit and step, however often the master asks
-        self._get_out = port.reader(output_vrs + monitor_vrs)
-        self._n_outputs, self._values = len(output_vrs), None
+        # get_outputs reads the output blocks alone and keeps them until the unit steps or is set (its outputs
+        # change only then), however often the coupling asks; the monitors are read apart, when recorded: the unit
+        # computes an output only when read, so an implicit coupling's rejected iterates compute no monitor
+        self._get_out = port.reader(output_vrs)
+        self._values = None
         self._set_in = port.writer([vr[name] for block in blocks if block.causality != OUTPUT
                                     for name in block.names(n)])
         self._get_mon = port.reader(monitor_vrs)
@@ -208,7 +209,7 @@ class Unit:
 
     def monitors(self) -> dict:
         """The unit's outputs now, row by row of its table (module docstring)."""
-        m = self._get_mon() if self._values is None else self._values[self._n_outputs:]
+        m = self._get_mon()
         out = {}
         for row, items, width, where in self._monitor_rows:
             values = m[where]

@@ -179,3 +179,17 @@ def test_the_run_records_only_what_the_record_table_asks_for_and_the_units_compu
 def test_a_record_value_not_declared_is_refused_naming_the_key(key, value):
     with pytest.raises(SceneError, match=key.replace(".", r"\.")):
         load_scene(SCENES / "deploy_rigid.toml", [f"{key}={value!r}".replace("'", '"')])
+
+
+def test_an_implicit_coupling_computes_the_recorded_outputs_of_its_accepted_iterates_only(monkeypatch):
+    computed = []
+    solve = StructureSolver.probe_accelerations
+    monkeypatch.setattr(StructureSolver, "probe_accelerations", lambda self: computed.append(self.time) or solve(self))
+    scene = load_scene(SCENES / "deploy_rigid.toml", ["time.stop=0.01", "coupling.algorithm=implicit"])
+    result = run_scene(scene, backend="direct")
+    assert result.status == "ok", result.message
+    iterations = result.series.column("coupling_iterations")[1:]
+    steps = len(iterations)
+    assert iterations.sum() > steps                   # steps repeated: the structure stepped more often than recorded
+    after_start = [t for t in computed if t > 0]
+    assert after_start == pytest.approx(scene["coupling"]["step"] * np.arange(1, steps + 1))   # once per record
