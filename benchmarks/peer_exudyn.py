@@ -16,15 +16,15 @@ step is off, so a Newton failure stops the run instead of changing the step). wi
 it: `run_scene` through the FMUs (built beforehand, not timed), the units reading what the scene's `record` table
 asks for, here the tip probe's position alone (RECORD), as Exudyn's sensor records; its timed part is run_scene
 after its units are loaded and initialized (the communication steps, their exchanges and records, and the end of
-the run), Exudyn's its SolveDynamic after its Assemble; whole processes (benchmarks/peers.py) count the rest. Exudyn is tuned as its
-manual advises: the prescribed root angle is a symbolic user function (exudyn.symbolic), which Exudyn evaluates in
-C++ instead of calling back into Python at every evaluation, and its Newton iteration stops at a relative residual
-of NEWTON_RELATIVE_TOLERANCE or an absolute one of NEWTON_ABSOLUTE_TOLERANCE (its defaults, 1e-8 and 1e-10, do not
-converge at these stiffnesses: fixed steps stop and adaptive ones are cut); at these tolerances its errors
-against the references are those of tighter ones (the accuracy table of benchmarks/peers.py prints them). The
-references are the structure solver refined in space and time (REFINED): the spin-up's error is the time step's
-(docs/structure.md: 9 and 18 elements differ by 1.7e-6 m), the rotating beam's mostly the elements'; Exudyn
-refined the same way approaches the same values.
+the run), Exudyn's its SolveDynamic after its Assemble; whole processes (benchmarks/peers.py) count the rest.
+Exudyn is tuned as its manual advises: the prescribed root angle is a symbolic user function (exudyn.symbolic),
+which Exudyn evaluates in C++ instead of calling back into Python at every evaluation, and its Newton iteration
+stops at a relative residual of NEWTON_RELATIVE_TOLERANCE or an absolute one of NEWTON_ABSOLUTE_TOLERANCE (its
+defaults, 1e-8 and 1e-10, do not converge at these stiffnesses: fixed steps stop and adaptive ones are cut); at
+these tolerances its errors against the references are those of tighter ones (the accuracy table of
+benchmarks/peers.py prints them). The references are the structure solver refined in space and time (REFINED): the
+spin-up's error is the time step's (docs/structure.md: 9 and 18 elements differ by 1.7e-6 m), the rotating beam's
+mostly the elements'; Exudyn refined the same way approaches the same values.
 
 Differences that remain: Exudyn's cables carry no torsion and no chord gradient (the motions are planar and
 torsion-free; ours carries both); its geometrically exact beam is shear-deformable (shear stiffness 5/6 G A with
