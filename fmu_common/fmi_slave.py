@@ -604,7 +604,8 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         """Bring the output rows `rows` (indices into `_outputs`) up to date in the value buffer: each row out of
         date is computed from the solver, in one `Reading` per solver state, so that a query several rows share
         (e.g. the monitors) runs once however many of them are read, and a row is computed at most once per
-        step. Never raises: returns the reasons of the rows that failed (their values are then NaN)."""
+        step. Never raises: returns the reasons of the rows that failed (their values are then NaN, and each read
+        tries again and reports again)."""
         failed = []
         for k in rows:
             if self._current_rows[k]:
@@ -614,10 +615,12 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
                 self._reading = Reading(self._solver, self._t0)
             try:
                 self._real[where] = value(self._reading, items)
-            except Exception as exc:  # noqa: BLE001 - a read answers the host, never raises
+                self._current_rows[k] = True
+            except Exception as exc:  # noqa: BLE001 - a read answers the host, never raises; the next read tries again
                 self._real[where] = np.nan
-                failed.append(f"{self.vars[where.start].name}: {type(exc).__name__}: {exc}")
-            self._current_rows[k] = True
+                names = self.vars[where.start].name + (f" .. {self.vars[where.stop - 1].name}"
+                                                       if where.stop - where.start > 1 else "")
+                failed.append(f"{names}: {type(exc).__name__}: {exc}")
         return failed
 
     def _value(self, vr: int) -> float:

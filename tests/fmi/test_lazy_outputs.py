@@ -193,3 +193,21 @@ def test_an_implicit_coupling_computes_the_recorded_outputs_of_its_accepted_iter
     assert iterations.sum() > steps                   # steps repeated: the structure stepped more often than recorded
     after_start = [t for t in computed if t > 0]
     assert after_start == pytest.approx(scene["coupling"]["step"] * np.arange(1, steps + 1))   # once per record
+
+
+def test_an_output_whose_computation_fails_reads_nan_with_the_reason_at_every_read(tmp_path, monkeypatch):
+    scene = load_scene(SCENES / "deploy_flexible.toml", ["aero.model=none"])
+    slave = _slave(StructureSlave, scene, tmp_path)
+    vr = _outputs(slave)
+
+    def singular(self):
+        raise np.linalg.LinAlgError("singular matrix")
+
+    monkeypatch.setattr(StructureSolver, "probe_accelerations", singular)
+    assert slave.do_step(0.0, scene["coupling"]["step"])
+    for _ in range(2):
+        slave.log_queue.clear()
+        values = slave.get_real([vr["tip_x"], vr["tip_ax"]])
+        assert np.isfinite(values[0]) and np.isnan(values[1])
+        errors = [m.msg for m in slave.log_queue if m.status.value >= 3]
+        assert len(errors) == 1 and "bending_100mm_ax .. tip_az: LinAlgError: singular matrix" in errors[0], errors
