@@ -161,11 +161,6 @@ def new_series(scene: dict) -> TimeSeries:
                       strain_names=[g["name"] for g in scene["strain_gauges"]], joint_names=joint_monitor_names(scene))
 
 
-ENERGY_ROWS = tuple(key for key in MONITOR_COLUMNS if key != "constraint_residual")
-"""The structure unit's energy monitors (energy, kinetic_energy, external_work, J), recorded with
-``record.monitors = "all"``."""
-
-
 def recorded_rows(scene: dict) -> dict[str, tuple[str, ...]]:
     """{unit kind: the keys of its output rows (``structure_fmu.interface``, ``aero_fmu.interface``) the run reads
     and records} for ``scene``: what its ``record`` table asks for (``record.probes``: the probes' positions, up to
