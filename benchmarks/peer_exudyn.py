@@ -1,8 +1,9 @@
 """Peer cases against Exudyn (the `peers` extra): the spin-up beam and the rotating falling beam, each run by the
 structure solver (structure_fmu.solver.StructureSolver) and by Exudyn from the same scene data.
 
-- Spin-up (scenes/spin_up.toml; Otsuka et al. 2019, Sec. VI.B, driven by Eq. 27): Exudyn's 3D ANCF cable
-  (ObjectANCFCable) and, as a second row, its planar cable (ObjectANCFCable2D). The driven root is a clamp: root
+- Spin-up (scenes/spin_up.toml; Otsuka et al. 2019, Sec. VI.B, driven by Eq. 27): Exudyn's planar ANCF cable
+  (ObjectANCFCable2D), the headline row (the spin-up is planar: the planar cable is the fair peer) and, as a second
+  row, its 3D cable (ObjectANCFCable). The driven root is a clamp: root
   position fixed and root slope prescribed as R(theta(t)) e_x by coordinate constraints, theta from
   structure_fmu.motion.SpinUp. Values: the tip's in-plane deflection (m, its distance from the rigidly rotating
   beam line, positive when it lags), sampled every coupling step, and its peak |deflection| (m).
@@ -11,17 +12,25 @@ structure solver (structure_fmu.solver.StructureSolver) and by Exudyn from the s
   initial rigid rotation and gravity from the scene. Values: the tip's position (m) every coupling step.
 
 Both codes take the scene's step with generalized-alpha at the scene's rho_inf and fixed steps (Exudyn's adaptive
-step is off, so a Newton failure stops the run instead of changing the step). Exudyn's Newton iteration stops at
-an absolute residual of NEWTON_ABSOLUTE_TOLERANCE: with its default 1e-10 (and with 1e-8) it does not converge at
-these stiffnesses, so fixed steps stop and adaptive ones are cut. The references are the structure solver refined
-in space and time (REFINED): the spin-up's error is the time step's (docs/structure.md: 9 and 18 elements differ
-by 1.7e-6 m), the rotating beam's mostly the elements'; Exudyn refined the same way approaches the same values.
+step is off, so a Newton failure stops the run instead of changing the step). wingsim runs as `wingsim run` runs it:
+`run_scene` through the FMUs (built beforehand, not timed), the units reading what the scene's `record` table asks
+for, here the tip probe's position alone (RECORD), as Exudyn's sensor records; its timed part is run_scene after its
+units are loaded and initialized (the communication steps, their exchanges and records, and the end of the run),
+Exudyn's its SolveDynamic after its Assemble; whole processes (benchmarks/peers.py) count the rest. Exudyn is tuned:
+the prescribed root angle is a symbolic user function (exudyn.symbolic), which Exudyn evaluates in C++ instead of
+calling back into Python at every evaluation, and its Newton iteration stops at a relative residual of
+NEWTON_RELATIVE_TOLERANCE or an absolute one of NEWTON_ABSOLUTE_TOLERANCE (with its default absolute tolerance
+1e-10, or 1e-8, it does not converge at these stiffnesses: fixed steps stop and adaptive ones are cut). Against
+tolerances 100 times tighter (1e-8, 1e-6) these move its spin-up deflection by 1.6e-7 m (its error against the
+reference is 4.3e-6 m, 0-5 s) and its rotating beam's tip by 2.8e-7 m (0-0.2 s): its accuracy is kept. The
+references are the structure solver refined in space and time (REFINED): the spin-up's error is the time step's
+(docs/structure.md: 9 and 18 elements differ by 1.7e-6 m), the rotating beam's mostly the elements'; Exudyn refined
+the same way approaches the same values.
 
 Differences that remain: Exudyn's cables carry no torsion and no chord gradient (the motions are planar and
 torsion-free; ours carries both); its geometrically exact beam is shear-deformable (shear stiffness 5/6 G A with
 nu = 0.3, a relative shear flexibility of order (h / L)^2) and needs a rotary inertia about the chord, taken as
-the plate's rho c h^3 / 12 where the scene's is 0 (ours then has none); the prescribed root angle is evaluated by
-a Python callback in Exudyn (part of its timed run).
+the plate's rho c h^3 / 12 where the scene's is 0 (ours then has none).
 """
 from __future__ import annotations
 
@@ -37,7 +46,10 @@ from fmu_common.wing_spec import StructureSpec
 
 SPIN_UP = ROOT / "scenes" / "spin_up.toml"
 ROTATING_BEAM = ROOT / "scenes" / "rotating_beam.toml"
-NEWTON_ABSOLUTE_TOLERANCE = 1e-6
+NEWTON_RELATIVE_TOLERANCE = 1e-6
+NEWTON_ABSOLUTE_TOLERANCE = 1e-4
+RECORD = ["record.probes=position", "record.monitors=constraints"]
+TIP_PROBE = "tip"
 POISSON_RATIO = 0.3      # the rotating beam's plate (scenes/rotating_beam.toml), for Exudyn's shear stiffness
 SHEAR_CORRECTION = 5 / 6
 REFINED = {"spin_up": ["structure.elements_per_body=18", "structure.step=0.001"],
@@ -76,37 +88,78 @@ def _deflection(law, t, x, z):
 
 
 # ------------------------------------------------------------------------------------------------ wingsim
-def _ours(scene, record):
-    """Run the structure solver through `scene`, stopping at each coupling instant to record `record(solver)`;
-    returns (Measurement without values, times, records)."""
+FMU_FOLDER = "WINGSIM_PEERS_FMUS"
+"""Environment variable naming the folder the FMUs of the cases are built in, one subfolder per scene digest,
+shared with the processes benchmarks/peers.py starts; unset: a temporary folder of this process."""
+_TEMPORARY = []
+
+
+def fmus_of(scene):
+    """The folder holding the FMUs of `scene` (under FMU_FOLDER), built unless up to date there (not timed)."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from orchestrator.build.fmus import build_digest, build_fmus, fmus_up_to_date
+    if not os.environ.get(FMU_FOLDER) and not _TEMPORARY:
+        _TEMPORARY.append(tempfile.TemporaryDirectory(prefix="wingsim_peers_"))
+    folder = Path(os.environ.get(FMU_FOLDER) or _TEMPORARY[0].name, build_digest(scene)[:16])
+    if not fmus_up_to_date(scene, folder):
+        build_fmus(scene, folder)
+    return folder
+
+
+def _run_tip(scene):
+    """The scene through `wingsim run`'s path (module docstring), timed from the moment its units are loaded and
+    initialized (as Exudyn's SolveDynamic after its Assemble) to the end of the run: (Measurement without values,
+    the coupling instants after t = 0, the tip probe's positions there (n, 3))."""
+    import time
+    from types import SimpleNamespace
+
+    from orchestrator.run import units
+    from orchestrator.run.master import run_scene
+    folder, loaded = fmus_of(scene), []
+
+    def make_unit(**kwargs):
+        unit = units.make_unit(**kwargs)
+        loaded.append((time.perf_counter(), time.process_time()))
+        return unit
+
+    result = run_scene(scene, backend="fmu", fmu_dir=folder,
+                       units=SimpleNamespace(make_unit=make_unit, UnitError=units.UnitError))
+    wall, cpu = time.perf_counter() - loaded[-1][0], time.process_time() - loaded[-1][1]
+    if result.status != "ok":
+        raise RuntimeError(f"wingsim did not finish {scene['name']}: {result.status}: {result.message}")
+    series, times = result.series, _sample_times(scene)
+    if not np.allclose(series.time[1:], times, atol=1e-9):
+        raise RuntimeError(f"wingsim recorded at {series.time[1:4]}..., not every {scene['coupling']['step']} s")
+    return Measurement(wall, cpu), times, series.positions[1:, series.probe_names.index(TIP_PROBE)]
+
+
+def _solver_tip(scene):
+    """The tip's position at the coupling instants from the structure solver API (the refined references)."""
     from structure_fmu.solver import StructureSolver
+    body, _ = _body(scene)
+    topology = StructureTopology.from_spec(StructureSpec.from_scene(scene))
+    tip = topology.point_rows(body.name, body.length, body.axis_position)[0]
     solver = StructureSolver(StructureUnitSpec.from_scene(scene))
     times, out = _sample_times(scene), []
     with Timer() as timer:
         for t in times:
             solver.advance(t)
-            out.append(record(solver))
+            out.append(tip @ solver.e.reshape(-1, 3))
     return Measurement(timer.wall_s, timer.cpu_s), times, np.array(out)
 
 
-def _ours_tip(scene):
-    """The tip's position at the coupling instants, from its shape row built once (Exudyn's sensor, likewise, is
-    set up before its timed run)."""
-    body, _ = _body(scene)
-    topology = StructureTopology.from_spec(StructureSpec.from_scene(scene))
-    tip = topology.point_rows(body.name, body.length, body.axis_position)[0]
-    return _ours(scene, lambda s: tip @ s.e.reshape(-1, 3))
-
-
-def _ours_spin_up(scene):
-    measurement, t, tip = _ours_tip(scene)
+def _ours_spin_up(scene, run=_run_tip):
+    measurement, t, tip = run(scene)
     deflection = _deflection(_spin_law(scene), t, tip[:, 0], tip[:, 2])
     measurement.values = {"t": t, "deflection": deflection, "peak": float(np.abs(deflection).max())}
     return measurement
 
 
-def _ours_rotating(scene):
-    measurement, t, tip = _ours_tip(scene)
+def _ours_rotating(scene, run=_run_tip):
+    measurement, t, tip = run(scene)
     measurement.values = {"t": t, "tip": tip}
     return measurement
 
@@ -119,6 +172,7 @@ def _exudyn_settings(exu, scene):
     settings.timeIntegration.endTime = stop
     settings.timeIntegration.numberOfSteps = int(round(stop / h))
     settings.timeIntegration.generalizedAlpha.spectralRadius = structure["rho_inf"]
+    settings.timeIntegration.newton.relativeTolerance = NEWTON_RELATIVE_TOLERANCE
     settings.timeIntegration.newton.absoluteTolerance = NEWTON_ABSOLUTE_TOLERANCE
     settings.timeIntegration.adaptiveStep = False
     settings.timeIntegration.verboseMode = 0
@@ -145,10 +199,26 @@ def _exudyn_solve(exu, mbs, scene, sensor):
     return Measurement(timer.wall_s, timer.cpu_s), times, rows[:, 1:4]
 
 
+def _symbolic_spin_up(esym, law):
+    """theta(t) and dtheta/dt(t) of the spin-up law (structure_fmu.motion.SpinUp.angle, Otsuka et al. 2019,
+    Eq. 27) as functions of a symbolic time, building Exudyn symbolic expressions."""
+    ws, Ts = law.omega, law.ramp_time
+    c = 2 * np.pi / Ts
+
+    def theta(t):
+        return esym.IfThenElse(t < Ts, ws / Ts * (t**2 / 2 + (esym.cos(c * t) - 1) / c**2), ws * (t - Ts / 2))
+
+    def omega(t):
+        return esym.IfThenElse(t < Ts, ws / Ts * (t - esym.sin(c * t) / c), esym.Real(ws))
+
+    return theta, omega
+
+
 def _exudyn_spin_up(scene, planar):
     """The spin-up with n ANCF cables (3D, or planar in the x-y plane, which stands for x-z: the deflection is
     computed with y -> -z so that both measure the same lag)."""
     import exudyn as exu
+    from exudyn.advancedUtilities import CreateSymbolicUserFunction
     from exudyn.itemInterface import (MarkerNodeCoordinate, NodePoint2DSlope1, NodePointGround, NodePointSlope1,
                                       ObjectANCFCable, ObjectANCFCable2D, ObjectConnectorCoordinate, SensorNode)
     body, section = _body(scene)
@@ -164,33 +234,37 @@ def _exudyn_spin_up(scene, planar):
     ground = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()), coordinate=0))
 
     # root slope R(theta) e_x as displacements from the reference slope e_x (the constraint acts on coordinates
-    # without their reference values): 3D (cos - 1, 0, -sin) about Y; planar (cos - 1, sin) about Z
-    def cos_minus_one(mbs, t, item, offset):
-        return np.cos(law.angle(t)[0]) - 1.0
+    # without their reference values): 3D (cos - 1, 0, -sin) about Y; planar (cos - 1, sin) about Z; each offset
+    # and its rate a symbolic user function of its own, evaluated by Exudyn in C++ (kept alive in `symbolic`)
+    esym, sign = exu.symbolic, 1.0 if planar else -1.0
+    theta, omega = _symbolic_spin_up(esym, law)
 
-    def cos_minus_one_t(mbs, t, item, offset):
-        theta, omega, _ = law.angle(t)
-        return -np.sin(theta) * omega
+    def cos_minus_one(mbs, t, itemNumber, lOffset):
+        return esym.cos(theta(t)) - 1.0
 
-    sign = 1.0 if planar else -1.0
+    def cos_minus_one_t(mbs, t, itemNumber, lOffset):
+        return -esym.sin(theta(t)) * omega(t)
 
-    def sine(mbs, t, item, offset):
-        return sign * np.sin(law.angle(t)[0])
+    def sine(mbs, t, itemNumber, lOffset):
+        return sign * esym.sin(theta(t))
 
-    def sine_t(mbs, t, item, offset):
-        theta, omega, _ = law.angle(t)
-        return sign * np.cos(theta) * omega
+    def sine_t(mbs, t, itemNumber, lOffset):
+        return sign * esym.cos(theta(t)) * omega(t)
 
     driven = ({2: (cos_minus_one, cos_minus_one_t), 3: (sine, sine_t)} if planar else
               {3: (cos_minus_one, cos_minus_one_t), 5: (sine, sine_t)})
+    symbolic = []
     for k in range(4 if planar else 6):
         marker = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nodes[0], coordinate=k))
         functions = driven.get(k)
         if functions is None:
             mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[ground, marker]))
         else:
-            mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[ground, marker], offsetUserFunction=functions[0],
-                                                    offsetUserFunction_t=functions[1]))
+            offset, rate = (CreateSymbolicUserFunction(mbs, f, name, itemTypeName="ObjectConnectorCoordinate")
+                            for f, name in zip(functions, ("offsetUserFunction", "offsetUserFunction_t")))
+            symbolic += [offset, rate]
+            mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[ground, marker], offsetUserFunction=offset,
+                                                    offsetUserFunction_t=rate))
     sensor = mbs.AddSensor(SensorNode(nodeNumber=nodes[-1], storeInternal=True,
                                       outputVariableType=exu.OutputVariableType.Position))
     measurement, t, tip = _exudyn_solve(exu, mbs, scene, sensor)
@@ -262,30 +336,34 @@ def _exudyn_version():
 
 
 def cases(quick=False) -> list[PeerCase]:
-    """The peer cases; `quick` shortens the simulated time (spin-up to 5 s, rotating beam to 0.2 s)."""
+    """The peer cases, the planar spin-up first (the headline row); `quick` shortens the simulated time (spin-up
+    to 5 s, rotating beam to 0.2 s)."""
     spin_stop, rotating_stop = (QUICK_STOP["spin_up"], QUICK_STOP["rotating_beam"]) if quick else (None, None)
     spin_up = lambda *overrides: _scene(SPIN_UP, spin_stop, overrides)            # noqa: E731
     rotating = lambda *overrides: _scene(ROTATING_BEAM, rotating_stop, overrides)  # noqa: E731
     peer = _exudyn_version()
-    same = (f"scene's step and elements, generalized-alpha with its rho_inf on both sides, fixed steps; Exudyn's "
-            f"Newton absolute tolerance {NEWTON_ABSOLUTE_TOLERANCE:g}")
+    same = (f"scene's step and elements, generalized-alpha with its rho_inf on both sides, fixed steps; wingsim "
+            f"through its FMUs recording the tip's position ({' '.join(RECORD)}); Exudyn's Newton tolerances "
+            f"{NEWTON_RELATIVE_TOLERANCE:g} relative, {NEWTON_ABSOLUTE_TOLERANCE:g} absolute")
     spin_name = (f"spin-up beam (Simo and Vu-Quoc), 0-{spin_stop or 20:g} s, 9 elements, generalized-alpha 5 ms")
-    spin_reference = functools.cache(lambda: _ours_spin_up(spin_up(*REFINED["spin_up"])).values)  # both rows
+    spin_reference = functools.cache(lambda: _ours_spin_up(spin_up(*REFINED["spin_up"]), run=_solver_tip).values)
+    driven = "root clamp rotated by Otsuka et al. 2019, Eq. 27 through coordinate constraints (symbolic user functions)"
     return [
-        PeerCase(name=spin_name, peer=f"{peer}, 3D ANCF cables (ObjectANCFCable)",
-                 what=f"{same}; root clamp rotated by Otsuka et al. 2019, Eq. 27 through coordinate constraints; "
-                      f"reference: ours, 18 elements, 1 ms",
-                 ours=lambda: _ours_spin_up(spin_up()), peer_run=lambda: _exudyn_spin_up(spin_up(), planar=False),
-                 reference=spin_reference, errors=_spin_up_errors),
         PeerCase(name=spin_name, peer=f"{peer}, planar ANCF cables (ObjectANCFCable2D)",
-                 what=f"{same}; the planar element has 4 coordinates per node against our 9; reference: ours, "
-                      f"18 elements, 1 ms",
-                 ours=lambda: _ours_spin_up(spin_up()), peer_run=lambda: _exudyn_spin_up(spin_up(), planar=True),
+                 what=f"{same}; {driven}; the planar element has 4 coordinates per node against our 9; reference: "
+                      f"ours, 18 elements, 1 ms",
+                 ours=lambda: _ours_spin_up(spin_up(*RECORD)), peer_run=lambda: _exudyn_spin_up(spin_up(), planar=True),
+                 reference=spin_reference, errors=_spin_up_errors),
+        PeerCase(name=spin_name, peer=f"{peer}, 3D ANCF cables (ObjectANCFCable)",
+                 what=f"{same}; {driven}; reference: ours, 18 elements, 1 ms",
+                 ours=lambda: _ours_spin_up(spin_up(*RECORD)),
+                 peer_run=lambda: _exudyn_spin_up(spin_up(), planar=False),
                  reference=spin_reference, errors=_spin_up_errors),
         PeerCase(name=f"rotating falling beam, 15 elements, {rotating_stop or 1:g} s, 0.5 ms",
                  peer=f"{peer}, geometrically exact beam (ObjectBeamGeometricallyExact)",
                  what=f"{same}; revolute root about Z; shear-deformable peer (5/6 G A); reference: ours, 30 elements, "
                       f"0.1 ms",
-                 ours=lambda: _ours_rotating(rotating()), peer_run=lambda: _exudyn_rotating(rotating()),
-                 reference=lambda: _ours_rotating(rotating(*REFINED["rotating_beam"])).values, errors=_tip_errors),
+                 ours=lambda: _ours_rotating(rotating(*RECORD)), peer_run=lambda: _exudyn_rotating(rotating()),
+                 reference=lambda: _ours_rotating(rotating(*REFINED["rotating_beam"]), run=_solver_tip).values,
+                 errors=_tip_errors),
     ]

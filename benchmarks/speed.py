@@ -1,6 +1,6 @@
 """Speed of the coupled deployment runs through both kinds of FMU and in-process: the table of docs/performance.md.
 
-    python benchmarks/speed.py [--scenes deploy_rigid deploy_flexible] [--stop 0.3] [--repeat N]
+    python benchmarks/speed.py [--scenes deploy_rigid deploy_flexible] [--stop 0.3] [--repeat N] [--set KEY=VALUE ...]
 
 Per scene as shipped: build the ordinary and the standalone FMUs (not timed), ten untimed warm-up steps through
 each kind of run, then:
@@ -17,7 +17,11 @@ time / its in-process run's - 1, of the stepping (FMU_OVERHEAD_TARGET, STANDALON
 whole run. --repeat N runs each scene N times and adds per scene the ranges over the runs, the runs within
 the targets, the real-time factor of the fastest turn of each step summed over the steps (a floor that drops
 the machine's slow phases) and the standalone overhead of those floors, and the median of each figure
-(docs/performance.md's table, from --repeat 5).
+(docs/performance.md's table, from --repeat 5). CPU time: the CPU time of the thread of each run over its
+stepping (the ordinary FMUs and in-process, whose every call runs in that thread), which other tenants of a
+busy machine do not inflate as they do the wall time: the real-time factor and the FMU overhead in CPU time.
+--set overrides scene keys as `wingsim run --set` does (e.g. `record.probes=position record.monitors=constraints`,
+to read fewer outputs: the units compute only those read).
 """
 import argparse
 import os
@@ -48,14 +52,16 @@ class Lockstep:
     the first step, which loads the units, then `steps_per_turn` communication steps at a time; only the thread
     holding the turn works, the others wait on a condition. With `one_cpu` every thread runs on one CPU (where
     the platform lets a process choose: Linux). Per backend: `turns`, the wall time (s) of each step (the first
-    from the run's start, loading the units included); `tail`, from the last step to the end of `run_scene`
-    (terminating the units); `result`, the RunResult."""
+    from the run's start, loading the units included); `cpu`, the CPU time (s) of its thread over the steps
+    after the first; `tail`, from the last step to the end of `run_scene` (terminating the units); `result`,
+    the RunResult."""
 
     def __init__(self, scene, fmu_dirs, backends, one_cpu, steps_per_turn=1):
         self.scene, self.fmu_dirs, self.backends, self.one_cpu = scene, fmu_dirs, backends, one_cpu
         self.steps_per_turn = steps_per_turn
         self.turn, self.done, self.condition = backends[0], set(), threading.Condition()
         self.turns, self.tail, self.result = {b: [] for b in backends}, {}, {}
+        self.cpu = {b: 0.0 for b in backends}
 
     def run(self):
         """Every run to its end."""
@@ -102,13 +108,16 @@ class Turns:
 
     def __init__(self, lockstep, backend):
         self.lockstep, self.backend, self.resumed = lockstep, backend, time.perf_counter()
+        self.resumed_cpu = time.thread_time()
 
     def update(self, t):
         turns = self.lockstep.turns[self.backend]
         turns.append(time.perf_counter() - self.resumed)
-        if (len(turns) - 1) % self.lockstep.steps_per_turn == 0:        # the first turn loads the units
+        if len(turns) > 1:                                               # the first turn loads the units
+            self.lockstep.cpu[self.backend] += time.thread_time() - self.resumed_cpu
+        if (len(turns) - 1) % self.lockstep.steps_per_turn == 0:
             self.lockstep.hand_over(self.backend)
-        self.resumed = time.perf_counter()
+        self.resumed, self.resumed_cpu = time.perf_counter(), time.thread_time()
 
     def finish(self, t, status):
         pass
@@ -125,8 +134,9 @@ def warm_up(scene, fmu_dirs):
 
 
 def timed(scene, fmu_dirs, backends, one_cpu, steps_per_turn=1):
-    """{backend: (stepping s, whole run s, turns)} of one `Lockstep` run of each backend (stepping: the
-    steps after the first; turns: their times, s, one per step); raises unless every run ends ok."""
+    """{backend: (stepping s, whole run s, turns, stepping CPU s)} of one `Lockstep` run of each backend
+    (stepping: the steps after the first; turns: their times, s, one per step); raises unless every run ends
+    ok."""
     lockstep = Lockstep(scene, fmu_dirs, backends, one_cpu, steps_per_turn).run()
     out = {}
     for backend in backends:
@@ -136,18 +146,21 @@ def timed(scene, fmu_dirs, backends, one_cpu, steps_per_turn=1):
         if result.status != "ok":
             raise RuntimeError(f"{scene['name']} ({backend}): {result.status}: {result.message}")
         turns = lockstep.turns[backend]
-        out[backend] = (sum(turns[1:]), sum(turns) + lockstep.tail[backend], turns[1:])
+        out[backend] = (sum(turns[1:]), sum(turns) + lockstep.tail[backend], turns[1:], lockstep.cpu[backend])
     return out
 
 
 def figures(row):
     """(simulated s, stepping s through the ordinary FMUs, real-time factor, stepping s direct, overhead of the
-    stepping and of the whole run through the ordinary FMUs, the same two through the standalone FMUs) of a
-    result row (scene, simulated, stepping and whole run through the ordinary FMUs and direct in lockstep,
-    stepping and whole run through the standalone FMUs and direct in lockstep)."""
-    _, simulated, step_fmu, whole_fmu, step_direct, whole_direct, step_sa, whole_sa, step_alone, whole_alone = row
+    stepping and of the whole run through the ordinary FMUs, the same two through the standalone FMUs, real-time
+    factor and overhead of the stepping through the ordinary FMUs in CPU time) of a result row (scene, simulated,
+    stepping and whole run through the ordinary FMUs and direct in lockstep, stepping and whole run through the
+    standalone FMUs and direct in lockstep, CPU time of the stepping through the ordinary FMUs and direct)."""
+    (_, simulated, step_fmu, whole_fmu, step_direct, whole_direct, step_sa, whole_sa, step_alone, whole_alone,
+     cpu_fmu, cpu_direct) = row
     return (simulated, step_fmu, step_fmu / simulated, step_direct, step_fmu / step_direct - 1,
-            whole_fmu / whole_direct - 1, step_sa / step_alone - 1, whole_sa / whole_alone - 1)
+            whole_fmu / whole_direct - 1, step_sa / step_alone - 1, whole_sa / whole_alone - 1,
+            cpu_fmu / simulated, cpu_fmu / cpu_direct - 1)
 
 
 def target(name):
@@ -156,7 +169,7 @@ def target(name):
 
 def within(name, figure) -> bool:
     """Whether a run's figures meet the scene's targets."""
-    _, _, factor, _, overhead, _, standalone, _ = figure
+    _, _, factor, _, overhead, _, standalone, _, _, _ = figure
     return (factor <= TARGET.get(name, np.inf) and overhead <= FMU_OVERHEAD_TARGET
             and standalone <= STANDALONE_OVERHEAD_TARGET.get(name, np.inf))
 
@@ -167,14 +180,17 @@ def print_tables(rows, step_times, repeat):
     met, lines = True, []
     for row in rows:
         figure = figures(row)
-        simulated, step_fmu, factor, step_direct, overhead, whole, standalone, whole_sa = figure
+        (simulated, step_fmu, factor, step_direct, overhead, whole, standalone, whole_sa, cpu_factor,
+         cpu_overhead) = figure
         met &= within(row[0], figure)
         lines.append([row[0], f"{simulated:g}", f"{step_fmu:.3f}", f"{factor:.2f}", target(row[0]),
                       f"{step_direct:.3f}", f"{100 * overhead:+.1f}%", f"{100 * standalone:+.1f}%",
-                      f"{100 * whole:+.1f}%", f"{100 * whole_sa:+.1f}%"])
+                      f"{100 * whole:+.1f}%", f"{100 * whole_sa:+.1f}%", f"{cpu_factor:.2f}",
+                      f"{100 * cpu_overhead:+.1f}%"])
     print("\n" + table(["scene", "simulated, steps 2.. (s)", "stepping, FMUs (s)", "real-time factor, FMUs",
                         "target", "stepping, direct (s)", "overhead, FMUs", "overhead, standalone FMUs",
-                        "whole run, FMUs", "whole run, standalone"], lines))
+                        "whole run, FMUs", "whole run, standalone", "real-time factor, FMUs, CPU time",
+                        "overhead, FMUs, CPU time"], lines))
     if repeat > 1:
         spread, median = [], []
         for name, steps in step_times.items():
@@ -187,11 +203,13 @@ def print_tables(rows, step_times, repeat):
                            f"{100 * overheads.min():+.1f}..{100 * overheads.max():+.1f}%",
                            f"{100 * standalone.min():+.1f}..{100 * standalone.max():+.1f}%",
                            f"{100 * (fastest['standalone'] / fastest['direct beside standalone'] - 1):+.1f}%"])
-            simulated, step_fmu, factor, step_direct, overhead, whole, sa, whole_sa = np.median(runs, axis=0)
+            (simulated, step_fmu, factor, step_direct, overhead, whole, sa, whole_sa, cpu_factor,
+             cpu_overhead) = np.median(runs, axis=0)
             median.append([name, f"{simulated:.3g}", f"{step_fmu:.3g}", f"{factor:.2g}", target(name),
                            f"{step_direct:.3g}", f"{100 * overhead:+.1f}%", f"{100 * sa:+.1f}%",
                            f"<= {100 * STANDALONE_OVERHEAD_TARGET.get(name, np.inf):g}%",
-                           f"{100 * whole:+.1f}%", f"{100 * whole_sa:+.1f}%"])
+                           f"{100 * whole:+.1f}%", f"{100 * whole_sa:+.1f}%", f"{cpu_factor:.2g}",
+                           f"{100 * cpu_overhead:+.1f}%"])
         print("\n" + table(["scene", "runs", "real-time factor, FMUs (min-max)", "target", "runs within targets",
                             "fastest turn of each step, FMUs (real-time factor)", "overhead, FMUs (min-max)",
                             "overhead, standalone FMUs (min-max)",
@@ -199,7 +217,8 @@ def print_tables(rows, step_times, repeat):
         print("\nMedian over the runs of each scene:\n\n" + table(
             ["scene", "simulated time (s)", "stepping through the FMUs (s)", "real-time factor", "target",
              "stepping, direct (s)", "overhead, FMUs", "overhead, standalone FMUs", "target",
-             "whole run overhead, FMUs", "whole run overhead, standalone"], median))
+             "whole run overhead, FMUs", "whole run overhead, standalone", "real-time factor, CPU time",
+             "overhead, FMUs, CPU time"], median))
     return met
 
 
@@ -209,6 +228,8 @@ def main(argv=None):
     parser.add_argument("--stop", type=float, default=None, help="time.stop, s (default: the scene's)")
     parser.add_argument("--repeat", type=int, default=1, metavar="N",
                         help="timed runs of each scene, one after the other (default 1)")
+    parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE", dest="overrides",
+                        help="scene keys to override, as wingsim run --set (e.g. record.probes=position)")
     args = parser.parse_args(argv)
     process_setup()                                     # one BLAS thread, the allocator as wingsim runs it
     if args.repeat < 1:
@@ -216,7 +237,8 @@ def main(argv=None):
     rows, step_times = [], {}
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.scenes:
-            scene = load_scene(ROOT / "scenes" / f"{name}.toml", [f"time.stop={args.stop}"] if args.stop else [])
+            scene = load_scene(ROOT / "scenes" / f"{name}.toml",
+                               ([f"time.stop={args.stop}"] if args.stop else []) + args.overrides)
             stop, step = scene["time"]["stop"], scene["coupling"]["step"]
             if stop < 2 * step:
                 parser.error(f"{name}: time.stop = {stop:g} s is less than two communication steps ({step:g} s): "
@@ -231,7 +253,7 @@ def main(argv=None):
                 alone = timed(scene, fmu_dirs, ("standalone", "direct"), one_cpu=False,
                               steps_per_turn=STANDALONE_STEPS_PER_TURN)
                 rows.append((name, stop - step, *times["fmu"][:2], *times["direct"][:2],
-                             *alone["standalone"][:2], *alone["direct"][:2]))
+                             *alone["standalone"][:2], *alone["direct"][:2], times["fmu"][3], times["direct"][3]))
                 for kind, steps in (("fmu", times["fmu"][2]), ("standalone", alone["standalone"][2]),
                                     ("direct beside standalone", alone["direct"][2])):
                     step_times.setdefault(name, {}).setdefault(kind, []).append(steps)

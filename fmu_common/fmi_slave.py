@@ -2,10 +2,20 @@
 
 `SolverSlave` is an abstract pythonfmu slave over a solver (`StructureSolver`, `AeroSolver`) and the unit's
 interface table (fmu_common.interface): one Real value buffer laid out contiguously from the table (get/set by
-numpy fancy indexing), its variables registered and its outputs published from the table in one loop each,
-with SI units and a UnitDefinitions block, tunable parameters applied at exitInitializationMode, the complete
-state (solver internals, inputs, parameters) saved, restored and pickled. Pythonfmu's builder skips abstract
-classes, so a slave module that imports it still exposes exactly one concrete slave.
+numpy fancy indexing), its variables registered from the table with SI units and a UnitDefinitions block,
+tunable parameters applied at exitInitializationMode, the complete state (solver internals, inputs,
+parameters) saved, restored and pickled. Pythonfmu's builder skips abstract classes, so a slave module that
+imports it still exposes exactly one concrete slave.
+
+Outputs are computed when read. A step, a restored state or new parameters mark every output row of the table
+out of date; fmi2GetReal (and pythonfmu's getter of one variable) computes the rows of the references it is
+asked for that are out of date, from the solver as it is then, and keeps them until the solver changes
+again: a row is computed at most once per step, and one the host never reads (the probes' accelerations, a
+constrained solve of the structure, when no one records them) costs nothing. Outputs depend on the solver's
+state only (inputs set after a step change them at the next step, as FMI 2.0 co-simulation has it), so a
+value read is the one an eager publication after the step would have held; after a step that failed they are
+those of the solver where it stopped. A row whose computation raises reads NaN, with the reason logged at
+error status.
 
 Errors. Every FMI call is answered as the FMI 2.0 standard says, without raising: a call the standard
 forbids in the unit's state, or with arguments it cannot use, is refused by logging a message at error
@@ -84,7 +94,7 @@ from .errors import InputError, SolverDiverged
 from .fmi_state import (STATE_FORMAT, STATE_KEYS, ClassOrInstanceMethod, StateUnpickler, form_mismatch,
                          non_finite)
 from .fmi_units import UnitReal, unit_definitions
-from .interface import (CALCULATED, INPUT, OUTPUT, Block, Interface, Layout, Output, Parameters, Reading, Variable,
+from .interface import (CALCULATED, INPUT, OUTPUT, Block, Interface, Layout, Parameters, Reading, Variable,
                         layout)
 from .threads import limit_blas_threads
 
@@ -176,28 +186,12 @@ def _fmi_type(var) -> str:
     return next((t.__name__ for t in (Real, Integer, Boolean, String) if isinstance(var, t)), type(var).__name__)
 
 
-def _together(reading: Reading, values: tuple) -> list[float]:
-    """The values of consecutive rows of one variable each, for one assignment to the value buffer."""
-    return [value(reading, ()) for value in values]
-
-
-def _publication(laid_out: Layout) -> list[tuple[slice, Callable, tuple]]:
+def _output_rows(laid_out: Layout) -> list[tuple[slice, Callable, tuple]]:
     """The output rows of a layout as (value references, value, items): `value(reading, items)` gives the
-    values of those references. Rows of one variable that follow each other are read `_together`, for one
-    buffer assignment (publishing runs at every step); rows without variables are left out."""
-    runs: list[tuple[slice, Callable, tuple]] = []
-    for laid in laid_out.rows:
-        if not laid.is_output or laid.where.start == laid.where.stop:
-            continue
-        if isinstance(laid.row, Output) and laid.row.items is None:       # its value is one float
-            if runs and runs[-1][1] is _together and runs[-1][0].stop == laid.where.start:
-                where, _, values = runs.pop()
-                runs.append((slice(where.start, laid.where.stop), _together, (*values, laid.row.value)))
-            else:
-                runs.append((laid.where, _together, (laid.row.value,)))
-        else:
-            runs.append((laid.where, laid.row.value, laid.items))
-    return runs
+    values of those references (a float for a row of one variable). Rows without variables are left out. Each
+    row is computed on its own, when a value reference of it is read (`SolverSlave._current`)."""
+    return [(laid.where, laid.row.value, laid.items) for laid in laid_out.rows
+            if laid.is_output and laid.where.start != laid.where.stop]
 
 
 _CAUSALITY = {"input": Fmi2Causality.input, "output": Fmi2Causality.output, "parameter": Fmi2Causality.parameter}
@@ -212,8 +206,8 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
     table); construction reads the scene, converts it
     to the spec once, builds the solver, lays the table out (`layout`: the value
     buffer `_real`, the parameters' slice `sl_par`, the input blocks `do_step` checks and hands to the solver's
-    `advance(t_end, *inputs)`) and registers every variable; `_publish` copies the solver's outputs into the
-    buffer, row by row."""
+    `advance(t_end, *inputs)`) and registers every variable; `_current` computes the output rows read that are
+    out of date into the buffer (module docstring)."""
 
     label = "unit"
     model_name = "unit"
@@ -248,7 +242,14 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         self.sl_par = self.layout.where(Parameters)
         self.input_blocks = [laid for laid in self.layout.rows
                              if isinstance(laid.row, Block) and laid.row.causality == INPUT]
-        self._published = _publication(self.layout)
+        self._outputs = _output_rows(self.layout)
+        self._row_of = np.full(self._real.size, -1, dtype=np.intp)     # value reference -> its output row, or -1
+        for k, (where, _, _) in enumerate(self._outputs):
+            self._row_of[where] = k
+        self._rows_read = {}            # value references -> the output rows they read, found once
+        # the layout's start values are the solver's outputs now: every row is current until the solver changes
+        self._current_rows = [True] * len(self._outputs)
+        self._reading: Reading | None = None
         self._t0 = 0.0                                  # FMI start time; solver time = t - t0
         self._phase = "instantiated"                    # one of PHASES
         self._checked_references = {}   # ("get" | "set", value references) -> index array, checked once
@@ -285,7 +286,7 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         else:
             index = v.value_reference
             start = None if v.initial == CALCULATED else v.start   # FMI 2.0: a calculated variable has no start
-            var = UnitReal(v.name, unit=v.unit, start=start, getter=lambda i=index: float(self._real[i]), **kw)
+            var = UnitReal(v.name, unit=v.unit, start=start, getter=lambda i=index: self._value(i), **kw)
             if self._settable[index]:
                 var.setter = lambda value, i=index: self.set_real([i], [value])
         self.register_variable(var, nested=False)
@@ -415,6 +416,8 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
     def get_real(self, vrs):
         """fmi2GetReal: the values of Real variables; NaN (and the refusal logged) for a reference that is not one.
 
+        An output is computed here, when read (`_current`): the rows of the references asked, once per step.
+
         Args:
             vrs: value references.
         """
@@ -423,13 +426,17 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         if idx is None:
             idx = np.asarray(vrs, dtype=np.intp)
             ok = (idx >= 0) & (idx < self._real.size)   # the Real value references are the buffer's indices
+            rows = self._row_of[idx[ok]]
+            self._rows_read[key] = tuple(np.unique(rows[rows >= 0]).tolist())
             if not ok.all():
                 self._error(f"{self.label}: fmi2GetReal refused: {self._not_variables(idx[~ok], 'Real')}; NaN "
                             "returned instead")
+                self._report_failed(self._current(self._rows_read.pop(key)))
                 out = np.full(idx.size, np.nan)
                 out[ok] = self._real[idx[ok]]
                 return out.tolist()
             self._checked_references[key] = idx
+        self._report_failed(self._current(self._rows_read[key]))
         return self._real[idx].tolist()
 
     def get_integer(self, vrs):
@@ -578,7 +585,7 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         try:
             self._solver = self.solver_class(self.spec, parameters=parameters)
             self._solver_parameters = parameters
-            self._publish()
+            self._outputs_changed()
         except Exception as exc:  # noqa: BLE001
             self._fail(f"{self.label}: the parameters were refused: {type(exc).__name__}: {exc}")
 
@@ -587,12 +594,45 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         if not self._refused_in_phase("fmi2Terminate"):
             self._phase = "terminated"
 
-    def _publish(self) -> None:
-        """Copy the solver's outputs into the output slots of the value buffer, row by row of the table."""
-        reading = Reading(self._solver, self._t0)
-        real = self._real
-        for where, value, items in self._published:
-            real[where] = value(reading, items)
+    def _outputs_changed(self) -> None:
+        """The solver changed (a step, a restored state, new parameters): every output row is out of date, and is
+        computed again when a value reference of it is read (`_current`)."""
+        self._current_rows = [False] * len(self._outputs)
+        self._reading = None
+
+    def _current(self, rows) -> list[str]:
+        """Bring the output rows `rows` (indices into `_outputs`) up to date in the value buffer: each row out of
+        date is computed from the solver, in one `Reading` per solver state, so that a query several rows share
+        (e.g. the monitors) runs once however many of them are read, and a row is computed at most once per
+        step. Never raises: returns the reasons of the rows that failed (their values are then NaN, and each read
+        tries again and reports again)."""
+        failed = []
+        for k in rows:
+            if self._current_rows[k]:
+                continue
+            where, value, items = self._outputs[k]
+            if self._reading is None:
+                self._reading = Reading(self._solver, self._t0)
+            try:
+                self._real[where] = value(self._reading, items)
+                self._current_rows[k] = True
+            except Exception as exc:  # noqa: BLE001 - a read answers the host, never raises; the next read tries again
+                self._real[where] = np.nan
+                names = self.vars[where.start].name + (f" .. {self.vars[where.stop - 1].name}"
+                                                       if where.stop - where.start > 1 else "")
+                failed.append(f"{names}: {type(exc).__name__}: {exc}")
+        return failed
+
+    def _value(self, vr: int) -> float:
+        """The current value of the Real variable `vr` (pythonfmu's getter), its output row computed if out of date."""
+        row = self._row_of[vr]
+        if row >= 0:
+            self._report_failed(self._current((row,)))
+        return float(self._real[vr])
+
+    def _report_failed(self, failed: list[str]) -> None:
+        if failed:
+            self._error(f"{self.label}: fmi2GetReal: computing {'; '.join(failed)}; NaN returned instead")
 
     def do_step(self, current_time, step_size):
         """fmi2DoStep: the solver advances to current_time + step_size with the inputs held over the step.
@@ -657,9 +697,9 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         if self._failure is not None:
             self._error(f"{self.label} cannot step: {self._failure}")
             return False
+        self._outputs_changed()   # also when the step fails: the solver may have taken internal steps
         try:
             advance()
-            self._publish()
         except SolverDiverged as exc:
             self.log(f"{self.label}: solver diverged at t = {exc.time:.6g} s: {exc.reason}. Hint: {exc.hint}",
                      Fmi2Status.error, DIVERGED_CATEGORY)
@@ -698,6 +738,7 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
             self._solver.set_state(state["solver"])
             self._real[:] = state["real"]
             self._t0, self._phase, self._failure = state["t0"], state["phase"], state["failure"]
+            self._outputs_changed()   # the buffer's outputs may be of another time: computed again when read
         except Exception as exc:  # noqa: BLE001
             self._fail(f"{self.label}: setting the state failed: {type(exc).__name__}: {exc}")
 

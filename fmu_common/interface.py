@@ -71,10 +71,10 @@ def coordinate_description(topology, k: int) -> tuple[str, str, str]:
 
 
 class Reading:
-    """The solver's outputs at one publication (construction, each step, new parameters).
+    """The solver's outputs at one of its states (after construction, a step, a restored state, new parameters).
 
-    Each query a row reads (a function solver -> value, e.g. one calling `solver.monitors()`) is made once, however
-    many rows read it.
+    Each query a row reads (a function solver -> value, e.g. one calling `solver.kinetic_energy()`) is made once,
+    however many rows read it, and only when one of them is read (fmu_common.fmi_slave computes outputs when read).
 
     Args:
         solver: the unit's solver.

@@ -46,6 +46,8 @@ MAX_SCISSORS = 50
 INTEGRATORS = choices.INTEGRATORS
 GAUGE_CURVATURES = ("model", "cubic")
 DAMPING_MODELS = ("deformation", "mass-proportional")
+PROBE_RECORDS = ("position", "velocity", "acceleration")
+MONITOR_RECORDS = ("all", "constraints")
 
 PLATE = ("thickness", "density", "youngs_modulus")
 EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
@@ -477,6 +479,19 @@ SCENE = Table({
     }),
     "probes": Tables(PROBE, "probe"),
     "strain_gauges": Tables(STRAIN_GAUGE, "strain gauge"),
+    "record": Table({
+        "probes": Choice("-", "acceleration", "what the run records of each probe: its position; also its velocity; "
+                                              "also its acceleration (for which the structure unit solves its "
+                                              "constrained equations of motion once more at each communication "
+                                              "point). The columns not recorded hold nan", options=PROBE_RECORDS),
+        "monitors": Choice("-", "all", "the structure's monitors the run records: all; or constraints, the "
+                                       "constraint residual and the joint monitors without energy, kinetic_energy "
+                                       "and external_work (the potential energy sums the strain energy of every "
+                                       "element at each communication point): their columns hold nan and "
+                                       "summary.json's energy_drift is null", options=MONITOR_RECORDS),
+    }, doc="What the run reads from the units and records at each communication point (timeseries.csv); a unit "
+           "computes only the outputs read. Fold angles, latch times, strain gauges, the aero unit's CL, lift and "
+           "hinge moments are always recorded"),
     "load": Variants("law", _LOAD_CASE_LAWS, default="constant", doc=_LAW_DOC, optional=True),
     "motion": Table({
         "reduced_frequency": non_negative("-", "k = omega c / (2 V): becomes structure.motion.frequency = "

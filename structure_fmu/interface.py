@@ -21,9 +21,11 @@ JOINT_MONITORS = Items("<joint monitor>", "J", "the constraint monitors of the j
                        lambda solver: solver.joint_monitor_names())
 
 
-# ---- the solver's queries, each made once per publication (fmu_common.interface.Reading) ----------------
-def _monitors(solver) -> dict:
-    return solver.monitors()
+# ---- the solver's queries, each made once per solver state and only when a row reading it is read
+# (fmu_common.interface.Reading, fmu_common.fmi_slave): the cheap ones apart from the costly (the potential energy,
+# the probes' accelerations, a constrained solve), so that reading one does not compute the other -------------
+def _latch_times_of(solver) -> dict:
+    return dict(solver.state.latch_times)
 
 
 def _fold_angles(solver) -> dict:
@@ -34,16 +36,34 @@ def _joint_monitors(solver) -> dict:
     return solver.joint_monitors()
 
 
-def _sensor_readings(solver) -> tuple:
-    """(positions (m), velocities (m/s), accelerations (m/s2) of the probes, each flat probe by probe and x, y, z;
-    strains of the gauges (1)): `StructureSolver.sensor_outputs()`, one array in that order, split."""
-    values = solver.sensor_outputs()
-    p = 3 * len(solver.sensors.probe_names)
-    return values[:p], values[p:2 * p], values[2 * p:3 * p], values[3 * p:]
+def _kinetic_energy(solver) -> float:
+    return solver.kinetic_energy()
 
 
-def _monitor(name: str):
-    return lambda reading, _: reading.once(_monitors)[name]
+def _energy(reading: Reading, _) -> float:
+    """Kinetic plus potential energy (J), the kinetic energy shared with its own output."""
+    return reading.once(_kinetic_energy) + reading.solver.potential_energy()
+
+
+def _flat(query):
+    """A row's values from `query` (solver -> (items, k) array), flat item by item."""
+    return lambda reading, _: reading.once(query).reshape(-1)
+
+
+def _probe_positions(solver):
+    return solver.probe_positions()
+
+
+def _probe_velocities(solver):
+    return solver.probe_velocities()
+
+
+def _probe_accelerations(solver):
+    return solver.probe_accelerations()
+
+
+def _gauge_strains(solver):
+    return solver.gauge_strains()
 
 
 def _fold_angles_of(reading: Reading, hinges) -> list[float]:
@@ -60,7 +80,7 @@ def _joint_monitors_of(reading: Reading, names) -> list[float]:
 
 def _latch_times(reading: Reading, hinges) -> list[float]:
     """FMI time (s) each hinge latched at, LATCH_PENDING until then: the solver's latch time plus the start time."""
-    latched = reading.once(_monitors)["latch_times"]
+    latched = reading.once(_latch_times_of)
     return [reading.start_time + latched[h] if h in latched else LATCH_PENDING for h in hinges]
 
 
@@ -81,15 +101,16 @@ STRUCTURE = Interface(
         Output("fold_angle_<hinge>", "deg", "fold angle of hinge <hinge> (child root r_x from parent tip r_x, about "
                "r_y)", _fold_angles_of, HINGES,
                key="fold_angles_deg", doc="fold angle of each revolute joint (a hinge)"),
-        Output("energy", "J", "energy monitor of the structure solver", _monitor("energy"), monitor=True,
+        Output("energy", "J", "energy monitor of the structure solver", _energy, monitor=True,
                initial=CALCULATED,   # its potential energy of gravity and of the actuators' springs and torques
                doc="kinetic plus potential energy of the structure (springs, elastic energy, gravity)"),
-        Output("kinetic_energy", "J", "kinetic energy of the structure (1/2 de^T M de)", _monitor("kinetic_energy"),
-               monitor=True),
-        Output("constraint_residual", "1", "constraint residual monitor (max norm)", _monitor("constraint_residual"),
-               monitor=True, doc="max |Phi| of the internal constraints"),
+        Output("kinetic_energy", "J", "kinetic energy of the structure (1/2 de^T M de)",
+               lambda reading, _: reading.once(_kinetic_energy), monitor=True),
+        Output("constraint_residual", "1", "constraint residual monitor (max norm)",
+               lambda reading, _: reading.solver.constraint_residual(), monitor=True,
+               doc="max |Phi| of the internal constraints"),
         Output("external_work", "J", "work of the point loads and Q since the start: energy minus it changes only "
-               "by damping and driven motions", _monitor("external_work"), monitor=True,
+               "by damping and driven motions", lambda reading, _: reading.solver.state.work, monitor=True,
                doc="work of the point loads and Q since the start (trapezoidal over the internal steps): energy "
                    "minus it changes only by damping and driven motions"),
         Output("latch_time_<hinge>", "s", f"time hinge <hinge> latched at its stop angle ({LATCH_PENDING:g} until "
@@ -98,18 +119,18 @@ STRUCTURE = Interface(
                    f"{LATCH_PENDING:g} until then (and for a hinge without a stop). The master's "
                    "`deployment_time_s` is read from it"),
         Output(("<probe>_x", "<probe>_y", "<probe>_z"), "m", "",
-               lambda reading, _: reading.once(_sensor_readings)[0], PROBES, key="probe_positions",
+               _flat(_probe_positions), PROBES, key="probe_positions",
                describe=_sensor_descriptions,
                doc="global position of each probe's material point, r = S(x, y) e (Otsuka et al. 2019, Eq. 2)"),
         Output(("<probe>_vx", "<probe>_vy", "<probe>_vz"), "m/s", "",
-               lambda reading, _: reading.once(_sensor_readings)[1], PROBES, key="probe_velocities",
+               _flat(_probe_velocities), PROBES, key="probe_velocities",
                describe=_sensor_descriptions, doc="its global velocity, S(x, y) de"),
         Output(("<probe>_ax", "<probe>_ay", "<probe>_az"), "m/s2", "",
-               lambda reading, _: reading.once(_sensor_readings)[2], PROBES, key="probe_accelerations",
+               _flat(_probe_accelerations), PROBES, key="probe_accelerations",
                describe=_sensor_descriptions, initial=CALCULATED,   # gravity, the actuators, at t = 0 too
                doc="its global acceleration, S(x, y) dde, under the Q of the last step"),
         Output("<gauge>", "1", "",
-               lambda reading, _: reading.once(_sensor_readings)[3], GAUGES, key="strains",
+               _flat(_gauge_strains), GAUGES, key="strains",
                describe=_sensor_descriptions,
                doc="surface strain of each strain gauge: distance from the reference line x flap curvature"),
         Output("<joint monitor>", {"_point_mismatch": "m", "_axis_product": "1", "_axis_error": "1"},

@@ -229,6 +229,25 @@ class StructureSolver:
         return self.sensors.outputs(E, dE, self.acceleration_E() if self.sensors.probe_names else np.zeros_like(E),
                                     self.model.element_curvatures(self.state.q))
 
+    def probe_positions(self) -> np.ndarray:
+        """(n_probes, 3) global positions of the probes at the current state, m (`Sensors.positions`)."""
+        return self.sensors.positions(self._evaluated(self.state)[0])
+
+    def probe_velocities(self) -> np.ndarray:
+        """(n_probes, 3) global velocities of the probes at the current state, m/s (`Sensors.velocities`)."""
+        return self.sensors.velocities(self._evaluated(self.state)[1])
+
+    def probe_accelerations(self) -> np.ndarray:
+        """(n_probes, 3) global accelerations of the probes at the current state, m/s^2: S(x, y) d2E/dt2 with the
+        accelerations of `acceleration_E`, a constrained solve."""
+        if not self.sensors.probe_names:
+            return np.zeros((0, 3))
+        return self.sensors.velocities(self.acceleration_E())
+
+    def gauge_strains(self) -> np.ndarray:
+        """(n_gauges,) surface strains of the strain gauges at the current state, 1 (`Sensors.strains`)."""
+        return self.sensors.strains(self._evaluated(self.state)[0], self.model.element_curvatures(self.state.q))
+
     def acceleration_E(self) -> np.ndarray:
         """d2E/dt2 (n,) at the current state under the generalized force of the last step (zero before the first):
         the index-1 accelerations evaluated here, not the integrator's (RK4 keeps those of a step's start)."""
@@ -254,14 +273,23 @@ class StructureSolver:
             {energy J, kinetic_energy J, external_work J, constraint_residual, latched {hinge: bool},
             latch_times {hinge: s}}.
         """
-        E, dE, angles, residual = self._evaluated(self.state)
-        kinetic = 0.5 * float(np.dot(dE, np.dot(self.model.mass_E, dE)))
-        return {"energy": kinetic + self.model.potential_energy(self.state.q, E, self.state.latched, angles),
+        kinetic = self.kinetic_energy()
+        return {"energy": kinetic + self.potential_energy(),
                 "kinetic_energy": kinetic,
                 "external_work": self.state.work,
-                "constraint_residual": residual,
+                "constraint_residual": self._evaluated(self.state)[3],
                 "latched": {h: bool(self.state.latched.get(h)) for h in self.topology.hinge_names},
                 "latch_times": dict(self.state.latch_times)}
+
+    def kinetic_energy(self) -> float:
+        """1/2 dE^T M dE at the current state, J."""
+        dE = self._evaluated(self.state)[1]
+        return 0.5 * float(np.dot(dE, np.dot(self.model.mass_E, dE)))
+
+    def potential_energy(self) -> float:
+        """Potential energy at the current state (springs, elastic energy, gravity: the model's), J."""
+        E, _, angles, _ = self._evaluated(self.state)
+        return self.model.potential_energy(self.state.q, E, self.state.latched, angles)
 
     def state_identity(self) -> dict:
         """What a state must have been saved with to be set here, by scene key: {"structure.fidelity": name,

@@ -2,9 +2,11 @@
 
 Steps the units from t = 0 to ``time.stop`` with the communication step ``coupling.step`` (the last
 step shortened to land on ``time.stop``) and records at every communication point: probe global
-positions (m), fold angles (degrees), energy (J), kinetic energy (J), constraint residual and, with an
-aero unit, each hinge's aerodynamic moment about its axis (N m), the lift coefficient CL (-) and the lift
-(N). A failure never loses the samples recorded before it.
+positions (m), velocities and accelerations, fold angles (degrees), energy (J), kinetic energy (J), constraint
+residual and, with an aero unit, each hinge's aerodynamic moment about its axis (N m), the lift coefficient CL
+(-) and the lift (N). The units are asked only for what the scene's ``record`` table asks for
+(``recorded_rows``): they compute an output only when it is read, so a probe's acceleration or the energy that
+no one records costs nothing, and its columns hold NaN. A failure never loses the samples recorded before it.
 
 The run: make the units; with an aero unit, check that both carry the same ``topology_hash``
 (docs/architecture.md; else the run is refused with status "error" before any step); make the coupling
@@ -57,10 +59,11 @@ from orchestrator.run.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.run.progress import Progress
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
 from orchestrator.run.timeseries import PROBE_ROWS, TimeSeries
-from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, hinge_moment_column
+from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
 from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
+from fmu_common.scene_schema import PROBE_RECORDS
 
 log = logging.getLogger(__name__)
 
@@ -158,11 +161,24 @@ def new_series(scene: dict) -> TimeSeries:
                       strain_names=[g["name"] for g in scene["strain_gauges"]], joint_names=joint_monitor_names(scene))
 
 
+def recorded_rows(scene: dict) -> dict[str, tuple[str, ...]]:
+    """{unit kind: the keys of its output rows (``structure_fmu.interface``, ``aero_fmu.interface``) the run reads
+    and records} for ``scene``: what its ``record`` table asks for (``record.probes``: the probes' positions, up to
+    their velocities or accelerations; ``record.monitors``: with or without the energies), the fold angles, latch
+    times, strain gauges and joint monitors, and for the aero unit its CL, lift and hinge moments. A unit computes
+    only the outputs read (fmu_common.fmi_slave)."""
+    record = scene["record"]
+    probes = PROBE_ROWS[:PROBE_RECORDS.index(record["probes"]) + 1]
+    monitors = MONITOR_COLUMNS if record["monitors"] == "all" else ("constraint_residual",)
+    return {"structure": ("fold_angles_deg", "latch_times", *probes, "strains", "joints", *monitors),
+            "aero": (*AERO_COLUMNS, "hinge_moments")}
+
+
 def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
             coupling: tuple[int, float] | None = None) -> dict:
     """Append one sample of the units' outputs; returns the hinges' latch times (s) the structure unit
     reports. The probes' positions, velocities and accelerations and the gauges' strains are the structure unit's
-    own outputs."""
+    own outputs; a row the units were not asked to read (`recorded_rows`) is recorded as NaN."""
     monitors = structure.monitors()
     loads = None
     if aero is not None:
@@ -170,15 +186,17 @@ def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
         loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
         moments = aero_monitors.get("hinge_moments", {})
         loads.update({hinge_moment_column(h): moments.get(h, np.nan) for h in series.hinge_names})
-    probes = {key: monitors.get(key, {}) for key in PROBE_ROWS}
+    # the positions always, the velocities and accelerations if read
+    probes = {key: monitors.get(key, {}) for key in PROBE_ROWS if key == PROBE_ROWS[0] or key in monitors}
     strains = monitors.get("strains", {})
-    unread = [f"{key} output for the probe {p!r}" for key in PROBE_ROWS for p in series.probe_names
+    unread = [f"{key} output for the probe {p!r}" for key in probes for p in series.probe_names
               if p not in probes[key]]
     unread += [f"output for the strain gauge {g!r}" for g in series.strain_names if g not in strains]
     if unread:
         raise RuntimeError(f"the structure unit reports no {unread[0]}: rebuild the FMUs (wingsim build)")
     positions, velocities, accelerations = (
-        np.array([probes[key][p] for p in series.probe_names], dtype=float).reshape(-1, 3) for key in PROBE_ROWS)
+        np.array([probes[key][p] for p in series.probe_names], dtype=float).reshape(-1, 3) if key in probes
+        else None for key in PROBE_ROWS)
     series.append(t, positions, monitors.get("fold_angles_deg", {}),
                   monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
                   kinetic_energy=monitors.get("kinetic_energy", np.nan),
@@ -256,13 +274,15 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     coordinates = None
     phase = "starting the structure unit"
     try:
-        structure = units.make_unit(kind="structure", scene=scene, backend=backend, fmu_dir=fmu_dir)
+        reads = recorded_rows(scene)
+        structure = units.make_unit(kind="structure", scene=scene, backend=backend, fmu_dir=fmu_dir,
+                                    reads=reads["structure"])
         if structure.n != topology.n_coordinates:
             raise RuntimeError(f"the unit has {structure.n} coordinates but the scene's topology has "
                                f"{topology.n_coordinates}: rebuild the FMUs (wingsim build)")
         if has_aero(scene):
             phase = "starting the aero unit"
-            aero = units.make_unit(kind="aero", scene=scene, backend=backend, fmu_dir=fmu_dir)
+            aero = units.make_unit(kind="aero", scene=scene, backend=backend, fmu_dir=fmu_dir, reads=reads["aero"])
             phase = "connecting the structure and aero units"
             check_connection(structure, aero)
         times = communication_times(stop, scene["coupling"]["step"])

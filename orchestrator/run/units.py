@@ -12,8 +12,9 @@
                                   structure: set_inputs(Q)      generalized force, N and N m
                                   aero:      set_inputs(e, de)  the structure's coordinates and rates
     unit.do_step(t, h)          advance from t to t + h (s); raises UnitError with the unit's logged reason
-    unit.monitors()             every output row of the unit's table (structure_fmu.interface,
-                                aero_fmu.interface), under the row's key, in the row's units:
+    unit.monitors()             the output rows of the unit's table (structure_fmu.interface,
+                                aero_fmu.interface) it reads (make_unit's `reads`, default every one), under
+                                the row's key, in the row's units:
                                   a row of one variable: its value ("energy": J, "CL": -, ...);
                                   a row of one name per item: {item: value} ("fold_angles_deg": {hinge: deg},
                                     "latch_times": {hinge: s, for the hinges latched so far}, "strains":
@@ -65,14 +66,15 @@ def _block_size(name: str, vr: dict) -> int:
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
-              instance_name: str | None = None, check_layout: bool = True) -> "Unit":
+              instance_name: str | None = None, check_layout: bool = True, reads=None) -> "Unit":
     """Create, set up and initialize a unit of `kind` ("structure" or "aero") for `scene`.
 
     backend: "fmu" (fmu_dir/<kind>.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
     unused). Every tunable parameter (StructureSolver / AeroSolver.tunable_parameters: the scene's tunable
     keys) is set to the scene's value before initialization; `parameters` ({name: value}) overrides some.
     check_layout=False skips the fmu backend's layout check (`orchestrator.run.layout`) for a caller that has
-    just made it. Raises UnitError on any failure, naming what was wrong.
+    just made it. `reads`: the keys of the output rows `monitors()` reads (the unit computes an output only
+    when read, fmu_common.fmi_slave); None: every row. Raises UnitError on any failure, naming what was wrong.
     """
     if kind not in KINDS:
         raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(KINDS)}")
@@ -95,7 +97,7 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     else:
         raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
     try:
-        return Unit(port, scene, {**values, **(parameters or {})}, kind)
+        return Unit(port, scene, {**values, **(parameters or {})}, kind, reads=reads)
     except BaseException:
         port.close()
         raise
@@ -117,10 +119,11 @@ def scene_parameters(kind: str, scene: dict) -> dict[str, float]:
 class Unit:
     """A structure or aero unit driven through a port (fmpy FMU or in-process slave); see the module
     docstring. Its variables are found by name in what the port declares (the model description): the blocks
-    of its kind's table (`UnitKind.interface`; `spec` replaces KINDS[kind]'s), then every output row's variables
-    for the scene's items."""
+    of its kind's table (`UnitKind.interface`; `spec` replaces KINDS[kind]'s), then the variables of the output
+    rows it reads (`reads`, their keys; None: every row) for the scene's items: the unit computes only those."""
 
-    def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure", spec: UnitKind | None = None):
+    def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure", spec: UnitKind | None = None,
+                 reads=None):
         self._port = port
         self.kind = kind
         self._spec = spec = KINDS[kind] if spec is None else spec
@@ -132,9 +135,16 @@ class Unit:
         if missing:
             raise UnitError(f"{port.label}: variable {missing[0]} missing (n = {n} from {blocks[0].name}[...])")
         items = scene_items(scene)
+        rows = spec.interface.outputs
+        if reads is not None:
+            unknown = sorted(set(reads) - {row.key for row in rows})
+            if unknown:
+                raise UnitError(f"{port.label}: no output row {', '.join(unknown)} to read; the rows are "
+                                f"{', '.join(row.key for row in rows)}")
+            rows = [row for row in rows if row.key in reads]
         # (row, its items in the scene, names per item, where its values are among the monitors read)
         self._monitor_rows, monitor_names = [], []
-        for row in spec.interface.outputs:
+        for row in rows:
             if row.items is not None and row.items.placeholder not in items:
                 raise UnitError(f"{port.label}: the master does not know what {row.items.placeholder} stands for "
                                 f"in a scene (output {row.names[0]})")
@@ -150,10 +160,11 @@ class Unit:
                             "the FMU)")
         output_vrs = [vr[name] for block in blocks if block.causality == OUTPUT for name in block.names(n)]
         monitor_vrs = [vr[name] for name in monitor_names]
-        # get_outputs reads the monitors in the same call and keeps both until the unit steps or is set (its
-        # outputs change only then): one fmi2GetReal per unit and step, however often the master asks
-        self._get_out = port.reader(output_vrs + monitor_vrs)
-        self._n_outputs, self._values = len(output_vrs), None
+        # get_outputs reads the output blocks alone and keeps them until the unit steps or is set (its outputs
+        # change only then), however often the coupling asks; the monitors are read apart, when recorded: the unit
+        # computes an output only when read, so an implicit coupling's rejected iterates compute no monitor
+        self._get_out = port.reader(output_vrs)
+        self._values = None
         self._set_in = port.writer([vr[name] for block in blocks if block.causality != OUTPUT
                                     for name in block.names(n)])
         self._get_mon = port.reader(monitor_vrs)
@@ -198,7 +209,7 @@ class Unit:
 
     def monitors(self) -> dict:
         """The unit's outputs now, row by row of its table (module docstring)."""
-        m = self._get_mon() if self._values is None else self._values[self._n_outputs:]
+        m = self._get_mon()
         out = {}
         for row, items, width, where in self._monitor_rows:
             values = m[where]

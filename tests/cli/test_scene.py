@@ -114,8 +114,9 @@ def test_defaults_of_a_minimal_scene():
                                  **{f"{name}_tip": None for name in TAPERED}}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
+    assert scene["record"] == {"probes": "acceleration", "monitors": "all"}     # everything timeseries.csv holds
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",
-                           "strain_gauges"]
+                           "strain_gauges", "record"]
     json.dumps(scene, allow_nan=False)
 
 

@@ -467,6 +467,7 @@ def _fake_run(algorithm):
     log = []
     scene = {"name": "fake", "time": {"stop": 0.2}, "coupling": {"step": 0.1, "algorithm": algorithm},
              "aero": {"model": "uvlm-flat"}, "probes": [], "strain_gauges": [],
+             "record": {"probes": "acceleration", "monitors": "all"},
              "structure": {"joints": [], "step": 0.1}}
     made = {"structure": _Structure(log), "aero": _Aero(log)}
     fake = types.SimpleNamespace(make_unit=lambda **kw: made[kw["kind"]], UnitError=UnitError)
