@@ -27,6 +27,8 @@ from . import choices
 from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
+from .airfoil import naca_camber
+from .planform import Planform
 from .scissors import expand_scissors
 from .vectors import unit
 from .fmi_units import fmi_unit
@@ -112,6 +114,30 @@ def _section_rule(key: str, section: dict) -> None:
                                  "required unless thickness, density and youngs_modulus describe a plate")
 
 
+def _airfoil_rule(key: str, section: dict) -> None:
+    """A camber line the aero unit can build: a NACA 4-digit designation."""
+    if section["airfoil"] is not None:
+        try:
+            naca_camber(section["airfoil"])
+        except ValueError as error:
+            raise SceneError(f"{key}.airfoil", section["airfoil"], str(error)) from None
+
+
+def _planform_rule(key: str, body: dict) -> None:
+    """The reference line (the beam) stays within the chord: a sweep that carries the leading edge behind it, or
+    the trailing edge ahead of it, at the tip is refused."""
+    section = body["section"]
+    chord_tip = section["chord_tip"] if section["chord_tip"] is not None else section["chord"]
+    planform = Planform.of(body["length"], section["chord"], chord_tip, section["axis_position"], body["sweep_deg"])
+    lead = planform.leading_edge_tip
+    if lead > 1e-12 * chord_tip or lead + chord_tip < -1e-12 * chord_tip:
+        side = "leading edge lies behind" if lead > 0 else "trailing edge lies ahead of"
+        raise SceneError(f"{key}.sweep_deg", body["sweep_deg"],
+                         f"a sweep that keeps the reference line within the chord: at the tip the {side} it by "
+                         f"{abs(lead if lead > 0 else lead + chord_tip):.4g} m (the lattice would leave the beam); "
+                         "sweep the beam itself with span_axis or a joint's orientation_deg")
+
+
 def _slider_rule(key: str, slider: dict) -> None:
     """A slider keeps its node on a line or on a plane: exactly one of the two."""
     given = [name for name in ("line", "plane_normal") if slider[name] is not None]
@@ -141,6 +167,8 @@ def _motion_rule(key: str, motion: dict) -> None:
 
 SECTION = Table({
     "chord": positive("m", "chord c"),
+    "chord_tip": positive("m", "chord at the tip; the chord varies linearly from section.chord at the root",
+                          Absent("section.chord: a constant chord")),
     "axis_position": fraction("position a of the reference line (the beam axis)", 0.5),
     "torsional_rigidity": positive("N m^2", "GJ"),
     "thickness": positive("m", "plate thickness h", Absent("no plate: the explicit properties below")),
@@ -159,8 +187,11 @@ SECTION = Table({
     "rotary_inertia": non_negative("kg m", "rho I_yy: rotary inertia of the section about its chord axis per unit "
                                            "length (Otsuka et al. 2022, Table 4), kinetic energy 1/2 rho I_yy "
                                            "|dr'/dt|^2 (a thin plate's rho c h^3 / 12 is negligible)", 0.0),
+    "airfoil": Text("-", Absent("a flat plate: no camber"), "camber line of the aerodynamic surface: a NACA 4-digit "
+                                                            "designation such as 'naca2412' (its thickness is not "
+                                                            "modelled; docs/aero.md, Planform)"),
 }, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
-       "properties, which override the plate's", rules=(_section_rule,))
+       "properties, which override the plate's", rules=(_section_rule, _airfoil_rule))
 
 BODY = Table({
     "name": Name("-", REQUIRED, "body name, referenced by joints, masses, loads, probes and strain gauges"),
@@ -180,8 +211,17 @@ BODY = Table({
                         why=DENSE_STRUCTURE),
     "angular_velocity": Vector("rad/s", Absent("at rest"), "initial rigid rotation rate about the root, global "
                                                             "frame"),
+    "sweep_deg": angle("leading-edge sweep in the body's plane: the leading edge runs from -a c at the root at "
+                       "this angle from the chord-normal toward the trailing edge (docs/aero.md, Planform)",
+                       Absent("the reference line stays at section.axis_position of every chord"), limit=90.0),
+    "twist_deg": angle("twist of the tip section relative to the root section, nose up, linear along the body, "
+                       "about the reference line; a hinge's child starts with its parent's tip twist (a root body "
+                       "with none)", 0.0, limit=90.0),
+    "dihedral_deg": angle("tilt of span_axis about chord_axis toward the section normal span_axis x chord_axis "
+                          "(not for a hinge's child: its joint's orientation_deg [0, -dihedral, 0] gives it)", 0.0,
+                          limit=90.0),
     "section": SECTION,
-}, doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
+}, rules=(_planform_rule,), doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
        "`section = { ... }` of the body")
 
 _BODY_REF = "name of a body of structure.bodies"
