@@ -124,13 +124,18 @@ class StripTheory:
         lat = self.lattice
         geometry = lat.geometry(E)
         relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)    # V_rel (P, 3)
-        chordwise = np.cross(geometry.normal, geometry.r_x)                                   # toward the trailing edge
+        normal = geometry.normal
+        if not lat.flat:      # the section's normal: a twisted surface's normal off the reference line leans spanwise
+            span = geometry.r_x / np.sqrt(np.sum(geometry.r_x ** 2, axis=1))[:, None]
+            normal = normal - np.sum(normal * span, axis=1)[:, None] * span
+            normal /= np.sqrt(np.sum(normal ** 2, axis=1))[:, None]
+        chordwise = np.cross(normal, geometry.r_x)                                            # toward the trailing edge
         chordwise /= np.sqrt(np.sum(chordwise ** 2, axis=1))[:, None]
         cos0, sin0 = self._camber                            # |V_perp| sin(alpha_eff - alpha_L0), module docstring
-        normal_flow = cos0 * np.sum(relative * geometry.normal, axis=1) - sin0 * np.sum(relative * chordwise, axis=1)
+        normal_flow = cos0 * np.sum(relative * normal, axis=1) - sin0 * np.sum(relative * chordwise, axis=1)
         chord = np.sqrt(np.sum(geometry.r_y ** 2, axis=1)) * lat.chord                        # |r_y| c
         in_plane = np.sqrt(np.sum(np.cross(geometry.r_x, relative) ** 2, axis=1))              # |V_perp| |r_x|
         forces = ((self.lift_slope_factor * np.pi * density) * chord * normal_flow * in_plane
-                  * lat.panel_span)[:, None] * geometry.normal
+                  * lat.panel_span)[:, None] * normal
         loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, 0)
         return StripState(float(t_end), True, loads)
