@@ -211,8 +211,9 @@ BODY = Table({
                         why=DENSE_STRUCTURE),
     "angular_velocity": Vector("rad/s", Absent("at rest"), "initial rigid rotation rate about the root, global "
                                                             "frame"),
-    "sweep_deg": angle("leading-edge sweep in the body's plane: the leading edge runs from -a c at the root at "
-                       "this angle from the chord-normal toward the trailing edge (docs/aero.md, Planform)",
+    "sweep_deg": angle("leading-edge sweep: the angle in the body's plane from span_axis to the leading edge, "
+                       "positive toward the trailing edge (the leading edge starts a c ahead of the root); the "
+                       "reference line must stay within every chord (docs/aero.md, Planform)",
                        Absent("the reference line stays at section.axis_position of every chord"), limit=90.0),
     "twist_deg": angle("twist of the tip section relative to the root section, nose up, linear along the body, "
                        "about the reference line; a hinge's child starts with its parent's tip twist (a root body "
