@@ -6,4 +6,5 @@
 - ``run_record``      ``run.json``: which run wrote the folder, and whether it finished writing it
 - ``mechanism_view``  the mechanism at several instants (``mechanism.png``)
 - ``wake_view``       the wing and its wake in 3D (``wake_3d.png``), by replaying the aero unit
+- ``planform_view``   the planform and vortex lattice of each body as designed (``planform.png``)
 """

@@ -14,9 +14,11 @@
   aero unit in-process with the recorded inputs (``orchestrator.output.wake_view``; capped in wall time);
 - ``mechanism.png``: the bodies' reference lines at 5 instants from t = 0 to the end, from the structure
   coordinates the master recorded (``orchestrator.output.mechanism_view``), in the mechanism's plane when it is
-  planar, else in 3D.
+  planar, else in 3D;
+- ``planform.png`` (aero scenes): the planform and vortex lattice of each body as designed, unfolded
+  (``orchestrator.output.planform_view``).
 
-A failure of one of the two pictures prints a warning and never affects the other plots or the run's status.
+A failure of one of the three pictures prints a warning and never affects the other plots or the run's status.
 
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
 that name from an earlier run in the same folder is removed. Each PNG is written to a temporary name in the
@@ -194,4 +196,13 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     except Exception as err:  # as the wake picture
         (out_dir / "mechanism.png").unlink(missing_ok=True)
         print(f"warning: mechanism picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    try:
+        from orchestrator.output.planform_view import write_planform_view
+
+        path = write_planform_view(result, out_dir)
+        if path is not None:
+            written.append(path)
+    except Exception as err:  # as the wake picture
+        (out_dir / "planform.png").unlink(missing_ok=True)
+        print(f"warning: planform picture not written: {type(err).__name__}: {err}", file=sys.stderr)
     return written
