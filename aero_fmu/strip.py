@@ -20,7 +20,9 @@ at the quarter chord; Q by Otsuka et al. 2019, Eq. (12). On a planform (docs/aer
 local chord at mid strip, n the normal of the twisted chord line, and a cambered section lifts from its
 thin-airfoil zero-lift angle alpha_L0 (fmu_common.airfoil): V_rel . n becomes |V_perp| sin(alpha_eff - alpha_L0)
 = cos(alpha_L0) (V_rel . n) - sin(alpha_L0) (V_rel . t), t = n x t_x the unit chord direction toward the
-trailing edge (the strips' lattice has the chord lines only). No division: zero in still air, and a wing moving normal to
+trailing edge (the strips' lattice has the chord lines only).
+
+No division: zero in still air, and a wing moving normal to
 itself in still air (alpha_eff = 90 deg, e.g. deployment at 0 m/s) gets a normal force resisting the
 motion (2 pi instead of a flat plate's drag coefficient of about 2: the linear theory is outside its
 range there), not a chordwise one. The 3/4-chord point carries the pitch-rate effect of quasi-steady

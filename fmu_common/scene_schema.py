@@ -222,7 +222,8 @@ BODY = Table({
                           "(not for a hinge's child: its joint's orientation_deg [0, -dihedral, 0] gives it)", 0.0,
                           limit=90.0),
     "section": SECTION,
-}, rules=(_planform_rule,), doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
+}, rules=(_planform_rule,),
+   doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
        "`section = { ... }` of the body")
 
 _BODY_REF = "name of a body of structure.bodies"

@@ -164,8 +164,8 @@ class Topology:
         body.planform = _planform(spec, parent)
         if parent is not None:
             if spec.planform.dihedral_deg != 0.0:
-                raise SceneError(f"{key}.dihedral_deg", spec.planform.dihedral_deg, "0 for a hinge's child: its joint's "
-                                 "orientation_deg [0, -dihedral, 0] turns it about its chord axis")
+                raise SceneError(f"{key}.dihedral_deg", spec.planform.dihedral_deg, "0 for a hinge's child: its "
+                                 "joint's orientation_deg [0, -dihedral, 0] turns it about its chord axis")
             tip = self.bodies[line.parent].nodes[-1]
             r0, x_parent, y_parent = self.node_initial[tip]
             frame = line.child_frame(_frame(x_parent, y_parent))

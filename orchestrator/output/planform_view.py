@@ -8,9 +8,9 @@ laid side by side along the span in the order a wing is built (every parent befo
 change a planform). Drawn per body: the outline (leading and trailing edges from ``Planform.chord_offset``), the
 panel edges of the aero lattice (``aero.chordwise_panels`` x ``aero.spanwise_panels``, at chord fractions i / M),
 the vortex rings' bound segments (at the panels' quarter chords) dashed, the collocation points (three-quarter
-chords), the reference line (the beam) and each hinge (its point, and a revolute's axis across the root chord); a label with the body's chords, sweep, twist and camber.
-Twist and camber turn the sections out of this plane and are given in the labels only. Strip theory draws one
-panel per strip.
+chords), the reference line (the beam) and each hinge (its point, and a revolute's axis across the root
+chord); a label with the body's chords, sweep, twist and camber. Twist and camber turn the sections out of this
+plane and are given in the labels only. Strip theory draws one panel per strip.
 """
 
 from __future__ import annotations
