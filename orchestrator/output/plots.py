@@ -27,6 +27,7 @@ folder and renamed (``orchestrator.files.write_file``): a PNG under its own name
 
 from __future__ import annotations
 
+import importlib
 import sys
 from pathlib import Path
 
@@ -178,31 +179,14 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         fig.tight_layout()
         write_file(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=DPI))   # whole or not at all
         written.append(path)
-    try:
-        from orchestrator.output.wake_view import write_wake_view
-
-        path = write_wake_view(result, out_dir)
-        if path is not None:
-            written.append(path)
-    except Exception as err:  # the picture is a courtesy: never fail the run or the other plots
-        (out_dir / "wake_3d.png").unlink(missing_ok=True)  # no stale picture of an earlier run
-        print(f"warning: wake picture not written: {type(err).__name__}: {err}", file=sys.stderr)
-    try:
-        from orchestrator.output.mechanism_view import write_mechanism_view
-
-        path = write_mechanism_view(result, out_dir)
-        if path is not None:
-            written.append(path)
-    except Exception as err:  # as the wake picture
-        (out_dir / "mechanism.png").unlink(missing_ok=True)
-        print(f"warning: mechanism picture not written: {type(err).__name__}: {err}", file=sys.stderr)
-    try:
-        from orchestrator.output.planform_view import write_planform_view
-
-        path = write_planform_view(result, out_dir)
-        if path is not None:
-            written.append(path)
-    except Exception as err:  # as the wake picture
-        (out_dir / "planform.png").unlink(missing_ok=True)
-        print(f"warning: planform picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    pictures = (("wake_view", "wake_3d.png", "wake"), ("mechanism_view", "mechanism.png", "mechanism"),
+                ("planform_view", "planform.png", "planform"))
+    for module, filename, what in pictures:
+        try:
+            path = getattr(importlib.import_module(f"orchestrator.output.{module}"), f"write_{module}")(result, out_dir)
+            if path is not None:
+                written.append(path)
+        except Exception as err:  # the pictures are a courtesy: never fail the run or the other plots
+            (out_dir / filename).unlink(missing_ok=True)  # no stale picture of an earlier run
+            print(f"warning: {what} picture not written: {type(err).__name__}: {err}", file=sys.stderr)
     return written
