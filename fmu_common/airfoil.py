@@ -30,7 +30,11 @@ class CamberLine:
     p: float
 
     def height(self, f):
-        """z / c at chord fractions f (any shape; f beyond 1 continues the aft polynomial)."""
+        """z / c at chord fractions f (f beyond 1 continues the aft polynomial).
+
+        Args:
+            f: chord fractions from the leading edge, any shape.
+        """
         f = np.asarray(f, dtype=float)
         if self.m == 0.0:
             return np.zeros_like(f)
@@ -40,7 +44,11 @@ class CamberLine:
         return np.where(f < p, fore, aft)
 
     def slope(self, f):
-        """dz/df (dimensionless) at chord fractions f."""
+        """dz/df (dimensionless) at chord fractions f.
+
+        Args:
+            f: chord fractions from the leading edge, any shape.
+        """
         f = np.asarray(f, dtype=float)
         if self.m == 0.0:
             return np.zeros_like(f)

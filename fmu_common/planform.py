@@ -47,7 +47,8 @@ class Planform:
 
         Args:
             length: L, m.
-            chord_root, chord_tip: c_r, c_t, m.
+            chord_root: c_r, m.
+            chord_tip: c_t, m.
             axis_position: a, fraction of the root chord from the leading edge.
             sweep_deg: the leading-edge sweep Lambda, deg; None: the reference line at a of every chord.
             twist_root_deg: theta_r, deg.
@@ -72,25 +73,47 @@ class Planform:
         return 0.5 * self.length * (self.chord_root + self.chord_tip)
 
     def chord(self, x):
-        """c(x), m, at span x (m from the root)."""
+        """c(x), m, at span x.
+
+        Args:
+            x: span from the root, m, any shape.
+        """
         return self.chord_root + (self.chord_tip - self.chord_root) * np.asarray(x, dtype=float) / self.length
 
     def leading_edge(self, x):
-        """y_LE(x), m: the leading edge's offset from the reference line along r_y."""
+        """y_LE(x), m: the leading edge's offset from the reference line along r_y.
+
+        Args:
+            x: span from the root, m, any shape.
+        """
         lead = -self.axis_position * self.chord_root
         return lead + (self.leading_edge_tip - lead) * np.asarray(x, dtype=float) / self.length
 
     def twist(self, x):
-        """theta(x), rad."""
+        """theta(x), rad.
+
+        Args:
+            x: span from the root, m, any shape.
+        """
         return self.twist_root + (self.twist_tip - self.twist_root) * np.asarray(x, dtype=float) / self.length
 
     def chord_offset(self, x, f):
-        """y (m) of the point at chord fraction f of the flat planform at span x: d(x, f)."""
+        """y (m) of the point at chord fraction f of the flat planform at span x: d(x, f).
+
+        Args:
+            x: span from the root, m.
+            f: chord fraction from the leading edge; broadcast against x.
+        """
         return self.leading_edge(x) + np.asarray(f, dtype=float) * self.chord(x)
 
     def surface(self, x, f):
-        """(y, h, y_x, h_x, y_f, h_f): the mean-surface point at span x (m) and chord fraction f as material y (m)
-        and normal offset h (m), and their derivatives along x (-) and f (m); arrays broadcast from x and f."""
+        """(y, h, y_x, h_x, y_f, h_f): the mean-surface point at span x and chord fraction f as material y (m)
+        and normal offset h (m), and their derivatives along x (-) and f (m); arrays broadcast from x and f.
+
+        Args:
+            x: span from the root, m.
+            f: chord fraction from the leading edge; broadcast against x.
+        """
         x, f = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(f, dtype=float))
         c, dc = self.chord(x), (self.chord_tip - self.chord_root) / self.length
         d = self.chord_offset(x, f)
