@@ -1,13 +1,13 @@
 """Camber lines of thin sections: the NACA 4-digit mean line and its thin-airfoil zero-lift angle.
 
 A NACA 4-digit section "naca" m p tt (e.g. "naca2412": maximum camber m = 2% of the chord at p = 40% of the
-chord from the leading edge, thickness 12%) has the mean line (Abbott and von Doenhoff 1959, Sec. 6.4), in
+chord from the leading edge, thickness 12%) has the mean line (Abbott and von Doenhoff 1959, Ch. 6), in
 chord fractions f from the leading edge and heights z / c,
 
     z = m / p^2 (2 p f - f^2)                        for f < p
     z = m / (1 - p)^2 ((1 - 2 p) + 2 p f - f^2)      for f >= p
 
-Thin-airfoil theory (Anderson 2017, Eq. 4.61) gives its zero-lift angle
+Thin-airfoil theory (Anderson 2017, Ch. 4) gives its zero-lift angle
 
     alpha_L0 = -(1 / pi) int_0^pi dz/df (cos(theta) - 1) d theta,   f = (1 - cos(theta)) / 2,
 

@@ -82,7 +82,7 @@ def elliptic_wing(aspect_ratio, bodies_per_half, tip_fraction=0.02, airfoil=None
 
 def lifting_line(chord, span, alpha, terms=100):
     """Prandtl's lifting line for a straight, untwisted, symmetric wing by Glauert's series (Anderson 2017,
-    Sec. 5.3.2): Gamma(theta) = 2 b V sum_n A_n sin(n theta), y = -b/2 cos(theta), the odd n, collocated at
+    Ch. 5): Gamma(theta) = 2 b V sum_n A_n sin(n theta), y = -b/2 cos(theta), the odd n, collocated at
     `terms` stations of the half span with the 2D slope 2 pi.
 
     Args:

@@ -18,7 +18,7 @@ from structure_fmu.solver import StructureSolver
 
 
 def test_zero_lift_angle_of_naca_2412_is_thin_airfoil_theory():
-    """Thin-airfoil theory's zero-lift angle of the NACA 2412 mean line: -2.077 deg (Anderson 2017, Example 4.6);
+    """Thin-airfoil theory's zero-lift angle of the NACA 2412 mean line: -2.077 deg (Anderson 2017, Ch. 4);
     a symmetric section's is 0 and the angle scales with the camber (NACA 4412: twice 2412's)."""
     assert np.degrees(naca_camber("naca2412").zero_lift_angle()) == pytest.approx(-2.077, abs=5e-4)
     assert naca_camber("NACA0012").zero_lift_angle() == 0.0
