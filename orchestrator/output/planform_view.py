@@ -48,12 +48,13 @@ def planform_figure(scene, topology=None):
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
+    from fmu_common.choices import aero_model
     from fmu_common.topology import Topology
     from fmu_common.wing_spec import StructureSpec
 
     topology = topology or Topology.from_spec(StructureSpec.from_scene(scene))
     aero = scene["aero"]
-    M = 1 if aero["model"] == "strip" else aero["chordwise_panels"]
+    M = aero["chordwise_panels"] if aero_model(aero["model"]).chordwise else 1
     N = aero["spanwise_panels"]
     colors = colormaps[COLORMAP](np.arange(len(topology.bodies)) % 10)
     hinges = {line.child: line for line in topology.joint_lines if line.parent is not None}
@@ -103,8 +104,10 @@ def write_planform_view(result, out_dir) -> Path | None:
     (and removes a stale file) without one. Raises on a failure (the caller warns)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
+    from orchestrator.run.master import has_aero
+
     path = Path(out_dir) / PLANFORM_FILE
-    if result.scene["aero"]["model"] == "none":
+    if not has_aero(result.scene):
         path.unlink(missing_ok=True)
         return None
     fig = planform_figure(result.scene)

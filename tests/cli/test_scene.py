@@ -107,9 +107,11 @@ def test_defaults_of_a_minimal_scene():
         "scissors": [], "masses": [], "loads": []}
     assert body == [{"name": "b", "length": 1.0, "root": [0.0, 0.0, 0.0], "span_axis": [1.0, 0.0, 0.0],
                      "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "elements": None, "angular_velocity": None,
-                     "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
+                     "sweep_deg": None, "twist_deg": 0.0, "dihedral_deg": 0.0,
+                     "section": {**SECTION, "chord_tip": None, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
-                                 "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0}}]
+                                 "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0,
+                                 "airfoil": None}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",
