@@ -3,9 +3,9 @@
     .venv/bin/pip install -e '.[docs]'
     .venv/bin/python docs/api_reference.py [--out DIR]
 
-writes DIR/index.html (default build/api/, which git ignores) and one page per module of fmu_common,
-structure_fmu, aero_fmu and orchestrator with its sub-packages; docstrings are read as Markdown with Google-style
-sections (Args:, Returns:; docs/architecture.md, "Docstrings"). No module is
+writes DIR/index.html (default build/api/, which git ignores) and one page per module of wingsim (the Python API,
+docs/api.md), fmu_common, structure_fmu, aero_fmu and orchestrator with its sub-packages; docstrings are read as
+Markdown with Google-style sections (Args:, Returns:; docs/architecture.md, "Docstrings"). No module is
 left out: pdoc imports each one (the slave scripts with pythonfmu; orchestrator.build.import_trace, a script
 run as `python -I import_trace.py`, only defines functions when imported) but the packages' ``__main__``
 (``python -m orchestrator``), which runs the command line when imported and which pdoc never documents.
@@ -29,7 +29,7 @@ import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator")
+PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator", "wingsim")
 
 
 def modules_on_disk() -> list[str]:

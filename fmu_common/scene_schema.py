@@ -51,6 +51,8 @@ DAMPING_MODELS = ("deformation", "mass-proportional")
 
 PLATE = ("thickness", "density", "youngs_modulus")
 EXPLICIT = ("axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord", "mass_per_length")
+TAPERED = ("chord", "thickness", "torsional_rigidity", "rotary_inertia", *EXPLICIT)
+"""The section keys that may vary linearly along a body: each has a key `<name>_tip` with its tip value."""
 
 
 def positive(unit, doc, default=REQUIRED, **options):
@@ -114,6 +116,15 @@ def _section_rule(key: str, section: dict) -> None:
                                  "required unless thickness, density and youngs_modulus describe a plate")
 
 
+def _tip_rule(key: str, section: dict) -> None:
+    """A tip value varies a value given at the root: thickness_tip needs the plate's thickness, an explicit
+    property's tip its root value (a plate-derived root would vary by the plate's formula, not linearly)."""
+    for name in TAPERED:
+        if section[f"{name}_tip"] is not None and section[name] is None:
+            raise SceneError(f"{key}.{name}_tip", section[f"{name}_tip"],
+                             f"absent unless {key}.{name} gives the root value it varies from")
+
+
 def _airfoil_rule(key: str, section: dict) -> None:
     """A camber line the aero unit can build: a NACA 4-digit designation."""
     if section["airfoil"] is not None:
@@ -171,27 +182,46 @@ SECTION = Table({
                           Absent("section.chord: a constant chord")),
     "axis_position": fraction("position a of the reference line (the beam axis)", 0.5),
     "torsional_rigidity": positive("N m^2", "GJ"),
+    "torsional_rigidity_tip": positive("N m^2", "GJ at the tip; GJ varies linearly from the root's",
+                                       Absent("section.torsional_rigidity: a constant GJ")),
     "thickness": positive("m", "plate thickness h", Absent("no plate: the explicit properties below")),
+    "thickness_tip": positive("m", "plate thickness at the tip; h varies linearly from section.thickness at the "
+                                   "root (the plate's properties follow their formulas of the local c and h)",
+                              Absent("section.thickness: a constant thickness")),
     "density": positive("kg/m^3", "plate material density rho", Absent("no plate")),
     "youngs_modulus": positive("Pa", "plate Young's modulus E", Absent("no plate")),
     "axial_stiffness": positive("N", "EA; overrides the plate's", Absent("E c h of the plate")),
+    "axial_stiffness_tip": positive("N", "EA at the tip; EA varies linearly from section.axial_stiffness at the "
+                                         "root", Absent("section.axial_stiffness: a constant EA")),
     "bending_stiffness_flap": positive("N m^2", "EI_yy, out of the wing plane; overrides the plate's",
                                        Absent("E c h^3 / 12 of the plate")),
+    "bending_stiffness_flap_tip": positive("N m^2", "EI_yy at the tip; EI_yy varies linearly from "
+                                                    "section.bending_stiffness_flap at the root",
+                                           Absent("section.bending_stiffness_flap: a constant EI_yy")),
     "bending_stiffness_chord": positive("N m^2", "EI_zz, in the chord plane; overrides the plate's",
                                         Absent("E h c^3 / 12 of the plate")),
+    "bending_stiffness_chord_tip": positive("N m^2", "EI_zz at the tip; EI_zz varies linearly from "
+                                                     "section.bending_stiffness_chord at the root",
+                                            Absent("section.bending_stiffness_chord: a constant EI_zz")),
     "mass_per_length": positive("kg/m", "rho A, spread uniformly over the chord; overrides the plate's",
                                 Absent("rho c h of the plate")),
+    "mass_per_length_tip": positive("kg/m", "rho A at the tip; rho A varies linearly from section.mass_per_length "
+                                            "at the root", Absent("section.mass_per_length: a constant rho A")),
     "poissons_ratio": Number("-", 0.0, "plate Poisson's ratio nu: the shear modulus G = E / (2 (1 + nu)) of "
                                       "structure.fidelity = 'shear-deformable' (0: Peng et al. 2019's)", low=0.0,
                              high=0.5, high_open=True),
     "rotary_inertia": non_negative("kg m", "rho I_yy: rotary inertia of the section about its chord axis per unit "
                                            "length (Otsuka et al. 2022, Table 4), kinetic energy 1/2 rho I_yy "
                                            "|dr'/dt|^2 (a thin plate's rho c h^3 / 12 is negligible)", 0.0),
+    "rotary_inertia_tip": non_negative("kg m", "rho I_yy at the tip; rho I_yy varies linearly from "
+                                               "section.rotary_inertia at the root",
+                                       Absent("section.rotary_inertia: a constant rho I_yy")),
     "airfoil": Text("-", Absent("a flat plate: no camber"), "camber line of the aerodynamic surface: a NACA 4-digit "
                                                             "designation such as 'naca2412' (its thickness is not "
                                                             "modelled; docs/aero.md, Planform)"),
 }, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
-       "properties, which override the plate's", rules=(_section_rule, _airfoil_rule))
+       "properties, which override the plate's; a key `*_tip` makes its property vary linearly along the body from "
+       "the root's value to the tip's", rules=(_section_rule, _tip_rule, _airfoil_rule))
 
 BODY = Table({
     "name": Name("-", REQUIRED, "body name, referenced by joints, masses, loads, probes and strain gauges"),
@@ -373,7 +403,7 @@ LOAD = Variants("law", {
 
 _LOAD_CASE = {
     "parameter": non_negative("-", "P L^2 / EI_yy of the body: the force magnitude P in units of its flap "
-                                   "stiffness and length"),
+                                   "stiffness (the root's, where the section varies) and length"),
     "direction": Vector("-", REQUIRED, "direction of the force, global frame", nonzero=True),
     "body": Name("-", Absent("the last body of structure.bodies"), _BODY_REF),
     "span": non_negative("m", "position from the body root", Absent("the body's length: its tip")),
@@ -410,7 +440,8 @@ STRAIN_GAUGE = Table({
     "body": Name("-", REQUIRED, _BODY_REF),
     "span": non_negative("m", "position from the body root, at most the body length"),
     "surface_distance": positive("m", "distance from the reference line to the gauged surface",
-                                 Absent("half the body's section.thickness; required without one")),
+                                 Absent("half the body's section.thickness at the gauge's span (linear to "
+                                        "section.thickness_tip); required without a thickness")),
     "curvature": Choice("-", "model", "the curvature it reads: model, the fidelity's own (the ANCF element's cubic "
                                       "field; the strain-based element's constant kappa_y, as Otsuka et al. 2022, "
                                       "Sec. 5 read it); cubic, the cubic interpolation of the nodal vectors, the same "
@@ -665,4 +696,7 @@ def fill_derived_defaults(scene: dict) -> None:
                 raise SceneError(f"{key}.surface_distance", MISSING,
                                  f"required: body '{body['name']}' has no section.thickness (a distance > 0 from "
                                  "the reference line to the gauged surface, m)")
+            tip = body["section"]["thickness_tip"]
+            if tip is not None:         # the plate's thickness at the gauge, linear from the root's to the tip's
+                thickness += (tip - thickness) * gauge["span"] / body["length"]
             gauge["surface_distance"] = 0.5 * thickness

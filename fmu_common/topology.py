@@ -353,7 +353,7 @@ def dihedral_span_axis(span_axis, chord_axis, dihedral_deg):
 def _planform(spec: BodySpec, parent: Body | None) -> Planform:
     """The Planform of a body spec; a hinge's child starts with its parent's tip twist."""
     keys, section = spec.planform, spec.section
-    chord_tip = section.chord if keys.chord_tip is None else keys.chord_tip
+    chord_tip = section.tip("chord")
     twist_root = 0.0 if parent is None else float(np.degrees(parent.planform.twist_tip))
     camber = FLAT if keys.airfoil is None else naca_camber(keys.airfoil)
     return Planform.of(spec.length, section.chord, chord_tip, section.axis_position, keys.sweep_deg, twist_root,

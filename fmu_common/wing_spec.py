@@ -14,6 +14,7 @@ from typing import ClassVar
 
 from .choices import Fidelity, fidelity
 from .scene_bounds import body_elements
+from .scene_schema import TAPERED
 from .schema import item_label
 
 Vector = tuple[float, float, float]
@@ -29,7 +30,8 @@ class SectionSpec:
     the leading edge), torsional rigidity GJ (N m^2), rotary inertia rho I_yy (kg m); a rectangular plate
     (thickness h, m; density rho, kg/m^3; Young's modulus E, Pa; Poisson's ratio nu) and explicit properties EA
     (N), EI_yy, EI_zz (N m^2), rho A (kg/m), each None when not given (structure_fmu.section derives the missing
-    ones)."""
+    ones); `tips` the tip values of the keys of scene_schema.TAPERED that vary linearly along the body
+    ((name, value) pairs, each given as `<name>_tip`; empty: a constant section)."""
 
     key: str
     chord: float
@@ -44,6 +46,16 @@ class SectionSpec:
     mass_per_length: float | None
     rotary_inertia: float
     poissons_ratio: float = 0.0
+    tips: tuple = ()
+
+    def tip(self, name: str) -> float | None:
+        """The value of the property `name` at the tip: its `<name>_tip`, else the root's (None where the root's is
+        not given).
+
+        Args:
+            name: a key of scene_schema.TAPERED.
+        """
+        return dict(self.tips).get(name, getattr(self, name))
 
     @classmethod
     def from_table(cls, key: str, table: dict) -> "SectionSpec":
@@ -56,17 +68,17 @@ class SectionSpec:
         return cls(key, table["chord"], table["axis_position"], table["torsional_rigidity"], table["thickness"],
                    table["density"], table["youngs_modulus"], table["axial_stiffness"],
                    table["bending_stiffness_flap"], table["bending_stiffness_chord"], table["mass_per_length"],
-                   table["rotary_inertia"], table["poissons_ratio"])
+                   table["rotary_inertia"], table["poissons_ratio"],
+                   tuple((name, table[f"{name}_tip"]) for name in TAPERED if table.get(f"{name}_tip") is not None))
 
 
 @dataclass(frozen=True)
 class PlanformSpec:
-    """A body's planform keys (docs/aero.md, Planform): tip chord chord_tip (m; None: the root's), leading-edge
-    sweep_deg (deg; None: the reference line at axis_position of every chord), twist_deg of the tip relative to
-    the root (deg, nose up), dihedral_deg (deg, a tilt of span_axis about chord_axis) and the camber line
-    `airfoil` (a NACA 4-digit designation; None: flat)."""
+    """A body's planform keys (docs/aero.md, Planform) beside its section's chords (SectionSpec.chord and its tip):
+    leading-edge sweep_deg (deg; None: the reference line at axis_position of every chord), twist_deg of the tip
+    relative to the root (deg, nose up), dihedral_deg (deg, a tilt of span_axis about chord_axis) and the camber
+    line `airfoil` (a NACA 4-digit designation; None: flat)."""
 
-    chord_tip: float | None = None
     sweep_deg: float | None = None
     twist_deg: float = 0.0
     dihedral_deg: float = 0.0
@@ -79,8 +91,7 @@ class PlanformSpec:
         Args:
             body: the resolved body table.
         """
-        return cls(body["section"]["chord_tip"], body["sweep_deg"], body["twist_deg"], body["dihedral_deg"],
-                   body["section"]["airfoil"])
+        return cls(body["sweep_deg"], body["twist_deg"], body["dihedral_deg"], body["section"]["airfoil"])
 
 
 @dataclass(frozen=True)

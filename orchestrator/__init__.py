@@ -13,6 +13,9 @@ import runs in a circle and that the product never imports ``studies``):
 - ``export``   the built FMUs as one system: an SSP package, one container FMU, and ``wingsim validate``
 - ``sweep``    ``wingsim sweep``: every combination of grid values, each a run with its outputs, resumable
 - ``cli``      the ``wingsim`` command line (``python -m orchestrator``, ``__main__``)
+- ``clean``    ``wingsim clean``: remove built FMUs, results, exports of the current folder
+
+``scenes`` is not code: the shipped scene files (the repository's ``scenes/``, installed under this name).
 
 ``studies`` (figures of merit, stability estimates, many runs in worker processes) serves the tests and
 the studies in benchmarks/; the product does not import it.

@@ -4,9 +4,19 @@
   build the scene's FMUs, or only the one unit, into DIR (default: the folder ``run`` uses, ``fmu_dir``;
   ``--standalone``: FMUs that carry their Python runtime; ``--win64``: with binaries and a runtime for 64-bit
   Windows too).
-- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone]``: build if needed,
-  run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default ``results/<scene>/``).
-- ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU.
+- ``wingsim run SCENE [--out DIR] [--set KEY=VALUE ...] [--backend fmu|direct] [--standalone] [--animate] [--vtk]``:
+  build if needed, run, write ``summary.json``, ``timeseries.csv`` and PNG plots into DIR (default
+  ``results/<scene>/``, and ``results/<scene>/<overrides>/`` for a ``--set`` variant:
+  ``orchestrator.output.run_folders``); notes first for implausible flow values and a large timeseries.csv (the run
+  goes ahead); ``--animate``: ``animation.gif`` too, ``--vtk``: the geometry history for ParaView in ``DIR/vtk/``
+  (``orchestrator.output.animation``, ``orchestrator.output.vtk``).
+- ``wingsim validate [FMU ...]``: fmpy's model-description check and a short simulation of each FMU; compliance
+  and the physics of the simulation reported apart.
+- ``wingsim scenes``: the shipped scenes with their headlines; ``wingsim init NAME [--from SCENE]``: copy one to
+  ``./NAME.toml`` (``orchestrator.scene.shipped``). SCENE everywhere is a file or a shipped scene's name.
+- ``wingsim results [SCENE]``: the run folders under ``results/`` with status, key figures and overrides;
+  ``wingsim clean [SCENE] [--fmus] [--results] [--export] [--dry-run]``: remove them (``orchestrator.clean``).
+- ``wingsim --version``.
 - ``wingsim export SCENE [--out DIR] [--set KEY=VALUE ...] [--aero FMU] [--standalone [--win64]]``: build the
   FMUs if needed (into the folder ``run`` uses), write the coupled system as ``DIR/<scene>.ssp`` (SSP 1.0) and as
   one FMU, ``DIR/wing.fmu``; ``--aero``: with that aero unit FMU (built for the same structure, e.g. by
@@ -32,7 +42,8 @@ a build of the same folder (``orchestrator.build.fmus.build_lock``).
 Exit codes: 0 run ok (or build done); 1 run diverged or failed (its summary is still written), a results
 file could not be written (the message names it), or an unexpected error; 2 bad scene or bad arguments
 (nothing runs); 130 interrupted by Ctrl-C (SIGINT), 143 terminated by SIGTERM: both are handled alike,
-the results so far are written (128 + the signal number, as a shell reports a process killed by it).
+the results so far are written with status "interrupted" (128 + the signal number, as a shell reports a process
+killed by it).
 Errors are one line, ``error: ...``; set ``WINGSIM_DEBUG=1`` to see tracebacks.
 """
 
@@ -54,11 +65,14 @@ DEBUG_ENV = "WINGSIM_DEBUG"
 FMU_ROOT = Path("fmus")
 RESULTS_ROOT = Path("results")
 EXPORT_ROOT = Path("export")
+INIT_SOURCE = "deploy_rigid"
+"""The shipped scene ``wingsim init`` copies without ``--from``."""
 DIGEST_CHARS = 12
 """Hex digits of the resolved scene's digest in the FMU folder of a ``--set`` variant."""
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 STANDALONE_HELP = ("FMUs that carry their Python runtime and run it in a worker process of their own: they need "
                    "no Python on the machine that runs them (docs/fmu.md)")
+SCENE_HELP = "scene file (.toml), or the name of a shipped scene (wingsim scenes lists them)"
 SET_HELP = "override a dotted scene key, e.g. --set flow.speed=20 (repeatable)"
 WIN64_HELP = ("with --standalone: binaries and a Python runtime for 64-bit Windows too (cross-compiled with mingw-w64; "
               "the first such build downloads the Windows packages; docs/fmu.md)")
@@ -93,11 +107,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="wingsim", description="FMI co-simulation of deployable wings (structure and aero units).",
         epilog=f"Set {DEBUG_ENV}=1 to see tracebacks of unexpected errors.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     build = commands.add_parser("build", help="build the FMUs a scene needs",
                                 description="Build the FMUs a scene needs.")
-    build.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    build.add_argument("scene", type=Path, metavar="SCENE", help=SCENE_HELP)
     build.add_argument("--out", type=Path, metavar="DIR",
                        help="output folder (default: the folder `run` uses: fmus/<scene name>/ for the scene as its "
                             "file writes it, fmus/<scene name>-<digest>/ for a --set variant; -standalone appended "
@@ -114,13 +129,20 @@ def build_parser() -> argparse.ArgumentParser:
     run = commands.add_parser("run", help="build if needed, run a scene, write results and plots",
                               description="Build the FMUs if needed, run the scene and write "
                                           "timeseries.csv, summary.json and PNG plots.")
-    run.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
-    run.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<scene name>/)")
+    run.add_argument("scene", type=Path, metavar="SCENE", help=SCENE_HELP)
+    run.add_argument("--out", type=Path, metavar="DIR",
+                     help="output folder (default: results/<scene name>/ for the scene as its file writes it, "
+                          "results/<scene name>/<overrides>/ with --set, e.g. results/deploy_rigid/flow.speed=8/)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help=SET_HELP)
     run.add_argument("--backend", choices=("fmu", "direct"), default="fmu",
                      help="fmu: the built FMUs through fmpy (default); direct: the same slaves in-process")
     run.add_argument("--standalone", action="store_true", help=STANDALONE_HELP + " (with --backend fmu)")
+    run.add_argument("--animate", action="store_true",
+                     help="also write animation.gif: the deployment from the recorded geometry, with the wake")
+    run.add_argument("--vtk", action="store_true",
+                     help="also write the geometry history for ParaView: vtk/structure.pvd (and vtk/lattice.pvd for "
+                          "an aero scene), one .vtu per frame")
     run.set_defaults(func=cmd_run)
 
     validate = commands.add_parser("validate", help="check built FMUs: model description and a short simulation",
@@ -134,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
                                              "DIR/<scene>.ssp (System Structure and Parameterization 1.0: both "
                                              "FMUs, every connection, the parameters, the default experiment) "
                                              "and as DIR/wing.fmu (one FMU with the units coupled inside).")
-    export.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    export.add_argument("scene", type=Path, metavar="SCENE", help=SCENE_HELP)
     export.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: export/<scene name>/)")
     export.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help=SET_HELP)
@@ -150,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Run the scene for every combination of the --grid values "
                                             "(after the --set overrides); write DIR/runs/<run>/ and DIR/sweep.csv. "
                                             "Rerunning the same command resumes: finished runs are skipped.")
-    sweep.add_argument("scene", type=Path, metavar="SCENE", help="scene file (.toml)")
+    sweep.add_argument("scene", type=Path, metavar="SCENE", help=SCENE_HELP)
     sweep.add_argument("--grid", dest="grid", action="append", default=[], metavar="KEY=V1,V2,...",
                        help="a dotted scene key and its values, e.g. --grid flow.speed=0,10,20 (repeatable; "
                             "required)")
@@ -167,7 +189,47 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--plots", action="store_true", help="write PNG plots into each run folder (off by default)")
     sweep.set_defaults(func=cmd_sweep)
 
+    scenes = commands.add_parser("scenes", help="list the shipped scenes", description="List the scenes shipped "
+                                 "with wingsim, each with the first line of its header; run one by name "
+                                 "(wingsim run NAME) or copy it to edit (wingsim init).")
+    scenes.set_defaults(func=cmd_scenes)
+
+    init = commands.add_parser("init", help="copy a shipped scene into this folder to edit it",
+                               description="Copy a scene (a shipped one by name, or a file) to ./NAME.toml with its "
+                                           "name set to NAME; an existing file is never overwritten.")
+    init.add_argument("name", metavar="NAME", help="name of the new scene (and of its file NAME.toml)")
+    init.add_argument("--from", dest="source", default=INIT_SOURCE, metavar="SCENE",
+                      help=f"the scene to copy (default: {INIT_SOURCE})")
+    init.set_defaults(func=cmd_init)
+
+    results = commands.add_parser("results", help="list the runs under results/ with their overrides and figures",
+                                  description="List the run folders under results/ (of one scene, or all): "
+                                              "status, key figures from summary.json, --set overrides from "
+                                              "run.json.")
+    results.add_argument("scene", nargs="?", metavar="SCENE", help="only this scene's runs (a name or a file)")
+    results.set_defaults(func=cmd_results)
+
+    clean = commands.add_parser("clean", help="remove built FMUs, results or exports",
+                                description="Remove what wingsim wrote into fmus/, results/ or export/ of the "
+                                            "current folder (of one scene, or all); folders a running wingsim "
+                                            "process holds are kept. Nothing outside those folders is touched.")
+    clean.add_argument("scene", nargs="?", metavar="SCENE", help="only this scene's folders (a name or a file)")
+    clean.add_argument("--fmus", action="store_true", help="remove built FMUs (fmus/)")
+    clean.add_argument("--results", action="store_true", help="remove results (results/)")
+    clean.add_argument("--export", action="store_true", help="remove exported packages (export/)")
+    clean.add_argument("--dry-run", action="store_true", help="list what would be removed, remove nothing")
+    clean.set_defaults(func=cmd_clean)
+
     return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("wingsim")
+    except PackageNotFoundError:   # run from a source tree that was never installed
+        return "(not installed)"
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -324,17 +386,30 @@ def cmd_run(args: argparse.Namespace) -> int:
     _start_compiling_kernels()
     from orchestrator.files import folder_lock, process_record, remove_partials
     from orchestrator.output.results import check_out_dir
+    from orchestrator.output.run_folders import run_folder
     from orchestrator.scene.load import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     if args.standalone and args.backend != "fmu":
         raise SceneError("--standalone", True, "standalone FMUs run with --backend fmu only")
     _require_standalone(args.standalone)
-    out = check_out_dir(args.out or RESULTS_ROOT / scene["name"])
+    out = check_out_dir(args.out or run_folder(RESULTS_ROOT, scene["name"], args.overrides))
+    _announce(scene)
     holder = process_record()
     with folder_lock(out, holder):   # another run writing there: refused (exit 2), naming it
         remove_partials(out)         # temporary files of a run killed while it wrote them
         return _run_into(args, scene, out, holder)
+
+
+def _announce(scene: dict) -> None:
+    """Notes before a run: values outside their plausible range (``orchestrator.scene.plausibility``) and a large
+    timeseries.csv (``orchestrator.run.estimate``); the run goes ahead."""
+    from orchestrator.run.estimate import output_note
+    from orchestrator.scene.plausibility import plausibility_notes
+
+    for note in [*plausibility_notes(scene), output_note(scene)]:
+        if note:
+            print(f"note: {note}", file=sys.stderr)
 
 
 def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) -> int:
@@ -358,24 +433,33 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
         folder = fmu_dir(scene, _file_scene(args, scene), args.standalone)
         result = _build_if_needed(scene, folder, args.standalone) if args.backend == "fmu" else None
         if result is None:
-            progress = Progress(scene["time"]["stop"], label=scene["name"])
+            progress = Progress(scene["time"]["stop"], label=scene["name"], interrupted=lambda: bool(_received))
             result = run_scene(scene, backend=args.backend, fmu_dir=folder, progress=progress)
     except KeyboardInterrupt as err:
-        result = RunResult("error", f"interrupted ({err or 'SIGINT'}) before the first communication step",
+        result = RunResult("interrupted", f"interrupted ({err or 'SIGINT'}) before the first communication step",
                            time.perf_counter() - start, 0.0, scene, new_series(scene))
+    result = _as_interrupted(result)
     try:
         written = write_results(result, out)   # summary.json first, then timeseries.csv
     except WriteError as err:
         print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
         print(f"error: {err}", file=sys.stderr)
         return interrupt_exit_code() or 1
+    plotted = True
     try:
         written += write_plots(result, out)
     except Exception as err:  # the data are written; a plotting problem must not hide them
         if _debug():
             raise
         print(f"warning: plots not written: {type(err).__name__}: {err}", file=sys.stderr)
-    else:
+        plotted = False
+    requested, failure = _write_requested(args, result, out)   # asked for by name: a failure is an error
+    written += requested
+    if failure:
+        print(f"{scene['name']}: {result.status}: {result.message}", file=sys.stderr)
+        print(f"error: {failure}", file=sys.stderr)
+        return interrupt_exit_code() or 1
+    if plotted:
         try:
             finish_record(out, record, written)   # last: the folder is complete
         except WriteError as err:
@@ -391,6 +475,41 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
               f"not deployed: {waiting} had not latched at t = {result.simulated_time_s:g} s")
     print(f"results in {out}")
     return interrupt_exit_code() or (0 if result.status == "ok" else 1)
+
+
+def _as_interrupted(result):
+    """`result` with status "interrupted" when a handled signal arrived during the run and ended it. An FMU
+    receives the signal as an exception inside its Python code, which the FMI layer turns into fmi2Fatal: the
+    failure is the interruption, not an error of the unit, and its message says so rather than repeat the FMU's."""
+    import dataclasses
+
+    if not _received or result.status in ("ok", "interrupted"):
+        return result
+    name = signal.Signals(_received[0]).name
+    return dataclasses.replace(result, status="interrupted",
+                               message=f"interrupted ({name}) after t = {result.simulated_time_s:g} s")
+
+
+def _write_requested(args: argparse.Namespace, result, out: Path) -> tuple[list[Path], str]:
+    """The outputs asked for with ``--animate`` and ``--vtk``: (paths written, "" or why one was not written)."""
+    from orchestrator.output.animation import ANIMATION_FILE, write_animation
+    from orchestrator.output.vtk import VTK_FOLDER, write_vtk
+
+    written: list[Path] = []
+    asked = [(ANIMATION_FILE, lambda: [p for p in [write_animation(result, out)] if p is not None])] \
+        if args.animate else []
+    asked += [(f"{VTK_FOLDER}/", lambda: write_vtk(result, out))] if args.vtk else []
+    for what, write in asked:
+        try:
+            paths = write()
+        except Exception as err:
+            if _debug():
+                raise
+            return written, f"{what} not written: {type(err).__name__}: {err}"
+        if not paths:
+            return written, f"{what} not written: the run recorded no geometry"
+        written += paths
+    return written, ""
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -421,14 +540,19 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from orchestrator.output.results import check_out_dir
+    from orchestrator.scene.plausibility import plausibility_notes
     from orchestrator.sweep import plan_sweep, run_sweep
 
+    if args.scheduler:
+        _require_extra("dask.distributed", "cluster", "--scheduler")
     if args.jobs is not None and args.jobs < 1:
         raise SceneError("--jobs", args.jobs, "a number of worker processes >= 1")
     if not args.grid:
         raise SceneError("--grid", None, "give at least one --grid KEY=V1,V2,..., e.g. --grid flow.speed=0,10,20")
     runs = plan_sweep(args.scene, args.grid, args.overrides)   # SceneError (exit 2) before anything runs
     out = check_out_dir(args.out or RESULTS_ROOT / runs[0].scene["name"] / "sweep")
+    for note in dict.fromkeys(note for run in runs for note in plausibility_notes(run.scene)):
+        print(f"note: {note}", file=sys.stderr)
     where = f"the Dask cluster at {args.scheduler}" if args.scheduler else "local processes"
     print(f"sweep: {len(runs)} runs of {args.scene} on {where}, results in {out}", file=sys.stderr)
     outcome = run_sweep(runs, out, backend=args.backend, jobs=args.jobs, scheduler=args.scheduler,
@@ -438,6 +562,85 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     print(f"results in {outcome.table}")
     rows_ok = all(row["status"] == "ok" for row in _read_rows(outcome.table))
     return interrupt_exit_code() or (0 if rows_ok else 1)
+
+
+def _require_extra(module: str, extra: str, option: str) -> None:
+    """SceneError naming `option` (exit 2, before anything runs) when `module`, installed with the extra
+    `extra`, is missing."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        found = False
+    if not found:
+        raise SceneError(option, True, f"the optional dependency {module.split('.')[0]}: pip install "
+                                       f"'wingsim[{extra}]'")
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    from orchestrator.scene.shipped import headline, shipped_scenes
+
+    scenes = shipped_scenes()
+    width = max(map(len, scenes), default=0)
+    for name, path in scenes.items():
+        print(f"{name:<{width}}  {headline(path)}")
+    return 0
+
+
+def cmd_init(args: argparse.Namespace) -> int:
+    from orchestrator.scene.load import load_scene
+    from orchestrator.scene.shipped import init_scene
+
+    path = init_scene(args.name, args.source)
+    load_scene(path)   # the copy is a valid scene under its new name
+    print(f"{path} (from {args.source}): edit it, then wingsim run {path}")
+    return 0
+
+
+def cmd_results(args: argparse.Namespace) -> int:
+    from orchestrator.output.run_folders import describe_runs, find_runs
+
+    name = _scene_name(args.scene) if args.scene else None
+    entries = find_runs(RESULTS_ROOT, name)
+    if not entries:
+        where = RESULTS_ROOT / name if name else RESULTS_ROOT
+        print(f"no runs in {where}{os.sep} (wingsim run SCENE writes them)", file=sys.stderr)
+        return 0
+    for line in describe_runs(entries, RESULTS_ROOT):
+        print(line)
+    return 0
+
+
+def _scene_name(scene: str) -> str:
+    """The scene name of a SCENE argument: the ``name`` of the scene file (or shipped scene) it names, else the
+    argument itself (the folder of a scene whose file is gone)."""
+    from orchestrator.scene.load import read_scene_file
+    from orchestrator.scene.shipped import locate
+
+    path = locate(scene)
+    if not path.is_file():
+        return Path(scene).stem if str(scene).endswith(".toml") else str(scene)
+    raw = read_scene_file(path)
+    return raw.get("name") if isinstance(raw.get("name"), str) else path.stem
+
+
+def cmd_clean(args: argparse.Namespace) -> int:
+    from orchestrator.clean import clean
+
+    roots = [root for root, chosen in ((FMU_ROOT, args.fmus), (RESULTS_ROOT, args.results),
+                                       (EXPORT_ROOT, args.export)) if chosen]
+    if not roots:
+        raise SceneError("--fmus/--results/--export", "none given", "at least one, to choose what to remove")
+    done = clean(roots, _scene_name(args.scene) if args.scene else None, dry_run=args.dry_run)
+    verb = "would remove" if args.dry_run else "removed"
+    for path in done.removed:
+        print(f"{verb} {path}")
+    for path in done.busy:
+        print(f"kept {path}: a running wingsim process holds it", file=sys.stderr)
+    if not done.removed and not done.busy:
+        print(f"nothing to remove in {', '.join(str(r) for r in roots)}", file=sys.stderr)
+    return 0
 
 
 def _read_rows(path: Path) -> list[dict]:

@@ -168,6 +168,23 @@ def folder_lock(folder: Path, record: dict, lock_file: str = LOCK_FILE, wait: bo
         os.close(fd)                     # closing releases the flock
 
 
+def held(lock: Path) -> bool:
+    """True when a live process holds the lock file `lock` (``folder_lock``); False when nobody does, also for
+    the file a killed holder left behind (the kernel released its flock) or no file at all. Probing takes the
+    lock for an instant: a process starting to take it meanwhile is refused or waits, as for any holder."""
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
 def _acquire(path: Path, option: str, folder: Path, wait: bool, stream) -> int:
     """An open descriptor of the lock file `path` holding its flock (module docstring); the file may have been
     removed by the holder that released it while this process waited on it: then opened again."""

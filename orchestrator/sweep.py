@@ -16,7 +16,9 @@ Layout of the output folder ``OUT``:
   run's overrides, and under ``sweep`` its index, grid values, backend and whether it has plots; completed last,
   with the digest of every file, once the folder is whole);
 - ``OUT/sweep.csv``: one row per run, appended as runs finish (a killed sweep keeps the finished
-  rows) and rewritten complete, in grid order, at the end.
+  rows) and rewritten complete, in grid order, at the end;
+- ``OUT/sweep.png``: the key figures of sweep.csv against each grid key (``orchestrator.output.sweep_plot``),
+  written after sweep.csv is complete.
 
 The sweep holds ``OUT`` (``orchestrator.files.folder_lock``): a second sweep or run into it is refused, naming
 this one. Every file but the appended ``sweep.csv`` (rewritten whole at the end) is written to a temporary name
@@ -476,7 +478,21 @@ def _sweep_into(runs: list[Run], out: Path, holder: dict, backend: str, jobs: in
         raise
     finally:
         table.close()
+    _write_sweep_plot(runs, out, grid_keys, stream)
     return SweepOutcome(total, total - skipped, skipped, statuses, out / SWEEP_CSV)
+
+
+def _write_sweep_plot(runs: list[Run], out: Path, grid_keys: list[str], stream: TextIO) -> None:
+    """``sweep.png`` from the whole sweep.csv (``orchestrator.output.sweep_plot``); a failure only warns: the
+    table is written."""
+    from orchestrator.output.sweep_plot import SWEEP_PLOT, write_sweep_plot
+
+    name = runs[0].scene.get("name", "sweep") if runs else "sweep"
+    try:
+        write_sweep_plot(out / SWEEP_CSV, grid_keys, f"{name}: key figures of the sweep over {', '.join(grid_keys)}")
+    except Exception as err:
+        (out / SWEEP_PLOT).unlink(missing_ok=True)   # no stale picture of an earlier sweep
+        print(f"warning: {SWEEP_PLOT} not written: {type(err).__name__}: {err}", file=stream)
 
 
 def _run_local(todo: list[Run], backend: str, fmu_dirs: dict, jobs: int | None, finish) -> None:

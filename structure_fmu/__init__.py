@@ -17,8 +17,10 @@ and its FMI 2.0 slave.
   fidelities.py      the registry of the structural fidelities (their model classes) and the model contract
                      StructuralModel the integrators call
   model.py           mass, forces, constraints and energy of the assembled ANCF structure (Eq. 4), either element
-  slots.py           the exchanged coordinates as combinations of free and prescribed vectors; shared slots
-  pins.py            pins at any node (shared points, rows closing a loop of rigid bodies) and sliders
+  slots.py           the exchanged coordinates as combinations of free vectors, free scalars along fixed
+                     directions and prescribed vectors; shared slots
+  pins.py            pins at any node (shared points, rows closing a loop of rigid bodies) and sliders (a fixed
+                     line's travel as a coordinate; rows on another body)
   constraints.py     the nonlinear internal constraints (Eqs. 6, 17), linear rows and the joints' axis rows
   joint_rows.py      a slider's rows on the frame of another body's node
   joints.py          revolute joints: fold angle, spring actuator, latch

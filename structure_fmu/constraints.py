@@ -6,7 +6,8 @@ The internal constraints are quadratic in E, Phi_i = 1/2 E^T H_i E + h_i . E + c
   orthogonality a . b = 0                  (Otsuka et al. 2019, Eq. 6 row 2; Eq. 17 row 3)
 so their Jacobian G = dPhi/dE is linear in E and the acceleration term dE^T H_i dE is cheap. The linear rows
 (`LinearRow`: sum_k a_k X_k . n = c) have a constant Jacobian: a pin about the section normal (a gradient in the
-plane), a slider on a fixed plane or line, a closed loop's shared point. The joints' axis products
+plane), a slider on a fixed plane or line whose node has no free point left (pins.py), a closed loop's shared
+point. The joints' axis products
 (`AxisProduct`: universal and revolute joints whose axis is not a shared chord) are quartic in E at most, the
 sliding rows between two bodies (`joint_rows.SlidingRow`) cubic. The linear rows of Eq. (17) and the shared joint
 points are eliminated by the coordinate map E = T q + P p (topology.py); the integrators need the Jacobian on the

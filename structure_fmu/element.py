@@ -23,6 +23,14 @@ Elastic energy (Otsuka et al. 2019, Eq. 7) and its definitions, written down her
   on the constraint manifold they coincide to first order, and they make every measure a polynomial of e,
   so the energy is integrated exactly by 5-point Gauss quadrature and its gradient is exact.
   Every measure vanishes for any rigid motion, so a rigid motion gives zero elastic force.
+
+Sections that vary along the span: every section property may be given at the Gauss points of the element
+(arrays (n, g) and (n, g, 4) in place of (n,) and (n, 4), g the number of points of the rule, `gauss_rule`), and
+the integrals take it there: the mass matrix and body force with rho A(x), rho Q_z(x), rho I_zz(x), rho I_yy(x);
+the bending energy with EI_yy(x), EI_zz(x); the axial energy through the Gram matrix of the assumed strain field
+weighted by EA(x), int EA phi_i phi_j dx; the torsion, whose measure is constant over the element, with the mean
+of GJ(x). A plate whose chord and thickness both vary linearly has EI ~ c h^3 of degree 4 in x: with the squared
+curvature (degree 8) the integrand is of degree 12, which VARYING_POINTS = 7 points integrate exactly.
 """
 import ctypes
 import functools
@@ -34,49 +42,101 @@ from fmu_common import c_library
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import cross
 
-# Gauss-Legendre points and weights on [0, 1]; 5 points integrate degree 9 exactly.
-_GAUSS_XI, _GAUSS_W = np.polynomial.legendre.leggauss(5)
-GAUSS_XI = 0.5 * (_GAUSS_XI + 1.0)
-GAUSS_W = 0.5 * _GAUSS_W
+CONSTANT_POINTS = 5
+"""Gauss points per element of a constant section: 5 integrate degree 9 exactly."""
+VARYING_POINTS = 7
+"""Gauss points per element of a section that varies along the span: 7 integrate degree 13 exactly (module)."""
 
 
-# Assumed axial strain eps(xi) = eps_A phi_A + eps_B phi_B + eps_arc phi_C: phi_A, phi_B linear minus the
-# mean-free bubble, phi_C = 6 xi (1 - xi) carries the mean. AXIAL_GRAM[i, j] = int_0^1 phi_i phi_j dxi.
-_PHI = np.stack([1 - GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI), GAUSS_XI - 3 * GAUSS_XI * (1 - GAUSS_XI),
-                 6 * GAUSS_XI * (1 - GAUSS_XI)])
-AXIAL_GRAM = (_PHI * GAUSS_W) @ _PHI.T
+@functools.cache
+def gauss_rule(points):
+    """Gauss-Legendre points and weights on [0, 1]: (xi (points,), w (points,)), exact to degree 2 points - 1.
+
+    Args:
+        points: the number of points.
+    """
+    xi, w = np.polynomial.legendre.leggauss(points)
+    xi, w = 0.5 * (xi + 1.0), 0.5 * w
+    xi.flags.writeable = w.flags.writeable = False      # shared by every caller (cached)
+    return xi, w
+
+
+GAUSS_XI, GAUSS_W = gauss_rule(CONSTANT_POINTS)
+
+
+@functools.cache
+def axial_shapes(points):
+    """The assumed axial strain's shapes at the Gauss points of `points`, (3, points): eps(xi) = eps_A phi_A +
+    eps_B phi_B + eps_arc phi_C, phi_A, phi_B linear minus the mean-free bubble, phi_C = 6 xi (1 - xi) carrying
+    the mean.
+
+    Args:
+        points: the number of Gauss points (`gauss_rule`).
+    """
+    xi, _ = gauss_rule(points)
+    return np.stack([1 - xi - 3 * xi * (1 - xi), xi - 3 * xi * (1 - xi), 6 * xi * (1 - xi)])
+
+
+# AXIAL_GRAM[i, j] = int_0^1 phi_i phi_j dxi (degree 4: exact on 5 points)
+AXIAL_GRAM = (axial_shapes(CONSTANT_POINTS) * GAUSS_W) @ axial_shapes(CONSTANT_POINTS).T
 C_SOURCE = Path(__file__).with_name("element_kernels.c")    # the compiled force and tangent (fmu_common.c_library)
 _ARRAY = ctypes.c_void_p    # a C-contiguous float64 array, passed as its data address
 
 
 def _cached_per_lengths(build):
-    """`build(length)` cached per array of element lengths (constant in a run): the bases below are built
-    once per model; at most 64 kept."""
+    """`build(length, points)` cached per array of element lengths (constant in a run) and number of Gauss
+    points: the bases below are built once per model; at most 64 kept."""
     cache = {}
 
     @functools.wraps(build)
-    def cached(length):
+    def cached(length, points=CONSTANT_POINTS):
         length = np.asarray(length, dtype=float)
-        key = length.tobytes()
+        key = (length.tobytes(), points)
         if key not in cache:
             if len(cache) > 64:
                 cache.clear()
-            cache[key] = build(length)
+            cache[key] = build(length, points)
         return cache[key]
     return cached
 
 
 @_cached_per_lengths
-def gauss_basis(length):
+def gauss_basis(length, points=CONSTANT_POINTS):
     """hermite() at the Gauss points for each element length, cached (lengths are constant).
 
     Args:
         length: (n,) element lengths, m.
+        points: Gauss points per element (`gauss_rule`).
 
     Returns:
-        the arrays of hermite(), each (n, 5, .).
+        the arrays of hermite(), each (n, points, .).
     """
-    return hermite(GAUSS_XI[None, :], length[:, None])
+    return hermite(gauss_rule(points)[0][None, :], length[:, None])
+
+
+def points_of(*properties):
+    """The number of Gauss points g of section properties given at the Gauss points; CONSTANT_POINTS when every
+    one is given per element or None. ValueError when they disagree.
+
+    Args:
+        *properties: pairs (array, its rank per element): an array of one more rank holds the values at the g
+            Gauss points on its second axis ((n, g) for (n,), (n, g, k) for (n, k)).
+    """
+    found = {np.shape(p)[1] for p, rank in properties if p is not None and np.ndim(p) > rank}
+    if len(found) > 1:
+        raise ValueError(f"section properties at different numbers of Gauss points: {sorted(found)}")
+    return found.pop() if found else CONSTANT_POINTS
+
+
+def at_points(values, points):
+    """Per-element section values (n,) spread over the Gauss points, (n, points); (n, points) as they are.
+
+    Args:
+        values: (n,) or (n, points).
+        points: the number of Gauss points per element.
+    """
+    values = np.asarray(values, dtype=float)
+    return values if values.ndim == 2 else np.repeat(values[:, None], points, axis=1)
 
 
 def flap_curvature(derivatives):
@@ -111,31 +171,32 @@ def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_ine
     so that it is the Rayleigh beam's kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit length (Otsuka et al. 2022,
     Table 4's rho I_yy): a rigid turn of the line at rate omega about an axis across it adds rho I_yy l omega^2 / 2
     (whether the turn is about the chord or about the section normal). The section moments are taken about the
-    reference line (y = 0). Exact: the integrands are polynomials of degree 6 in x at most and 5 points integrate 9.
+    reference line (y = 0). Exact: the integrands are polynomials of degree 6 in x at most and 5 points integrate 9;
+    with properties varying along the span (given at the VARYING_POINTS Gauss points: a plate's rho A ~ c h is of
+    degree 2, rho Q_z ~ c^2 h of 3, rho I_zz ~ c^3 h of 4) of degree 10 at most, and 7 points integrate 13.
 
     Args:
         length: (n,) l, m.
-        mass_per_length: (n,) rho A, kg/m.
-        first_moment: (n,) rho Q_z, kg.
-        chord_inertia: (n,) rho I_zz, kg m.
-        rotary_inertia: (n,) rho I_yy, kg m; None: 0.
+        mass_per_length: (n,) rho A, kg/m, or (n, g) at the element's g Gauss points (`gauss_rule`).
+        first_moment: (n,) or (n, g) rho Q_z, kg.
+        chord_inertia: (n,) or (n, g) rho I_zz, kg m.
+        rotary_inertia: (n,) or (n, g) rho I_yy, kg m; None: 0.
 
     Returns:
         (n, 18, 18), kg (r rows) and kg m (gradient rows), on the element coordinates e.
     """
-    N, dN, _, L = gauss_basis(length)  # (n, g, 4), (n, g, 2)
+    g = points_of((mass_per_length, 1), (first_moment, 1), (chord_inertia, 1), (rotary_inertia, 1))
+    N, dN, _, L = gauss_basis(length, g)  # (n, g, 4), (n, g, 2)
     zero = np.zeros_like(L[..., :1])
     n_row = np.concatenate([N[..., :2], zero, N[..., 2:], zero], axis=-1)   # y^0 part of s
     m_row = np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]], axis=-1)  # y^1 part
-    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
-    nn = np.einsum("ng,nga,ngb->nab", w, n_row, n_row)
-    nm = np.einsum("ng,nga,ngb->nab", w, n_row, m_row)
-    mm = np.einsum("ng,nga,ngb->nab", w, m_row, m_row)
-    m6 = (mass_per_length[:, None, None] * nn + first_moment[:, None, None] * (nm + nm.transpose(0, 2, 1))
-          + chord_inertia[:, None, None] * mm)
+    w = gauss_rule(g)[1][None, :] * np.asarray(length)[:, None]
+    nm = np.einsum("ng,nga,ngb->nab", w * at_points(first_moment, g), n_row, m_row)
+    m6 = (np.einsum("ng,nga,ngb->nab", w * at_points(mass_per_length, g), n_row, n_row) + nm + nm.transpose(0, 2, 1)
+          + np.einsum("ng,nga,ngb->nab", w * at_points(chord_inertia, g), m_row, m_row))
     if rotary_inertia is not None:
         d_row = np.concatenate([dN[..., :2], zero, dN[..., 2:], zero], axis=-1)    # r' on the six vectors
-        m6 = m6 + np.asarray(rotary_inertia)[:, None, None] * np.einsum("ng,nga,ngb->nab", w, d_row, d_row)
+        m6 = m6 + np.einsum("ng,nga,ngb->nab", w * at_points(rotary_inertia, g), d_row, d_row)
     return np.einsum("nab,ij->naibj", m6, np.eye(3)).reshape(-1, 18, 18)
 
 
@@ -146,18 +207,20 @@ def distributed_force(length, mass_per_length, first_moment, acceleration):
 
     Args:
         length: (n,) l, m.
-        mass_per_length: (n,) rho A, kg/m.
-        first_moment: (n,) rho Q_z, kg.
+        mass_per_length: (n,) rho A, kg/m, or (n, g) at the element's g Gauss points (`gauss_rule`).
+        first_moment: (n,) or (n, g) rho Q_z, kg.
         acceleration: (3,) g, m/s^2 (gravity), global frame.
 
     Returns:
         (n, 18) N and N m, global frame.
     """
-    N, _, _, L = gauss_basis(length)
-    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
+    g = points_of((mass_per_length, 1), (first_moment, 1))
+    N, _, _, L = gauss_basis(length, g)
+    w = gauss_rule(g)[1][None, :] * np.asarray(length)[:, None]
     zero = np.zeros_like(L[..., :1])
-    s = (mass_per_length[:, None, None] * np.concatenate([N[..., :2], zero, N[..., 2:], zero], axis=-1)
-         + first_moment[:, None, None] * np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]], axis=-1))
+    s = (at_points(mass_per_length, g)[..., None] * np.concatenate([N[..., :2], zero, N[..., 2:], zero], axis=-1)
+         + at_points(first_moment, g)[..., None] * np.concatenate([zero, zero, L[..., :1], zero, zero, L[..., 1:]],
+                                                                   axis=-1))
     weights = np.einsum("ng,nga->na", w, s)
     return np.einsum("na,i->nai", weights, np.asarray(acceleration, dtype=float)).reshape(-1, 18)
 
@@ -167,18 +230,19 @@ def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
 
 
-_G = len(GAUSS_W)
-# rows (r_y, r'', r') and (r'', r', r_y)
-_CYCLE = (np.r_[2 * _G:3 * _G, _G:2 * _G, 0:_G], np.r_[_G:2 * _G, 0:_G, 2 * _G:3 * _G])
+@functools.cache
+def _cycle(g):
+    """The rows (r_y, r'', r') and (r'', r', r_y) of the fields [r'; r''; r_y] at g Gauss points."""
+    return np.r_[2 * g:3 * g, g:2 * g, 0:g], np.r_[g:2 * g, 0:g, 2 * g:3 * g]
 
 
 @_cached_per_lengths
-def _slot_basis(length):
+def _slot_basis(length, points=CONSTANT_POINTS):
     """B (n, 3 g, 5): [r'; r''; r_y] at the g Gauss points (rows k g + i) from the five vectors
     [d = r^B - r^A, r_x^A, r_y^A, r_x^B, r_y^B] of each element, cached per lengths. r^A enters only through
     d because N_A' = -N_B' and N_A'' = -N_B''; r' = B[:g] @ slots, and the gradient of a function of
     (r', r'', r_y) at the Gauss points maps back by B^T: one batched product each way."""
-    _, dN, ddN, L = gauss_basis(length)
+    _, dN, ddN, L = gauss_basis(length, points)
     zero = np.zeros_like(L[..., 0])
     first = np.stack([dN[..., 2], dN[..., 1], zero, dN[..., 3], zero], axis=-1)
     second = np.stack([ddN[..., 2], ddN[..., 1], zero, ddN[..., 3], zero], axis=-1)
@@ -186,21 +250,40 @@ def _slot_basis(length):
     return np.concatenate([first, second, chord], axis=1)
 
 
-def _measures(e, length):
-    """Strain measures at the Gauss points and the quantities their gradients need."""
+def stiffness_terms(stiffness):
+    """The stiffness of the energy's terms from a stiffness table: (g, axial (n, 3, 3) = int_0^1 EA phi_i phi_j dxi
+    N, the Gram matrix of the assumed axial strain weighted by EA; EI_yy (n, g) and EI_zz (n, g) at the Gauss
+    points, N m^2; GJ (n,) its mean over the element, N m^2).
+
+    Args:
+        stiffness: (n, 4) per element or (n, g, 4) at the element's g Gauss points (`gauss_rule`), columns EA (N),
+            EI_yy, EI_zz, GJ (N m^2).
+    """
+    stiffness = np.asarray(stiffness, dtype=float)
+    if stiffness.ndim == 2:
+        g = CONSTANT_POINTS
+        return (g, stiffness[:, 0, None, None] * AXIAL_GRAM, at_points(stiffness[:, 1], g),
+                at_points(stiffness[:, 2], g), stiffness[:, 3])
+    g = stiffness.shape[1]
+    phi, w = axial_shapes(g), gauss_rule(g)[1]
+    axial = np.einsum("ng,g,ig,jg->nij", stiffness[..., 0], w, phi, phi)
+    return g, axial, stiffness[..., 1], stiffness[..., 2], stiffness[..., 3] @ w
+
+
+def _measures(e, length, g):
+    """Strain measures at the g Gauss points and the quantities their gradients need."""
     v = e.reshape(-1, 6, 3)
     xA, yA, xB, yB = v[:, 1], v[:, 2], v[:, 4], v[:, 5]
     slots = v[:, [3, 1, 2, 4, 5]]                                           # (n, 5, 3): [d, xA, yA, xB, yB]
     slots[:, 0] -= v[:, 0]
-    basis = _slot_basis(length)
-    g = len(GAUSS_W)
+    basis = _slot_basis(length, g)
     fields = basis @ slots                                                  # (n, 3 g, 3)
     r1, r2, ry = fields[:, :g], fields[:, g:2 * g], fields[:, 2 * g:]       # r', r'', r_y at the Gauss points
     speed = np.sqrt(_dot(r1, r1))                                           # |r'|
     nodal = np.sqrt(_dot(v[:, [1, 4]], v[:, [1, 4]]))                       # |r_x^A|, |r_x^B|, (n, 2)
-    axial = np.concatenate([nodal - 1.0, (speed @ GAUSS_W - 1.0)[:, None]], axis=1)   # eps_A, eps_B, eps_arc
+    axial = np.concatenate([nodal - 1.0, (speed @ gauss_rule(g)[1] - 1.0)[:, None]], axis=1)  # eps_A, eps_B, eps_arc
     # the cyclic products r_y x r'', r'' x r', r' x r_y (= n) in one call
-    crossed = cross(fields[:, _CYCLE[0]], fields[:, _CYCLE[1]])
+    crossed = cross(fields[:, _cycle(g)[0]], fields[:, _cycle(g)[1]])
     ry_r2, r2_r1, normal = crossed[:, :g], crossed[:, g:2 * g], crossed[:, 2 * g:]
     # torsion: the triple products of tau and, for its gradient, the cross products they are made of
     triple = cross(v[:, [1, 4, 2, 5, 2]], v[:, [2, 5, 5, 1, 4]])    # xA x yA, xB x yB, yA x yB, yB x xA, yA x xB
@@ -218,16 +301,17 @@ def elastic_energy(e, length, stiffness):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        stiffness: (n, 4) columns EA (N), EI_yy (flap, N m^2), EI_zz (chord, N m^2), GJ (N m^2).
+        stiffness: (n, 4) columns EA (N), EI_yy (flap, N m^2), EI_zz (chord, N m^2), GJ (N m^2), or (n, g, 4)
+            at the element's g Gauss points (`stiffness_terms`).
 
     Returns:
         (n,) J.
     """
-    m = _measures(e, length)
-    EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
-    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
-    bending = EIy[:, None] * m["flap"] ** 2 + EIz[:, None] * m["chordwise"] ** 2
-    axial = EA * length * np.einsum("ni,ij,nj->n", m["axial"], AXIAL_GRAM, m["axial"])
+    g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
+    m = _measures(e, length, g)
+    w = gauss_rule(g)[1][None, :] * np.asarray(length)[:, None]
+    bending = EIy * m["flap"] ** 2 + EIz * m["chordwise"] ** 2
+    axial = length * np.einsum("ni,nij,nj->n", m["axial"], gram, m["axial"])
     return 0.5 * (np.sum(w * bending, axis=1) + axial) + 0.5 * GJ * m["tau"] ** 2 / length
 
 
@@ -243,7 +327,8 @@ def elastic_force(e, length, stiffness):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2).
+        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2), or (n, g, 4) at the
+            element's g Gauss points (`stiffness_terms`).
 
     Returns:
         (n, 18) N and N m, global frame.
@@ -251,15 +336,16 @@ def elastic_force(e, length, stiffness):
     kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:
         return _compiled(kernels.elastic_force, e, length, stiffness, (18,))
-    m = _measures(e, length)
-    EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
-    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
+    g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
+    m = _measures(e, length, g)
+    weights = gauss_rule(g)[1]
+    w = weights[None, :] * np.asarray(length)[:, None]
     # dU/d(r'), dU/d(r''), dU/d(r_y(x)) at each Gauss point
-    f_axial = (EA * length)[:, None] * (m["axial"] @ AXIAL_GRAM)          # dU/d(eps_A, eps_B, eps_arc)
-    cf = (w * EIy[:, None] * m["flap"])[..., None]
-    cc = (w * EIz[:, None] * m["chordwise"])[..., None]
+    f_axial = length[:, None] * np.einsum("ni,nij->nj", m["axial"], gram)   # dU/d(eps_A, eps_B, eps_arc)
+    cf = (w * EIy * m["flap"])[..., None]
+    cc = (w * EIz * m["chordwise"])[..., None]
     r1, r2, ry = m["r1"], m["r2"], m["ry"]
-    g_r1 = (f_axial[:, 2:3] * GAUSS_W[None, :] / m["speed"])[..., None] * r1 + cf * m["ry_r2"]
+    g_r1 = (f_axial[:, 2:3] * weights[None, :] / m["speed"])[..., None] * r1 + cf * m["ry_r2"]
     g_r2 = cf * m["normal"] + cc * ry
     g_ry = cf * m["r2_r1"] + cc * r2
     g = np.swapaxes(m["basis"], 1, 2) @ np.concatenate([g_r1, g_r2, g_ry], axis=1)   # (n, 5, 3) on the slots
@@ -294,11 +380,11 @@ def _triple_hessian(c):
 
 
 @_cached_per_lengths
-def _field_basis(length):
-    """(n, g, 9, 15): [r'; r''; r_y] at each Gauss point from the 15 slot components, kron of `_slot_basis`
-    with I_3, cached per lengths."""
-    g = len(GAUSS_W)
-    basis = _slot_basis(length).reshape(-1, 3, g, 5).transpose(0, 2, 1, 3)          # (n, g, field, slot)
+def _field_basis(length, points=CONSTANT_POINTS):
+    """(n, g, 9, 15): [r'; r''; r_y] at each of the g = `points` Gauss points from the 15 slot components, kron of
+    `_slot_basis` with I_3, cached per lengths and g."""
+    g = points
+    basis = _slot_basis(length, g).reshape(-1, 3, g, 5).transpose(0, 2, 1, 3)          # (n, g, field, slot)
     return np.einsum("ngas,ij->ngaisj", basis, np.eye(3)).reshape(-1, g, 9, 15)
 
 
@@ -320,7 +406,8 @@ def elastic_jacobian(e, length, stiffness):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2).
+        stiffness: (n, 4) columns EA (N), EI_yy (N m^2), EI_zz (N m^2), GJ (N m^2), or (n, g, 4) at the
+            element's g Gauss points (`stiffness_terms`).
 
     Returns:
         (n, 18, 18).
@@ -328,11 +415,12 @@ def elastic_jacobian(e, length, stiffness):
     kernels = c_kernels() if np.isrealobj(e) else None
     if kernels is not None:
         return _compiled(kernels.elastic_jacobian, e, length, stiffness, (18, 18))
-    m = _measures(e, length)
+    g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
+    m = _measures(e, length, g)
     n, eye = e.shape[0], np.eye(3)
-    EA, EIy, EIz, GJ = (stiffness[:, k] for k in range(4))
-    w = GAUSS_W[None, :] * np.asarray(length)[:, None]
-    cf, cc = w * EIy[:, None], w * EIz[:, None]
+    weights = gauss_rule(g)[1]
+    w = weights[None, :] * np.asarray(length)[:, None]
+    cf, cc = w * EIy, w * EIz
     r1, r2, ry, speed = m["r1"], m["r2"], m["ry"], m["speed"]
     # per Gauss point over the fields (r', r'', r_y): (n, g, 9, 9)
     grad_flap = np.concatenate([m["ry_r2"], m["normal"], m["r2_r1"]], axis=-1)
@@ -341,24 +429,24 @@ def elastic_jacobian(e, length, stiffness):
          + cc[..., None, None] * (grad_chord[..., :, None] * grad_chord[..., None, :]))
     flap = (cf * m["flap"])[..., None, None]
     chord = (cc * m["chordwise"])[..., None, None]
-    f_axial = (EA * length)[:, None] * (m["axial"] @ AXIAL_GRAM)         # dU/d(eps_A, eps_B, eps_arc)
+    f_axial = length[:, None] * np.einsum("ni,nij->nj", m["axial"], gram)   # dU/d(eps_A, eps_B, eps_arc)
     unit = r1 / speed[..., None]
-    arc = (f_axial[:, 2:3] * GAUSS_W[None, :] / speed)[..., None, None]
+    arc = (f_axial[:, 2:3] * weights[None, :] / speed)[..., None, None]
     upper = {(0, 2): flap * _triple_hessian(r2), (0, 1): -flap * _triple_hessian(ry),   # flap: a = r', b = r_y,
              (2, 1): flap * _triple_hessian(r1) + chord * eye}                           # c = r''
     for (a, b), block in upper.items():
         H[..., 3 * a:3 * a + 3, 3 * b:3 * b + 3] += block
         H[..., 3 * b:3 * b + 3, 3 * a:3 * a + 3] += np.swapaxes(block, -1, -2)
     H[..., 0:3, 0:3] += arc * (eye - unit[..., :, None] * unit[..., None, :])
-    fields = _field_basis(length)
+    fields = _field_basis(length, g)
     hessian = (np.swapaxes(fields, -1, -2) @ H @ fields).sum(axis=1)    # (n, 15, 15) on the slots
-    # axial: EA l grad(eps)^T AXIAL_GRAM grad(eps), and the nodal stretches' own curvature
+    # axial: l grad(eps)^T (int EA phi phi^T) grad(eps), and the nodal stretches' own curvature
     nodal = m["nodal"]
     uA, uB = m["xA"] / nodal[:, :1], m["xB"] / nodal[:, 1:]
     grad_axial = np.zeros((n, 3, 15))
     grad_axial[:, 0, 3:6], grad_axial[:, 1, 9:12] = uA, uB
-    grad_axial[:, 2] = np.einsum("g,ngi,ngis->ns", GAUSS_W, unit, fields[:, :, 0:3])
-    hessian += (EA * length)[:, None, None] * (np.swapaxes(grad_axial, 1, 2) @ AXIAL_GRAM @ grad_axial)
+    grad_axial[:, 2] = np.einsum("g,ngi,ngis->ns", weights, unit, fields[:, :, 0:3])
+    hessian += length[:, None, None] * (np.swapaxes(grad_axial, 1, 2) @ gram @ grad_axial)
     hessian[:, 3:6, 3:6] += (f_axial[:, 0] / nodal[:, 0])[:, None, None] * (eye - uA[:, :, None] * uA[:, None, :])
     hessian[:, 9:12, 9:12] += (f_axial[:, 1] / nodal[:, 1])[:, None, None] * (eye - uB[:, :, None] * uB[:, None, :])
     # torsion: GJ / l (grad tau grad tau^T + tau Hess tau), tau = 1/2 [(xA x yA) . yB - (xB x yB) . yA]
@@ -386,7 +474,7 @@ def c_kernels():
 
 def _compiled(kernel, e, length, stiffness, shape):
     """`kernel` of element_kernels.c (elastic_force or elastic_jacobian) on e (n, 18), length (n,) and stiffness
-    (n, 4): its result, (n, *shape)."""
+    (n, 4) or (n, g, 4): its result, (n, *shape)."""
     e = np.ascontiguousarray(e, dtype=float)
     if not e.flags.writeable:
         e = e.copy()                                # `_address` reads writable arrays only
@@ -394,8 +482,8 @@ def _compiled(kernel, e, length, stiffness, shape):
         raise ValueError(f"element kernels: e {e.shape} for {len(length)} element lengths; expected (n, 18)")
     out = np.empty((len(e), *shape))
     if len(e):
-        table, address = _table(length, stiffness)  # the table is held until the C call returns
-        _check(kernel(len(e), len(GAUSS_W), address, _address(e), _address(out)))
+        table, address, g = _table(length, stiffness)  # the table is held until the C call returns
+        _check(kernel(len(e), g, address, _address(e), _address(out)), g)
     return out
 
 
@@ -403,21 +491,24 @@ _TABLES: dict[tuple, tuple] = {}
 
 
 def _table(length, stiffness):
-    """The C kernels' table of the arguments that are constant in a run (element_kernels.c: AXIAL_GRAM,
-    GAUSS_W, length (n,) m, stiffness (n, 4), the slot basis, one after the other) and its address, cached per
-    lengths and stiffnesses (at most 64 kept)."""
+    """The C kernels' table of the arguments that are constant in a run (element_kernels.c: the Gauss weights
+    (g,), length (n,) m, the EA-weighted axial Gram matrices (n, 3, 3) N, EI_yy and EI_zz at the Gauss points
+    (n, g, 2) N m^2, the mean GJ (n,) N m^2, the slot basis (n, 3 g, 5), one after the other; `stiffness_terms`),
+    its address and g, cached per lengths and stiffnesses (at most 64 kept)."""
     length = np.ascontiguousarray(length, dtype=float)
     stiffness = np.ascontiguousarray(stiffness, dtype=float)
-    key = (length.tobytes(), stiffness.tobytes())
+    key = (length.tobytes(), stiffness.shape, stiffness.tobytes())
     found = _TABLES.get(key)
     if found is None:
-        if length.ndim != 1 or stiffness.shape != (len(length), 4):
+        if length.ndim != 1 or stiffness.shape[0] != len(length) or stiffness.shape[-1] != 4 or stiffness.ndim > 3:
             raise ValueError(f"element kernels: length {length.shape}, stiffness {stiffness.shape}; expected (n,), "
-                             "(n, 4)")
+                             "(n, 4) or (n, g, 4)")
         if len(_TABLES) > 64:
             _TABLES.clear()
-        table = np.concatenate([AXIAL_GRAM.ravel(), GAUSS_W, length, stiffness.ravel(), _slot_basis(length).ravel()])
-        found = _TABLES[key] = (table, _address(table))
+        g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
+        table = np.concatenate([gauss_rule(g)[1], length, gram.ravel(), np.stack([EIy, EIz], axis=-1).ravel(), GJ,
+                                _slot_basis(length, g).ravel()])
+        found = _TABLES[key] = (table, _address(table), g)
     return found
 
 
@@ -427,8 +518,7 @@ def _address(array):
     return ctypes.addressof(ctypes.c_char.from_buffer(array))
 
 
-def _check(status):
-    """ValueError for a C kernel's status -1 (more Gauss points than its scratch arrays hold)."""
+def _check(status, g):
+    """ValueError for a C kernel's status -1 (more Gauss points g than its scratch arrays hold)."""
     if status != 0:
-        raise ValueError(f"the element C kernels cannot take {len(GAUSS_W)} Gauss points (element_kernels.c, "
-                         "MAX_GAUSS)")
+        raise ValueError(f"the element C kernels cannot take {g} Gauss points (element_kernels.c, MAX_GAUSS)")

@@ -12,11 +12,12 @@
  *
  * Inputs of both, as element.py prepares them, C-contiguous doubles: n elements, g Gauss points; e (n, 18)
  * [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B] (m and 1); table, the arguments that are constant in a run, one after
- * the other (9 + g + 5 n + 15 g n numbers, element._table):
- *   gram (3, 3)          the axial strain field's Gram matrix (element.AXIAL_GRAM)
- *   weights (g,)         Gauss weights on [0, 1] (element.GAUSS_W)
+ * the other (g + 11 n + 17 g n numbers, element._table, element.stiffness_terms):
+ *   weights (g,)         Gauss weights on [0, 1] (element.gauss_rule)
  *   length (n,)          m
- *   stiffness (n, 4)     [EA (N), EI_yy, EI_zz, GJ (N m^2)]
+ *   gram (n, 3, 3)       the axial strain field's Gram matrix weighted by EA, int_0^1 EA phi_i phi_j dxi (N)
+ *   bending (n, g, 2)    [EI_yy, EI_zz] at the Gauss points (N m^2): a section may vary along the span
+ *   torsion (n,)         GJ, its mean over the element (N m^2)
  *   basis (n, 3 g, 5)    the rows r', r'', r_y at the Gauss points from the slots [d = r^B - r^A, r_x^A, r_y^A,
  *                        r_x^B, r_y^B] (element._slot_basis; 1/m and 1/m^2 on r', r'')
  * Both return 0, or -1 (nothing written) when g is not in 1..MAX_GAUSS, the size of the scratch arrays.
@@ -73,13 +74,12 @@ INLINE void slots_and_fields(const double *e, const double *basis, int g, double
         }
 }
 
-/* The derivatives of the axial energy EA l eps^T gram eps / 2 by the three strain measures (eps_A, eps_B,
- * eps_arc) = (|r_x^A| - 1, |r_x^B| - 1, arc - 1), N. */
-INLINE void axial_forces(double EA, double l, double nodal_a, double nodal_b, double arc, const double *gram,
-                         double f[3]) {
+/* The derivatives of the axial energy l eps^T gram eps / 2 (gram weighted by EA, symmetric) by the three strain
+ * measures (eps_A, eps_B, eps_arc) = (|r_x^A| - 1, |r_x^B| - 1, arc - 1), N. */
+INLINE void axial_forces(double l, double nodal_a, double nodal_b, double arc, const double *gram, double f[3]) {
     const double axial0 = nodal_a - 1.0, axial1 = nodal_b - 1.0, axial2 = arc - 1.0;
     for (int k = 0; k < 3; k++)
-        f[k] = EA * l * (axial0 * gram[k] + axial1 * gram[3 + k] + axial2 * gram[6 + k]);
+        f[k] = l * (axial0 * gram[k] + axial1 * gram[3 + k] + axial2 * gram[6 + k]);
 }
 
 /* The cross products the torsion is made of, tau = 1/2 [(x^A x y^A) . y^B - (x^B x y^B) . y^A] (element.py's
@@ -98,14 +98,13 @@ INLINE double torsion(double slots[5][3], double triple[5][3]) {
  * stretch and the two bendings, back to the slots by basis^T; then the nodal stretches and torsion. */
 int elastic_force(long n, long g, const double *table, const double *e, double *out) {
     if (g < 1 || g > MAX_GAUSS) return -1;
-    const double *gram = table, *weights = gram + 9, *length = weights + g, *stiffness = length + n,
-                 *basis = stiffness + 4 * n;
+    const double *weights = table, *length = weights + g, *grams = length + n, *bending = grams + 9 * n,
+                 *torsions = bending + 2 * g * n, *basis = torsions + n;
     double slots[5][3], fields[3 * MAX_GAUSS][3], speeds[MAX_GAUSS], grads[3 * MAX_GAUSS][3], gslot[5][3],
            triple[5][3], f[3];
     for (long m = 0; m < n; m++) {
         const double *b = basis + 15 * g * m;
-        const double l = length[m], EA = stiffness[4 * m], EIy = stiffness[4 * m + 1],
-                     EIz = stiffness[4 * m + 2], GJ = stiffness[4 * m + 3];
+        const double l = length[m], GJ = torsions[m], *gram = grams + 9 * m, *EI = bending + 2 * g * m;
         slots_and_fields(e + 18 * m, b, (int)g, slots, fields);
         const double nodal_a = sqrt(dot(slots[1], slots[1])), nodal_b = sqrt(dot(slots[3], slots[3]));
         double arc = 0.0;
@@ -113,7 +112,7 @@ int elastic_force(long n, long g, const double *table, const double *e, double *
             speeds[i] = sqrt(dot(fields[i], fields[i]));     /* |r'| */
             arc += speeds[i] * weights[i];
         }
-        axial_forces(EA, l, nodal_a, nodal_b, arc, gram, f);
+        axial_forces(l, nodal_a, nodal_b, arc, gram, f);
         /* dU/d(r'), dU/d(r''), dU/d(r_y) at each Gauss point */
         for (int i = 0; i < g; i++) {
             const double *r1 = fields[i], *r2 = fields[g + i], *ry = fields[2 * g + i];
@@ -124,7 +123,7 @@ int elastic_force(long n, long g, const double *table, const double *e, double *
             cross(r2, r1, r2_r1);               /* r'' x r' */
             const double flap = dot(r2, normal), chordwise = dot(r2, ry);
             const double w = weights[i] * l;
-            const double cf = w * EIy * flap, cc = w * EIz * chordwise;
+            const double cf = w * EI[2 * i] * flap, cc = w * EI[2 * i + 1] * chordwise;
             const double axial = f[2] * weights[i] / speed;
             for (int c = 0; c < 3; c++) {
                 grads[i][c] = axial * r1[c] + cf * ry_r2[c];
@@ -184,8 +183,8 @@ INLINE void add_levi_civita(double *h, int stride, int row, int col, double coef
  * stretches' gradients, the nodal stretches' curvature and torsion; last the slots are spread to e (r^A = -d). */
 int elastic_jacobian(long n, long g, const double *table, const double *e, double *out) {
     if (g < 1 || g > MAX_GAUSS) return -1;
-    const double *gram = table, *weights = gram + 9, *length = weights + g, *stiffness = length + n,
-                 *basis = stiffness + 4 * n;
+    const double *weights = table, *length = weights + g, *grams = length + n, *bending = grams + 9 * n,
+                 *torsions = bending + 2 * g * n, *basis = torsions + n;
     double slots[5][3], fields[3 * MAX_GAUSS][3], speeds[MAX_GAUSS], triple[5][3], f[3];
     double hp[9][9];                /* Hessian over (r', r'', r_y) at one Gauss point */
     double hb[9][15];               /* hp kron(B, I_3) */
@@ -193,8 +192,7 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
     double grad_flap[9], grad_chord[9], grad_axial[3][15], gram_grad[3][15], grad_tau[15];
     for (long m = 0; m < n; m++) {
         const double *b = basis + 15 * g * m;
-        const double l = length[m], EA = stiffness[4 * m], EIy = stiffness[4 * m + 1],
-                     EIz = stiffness[4 * m + 2], GJ = stiffness[4 * m + 3];
+        const double l = length[m], GJ = torsions[m], *gram = grams + 9 * m, *EI = bending + 2 * g * m;
         slots_and_fields(e + 18 * m, b, (int)g, slots, fields);
         const double nodal_a = sqrt(dot(slots[1], slots[1])), nodal_b = sqrt(dot(slots[3], slots[3]));
         double arc = 0.0;
@@ -210,7 +208,7 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
                 for (int c = 0; c < 3; c++) grad_axial[2][3 * s + c] += coef * fields[i][c];
             }
         }
-        axial_forces(EA, l, nodal_a, nodal_b, arc, gram, f);
+        axial_forces(l, nodal_a, nodal_b, arc, gram, f);
         for (int p = 0; p < 15; p++)
             for (int q = 0; q < 15; q++) hs[p][q] = 0.0;
         for (int i = 0; i < g; i++) {
@@ -221,7 +219,7 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
             cross(ry, r2, ry_r2);               /* r_y x r'' */
             cross(r2, r1, r2_r1);               /* r'' x r' */
             const double w = weights[i] * l;
-            const double cf = w * EIy, cc = w * EIz;
+            const double cf = w * EI[2 * i], cc = w * EI[2 * i + 1];
             const double flap = cf * dot(r2, normal), chord = cc * dot(r2, ry);
             /* c (grad m grad m^T) of flap = (r' x r_y) . r'' (gradient [r_y x r'', n, r'' x r']) and of
              * chordwise = r'' . r_y (gradient [0, r_y, r'']), both in one pass over the upper triangle */
@@ -278,7 +276,7 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
                     for (int q = 3 * s + c; q < 15; q++) hs[3 * s + c][q] += b_chord * hb[6 + c][q];
             }
         }
-        /* axial: EA l grad(eps)^T gram grad(eps), and the nodal stretches' own curvature f / |r_x| (I - u u^T);
+        /* axial: l grad(eps)^T gram grad(eps), and the nodal stretches' own curvature f / |r_x| (I - u u^T);
          * every stretch is a function of the CURVE slots only */
         for (int c = 0; c < 3; c++) {
             grad_axial[0][3 + c] = slots[1][c] / nodal_a;
@@ -287,8 +285,8 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
         for (int k = 0; k < 3; k++)
             for (int a = 0; a < 9; a++) {
                 const int q = CURVE_COMPONENTS[a];
-                gram_grad[k][q] = EA * l * (gram[3 * k] * grad_axial[0][q] + gram[3 * k + 1] * grad_axial[1][q]
-                                            + gram[3 * k + 2] * grad_axial[2][q]);
+                gram_grad[k][q] = l * (gram[3 * k] * grad_axial[0][q] + gram[3 * k + 1] * grad_axial[1][q]
+                                       + gram[3 * k + 2] * grad_axial[2][q]);
             }
         for (int a = 0; a < 9; a++) {
             const int p = CURVE_COMPONENTS[a];

@@ -5,8 +5,8 @@ The row is Phi = (X_p - X_q) . v_Q(c) - offset on the exchanged coordinates E, X
 position r of the sliding point's node P, X_q the position r of a node Q of the carrying body, and
 v_Q(c) = c_x r_x + c_y r_y + c_z (r_x x r_y) at node Q the body-fixed direction of frame components
 c = (span, chord, normal), as in `constraints.AxisProduct`. Phi is cubic in E: its Jacobian depends on E, and so do
-its velocity term and Hessian. A slider on a line or plane fixed in space is linear instead
-(`constraints.LinearRow`).
+its velocity term and Hessian. A slider on a line or plane fixed in space is linear instead: a coordinate
+(pins.py), or `constraints.LinearRow` where its node has no free point left.
 """
 from dataclasses import dataclass
 

@@ -16,6 +16,7 @@ from fmu_common.shape_functions import shape_row
 from . import element, shear_element
 from .constraints import Constraints
 from .motion import Fixed
+from .section import element_points, varies
 from .damping import deformation_damping_force, deformation_damping_matrix
 from .joints import actuator_energy, actuator_terms
 
@@ -49,19 +50,19 @@ class StructureModel:
         self.T, self.P = topology.maps()
         self.dofs = topology.element_dofs()
         self.lengths = topology.element_lengths()
-        sections = [topology.bodies[b].section for b in topology.element_body]
-        self.stiffness = np.array([s.stiffness for s in sections])
+        # the sections per element (n,), or at the Gauss points of each element (n, g) where a section varies along
+        # its body: every property table below then has that extra axis (structure_fmu.element)
+        sections = element_sections(topology)
+        self.stiffness = section_property(sections, "stiffness")
         # the element law: (module with elastic_energy, elastic_force, elastic_jacobian; its per-element table)
         self._law = ((shear_element, shear_element.section_table(sections)) if topology.fidelity.shear_deformable
                      else (element, self.stiffness))
-        mu = np.array([s.mass_per_length for s in sections])
-        mu1 = np.array([s.first_moment for s in sections])
-        mu2 = np.array([s.chord_inertia for s in sections])
+        mu, mu1, mu2, rotary = (section_property(sections, name) for name in ("mass_per_length", "first_moment",
+                                                                              "chord_inertia", "rotary_inertia"))
         deformable = topology.fidelity.deformable
         self.flexible = deformable and self.ancf_elastic      # the ANCF elastic force (strain-based: K q instead)
         # constant mass matrix on E (Otsuka et al. 2019, Eq. 5) plus lumped masses on r
         self.mass_E = np.zeros((self.n, self.n))
-        rotary = np.array([s.rotary_inertia for s in sections])
         element_mass = element.mass_matrix(self.lengths, mu, mu1, mu2, rotary)
         for dofs, m in zip(self.dofs, element_mass):
             self.mass_E[np.ix_(dofs, dofs)] += m
@@ -519,6 +520,39 @@ class StructureModel:
         for h in self.hinges:
             spring += actuator_energy(h, angles[h.name], latched.get(h.name, False))
         return elastic + potential + spring
+
+
+def element_sections(topology):
+    """The Sections of the elements: (n_elements, g) nested lists, at the g = element.VARYING_POINTS Gauss points of
+    each element (structure_fmu.section.section_at), when a section varies along its body; else (n_elements,) each
+    element's body's one Section.
+
+    Args:
+        topology: the StructureTopology.
+    """
+    bodies = topology.bodies
+    if not any(body.section_spec is not None and varies(body.section_spec) for body in bodies.values()):
+        return [bodies[b].section for b in topology.element_body]
+    xi, _ = element.gauss_rule(element.VARYING_POINTS)
+    fractions, specs = [], []
+    for k, name in enumerate(topology.element_body):
+        body = bodies[name]
+        index, count = list(body.elements).index(k), len(body.elements)
+        fractions.append((index + xi) / count)
+        specs.append(body.section_spec)
+    return element_points(specs, fractions)
+
+
+def section_property(sections, name):
+    """The property `name` of a Section (its attribute) for every element: (n,) (or (n, k) for a tuple) from the
+    per-element Sections of `element_sections`, (n, g) (or (n, g, k)) from Sections at Gauss points.
+
+    Args:
+        sections: `element_sections`'s list.
+        name: an attribute of structure_fmu.section.Section (mass_per_length, stiffness, ...).
+    """
+    return np.array([[getattr(p, name) for p in row] if isinstance(row, list) else getattr(row, name)
+                     for row in sections])
 
 
 def _check_finite_masses(topology, element_mass, gravity_E, gravity) -> None:

@@ -11,8 +11,13 @@ that point to the pin, and a pin that closes a kinematic loop of rigid bodies ha
 eliminate; it becomes three linear rows X_a - X_b = 0 (LinearRow). A planar loop makes one of them redundant
 with the others, which the model drops (`model.independent_rows`).
 
-A slider keeps a node's r on a line or plane through its position at t = 0: fixed in space (linear rows
-(r - r_0) . n = 0) or carried by the frame of a node of another body (SlidingRow).
+A slider keeps a node's r on a line or plane through its position at t = 0. Fixed in space, the line (plane) is
+affine, r = r_0 + d s (r_0 + d_1 s_1 + d_2 s_2), so the node's free point vector is eliminated for one (two) free
+scalars, the slider's travel along d (slots.eliminate with that difference; the specification of a coordinate by
+a linear map, as Peng et al. 2019, Secs. 2-3 do for pins): no constraint row, for any direction of the line. A
+node whose r has no free point vector left (a second slider on it, or a rigid body whose point a pin or slider
+already holds) keeps the slider as linear rows (r - r_0) . n = 0 instead. Carried by the frame of a node of
+another body, the line moves with that node's gradients and the condition is cubic in E: rows (SlidingRow).
 """
 import numpy as np
 
@@ -93,7 +98,7 @@ class _Pin:
         """Make slot `kind` of node a equal to node b's (or to its value at t = 0, fixed)."""
         top, a, b = self.top, self.a, self.b
         mine = top.slots[3 * a + kind]
-        value = lambda slot: slot.value(top.free_initial, top.prescribed_initial)
+        value = lambda slot: slot.value(top.free_initial, top.prescribed_initial, top.scalar_initial)
         theirs = top.new_fixed(value(mine), kind == R) if b is None else top.slots[3 * b + kind]
         gap = float(np.linalg.norm(value(mine) - value(theirs)))
         if gap > GAP_TOLERANCE:
@@ -115,9 +120,11 @@ class _Pin:
 
 
 def add_sliders(top, joints) -> None:
-    """Rows keeping each slider's node on its line (two rows, normals n perpendicular to it) or plane (one).
+    """Keep each slider's node on its line or plane.
 
-    Fixed, (r - r_0) . n = 0; on another body, (r - r_Q) . v_Q(n) = its value at t = 0 (SlidingRow).
+    Fixed: r = r_0 + sum_k d_k s_k with d_k along the line (one) or in the plane (two), by eliminating a free
+    point vector of the node's r (`_slide_on_fixed`); on another body, rows (r - r_Q) . v_Q(n) = their values at
+    t = 0 with n the line's two normals or the plane's one (SlidingRow).
 
     Args:
         top: the StructureTopology, changed in place.
@@ -131,11 +138,13 @@ def add_sliders(top, joints) -> None:
         node = top.node_at(f"{key}.span", spec.body, spec.span)
         if spec.line is not None:
             normals = perpendiculars(unit(spec.line))
+            directions = [unit(spec.line)]
         else:
             normals = [unit(spec.plane_normal)]
+            directions = perpendiculars(normals[0])
         start = top.node_initial[node][0]
         if spec.other is None:
-            top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
+            _slide_on_fixed(top, node, start, directions, normals)
             continue
         if spec.other == spec.body and not top.fidelity.deformable:
             raise SceneError(f"{key}.other", spec.other, "a body other than the sliding one (a rigid body's line "
@@ -148,3 +157,27 @@ def add_sliders(top, joints) -> None:
         offsets = [float((start - origin) @ frame @ n) for n in normals]
         top.sliding_rows += [SlidingRow(3 * node + R, 3 * base + R, 3 * base + RX, n, offset)
                              for n, offset in zip(normals, offsets)]
+    top.compact_free()
+
+
+def _slide_on_fixed(top, node, start, directions, normals) -> None:
+    """r of `node` = start + sum_k d_k s_k: a free point vector of its slot solved for and substituted everywhere
+    (slots.eliminate), the s_k new free scalars (m, 0 at t = 0); without a free point vector in the slot, the rows
+    (r - start) . n = 0 for each of `normals`.
+
+    Args:
+        top: the StructureTopology, changed in place.
+        node: the sliding node.
+        start: (3,) its point at t = 0, m, global frame.
+        directions: unit (3,) vectors along the line (one) or spanning the plane (two), global frame.
+        normals: unit (3,) vectors perpendicular to them, global frame.
+    """
+    slot = top.slots[3 * node + R]
+    candidates = {j for j in slot.free if top.free_is_position[j]}
+    if not candidates:
+        top.linear_rows += [LinearRow((3 * node + R,), (1.0,), n, float(n @ start)) for n in normals]
+        return
+    on_line = top.new_fixed(start, True)
+    for d in directions:
+        on_line = on_line.plus(top.new_scalar(d), 1.0)
+    eliminate(top.slots, slot.plus(on_line, -1.0), candidates)

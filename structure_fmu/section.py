@@ -1,10 +1,21 @@
-"""Cross-section properties of a wing body, from a rectangular plate or given explicitly."""
+"""Cross-section properties of a wing body, from a rectangular plate or given explicitly, constant or varying
+along the span.
+
+A section varies along the body where its table gives tip values (`<name>_tip` for the keys of
+fmu_common.scene_schema.TAPERED): the chord, the plate thickness and the explicit properties (EA, EI_yy, EI_zz,
+GJ, rho A, rho I_yy) vary linearly from the root (s = 0) to the tip (s = 1), s the fraction of the body's length;
+a plate's derived properties then follow the plate formulas of the local chord c(s) and thickness h(s) (EI_zz =
+E h c^3 / 12 is of degree 4 in s where both vary), `section_at`. The elements integrate them at Gauss points
+(`element_points`).
+"""
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from fmu_common.errors import SceneError
 from fmu_common.schema import MISSING
-from fmu_common.scene_schema import EXPLICIT, PLATE
+from fmu_common.scene_schema import EXPLICIT, PLATE, TAPERED
 from fmu_common.wing_spec import SectionSpec
 
 
@@ -43,37 +54,73 @@ class Section:
 
 
 def section_from_spec(spec: SectionSpec) -> Section:
-    """Build a Section from a body's section table; errors name its key.
-
-    A rectangular plate (chord c, thickness h, density rho, Young's modulus E) gives EA = E c h,
-    EI_yy = E c h^3 / 12, EI_zz = E h c^3 / 12, rho A = rho c h; explicit values override these.
-    The mass is spread uniformly over the chord. SceneError if a derived property is not a finite number > 0
-    (a product of finite values may overflow or underflow).
+    """Build the root's Section from a body's section table (`section_at` s = 0); errors name its key.
 
     Args:
         spec: the section table (fmu_common.wing_spec.SectionSpec), SI units.
     """
-    chord, axis, h = spec.chord, spec.axis_position, spec.thickness
+    return section_at(spec, 0.0)
+
+
+def varies(spec: SectionSpec) -> bool:
+    """Whether the section of `spec` varies along the body (a tip value is given).
+
+    Args:
+        spec: the section table (fmu_common.wing_spec.SectionSpec).
+    """
+    return bool(spec.tips)
+
+
+def section_at(spec: SectionSpec, s: float) -> Section:
+    """The Section at the fraction s of the body's length from its root (0: root, 1: tip); errors name its key.
+
+    The keys of TAPERED are linear in s between their root and tip values (SectionSpec.tip). A rectangular plate
+    (local chord c, thickness h, density rho, Young's modulus E) gives EA = E c h, EI_yy = E c h^3 / 12,
+    EI_zz = E h c^3 / 12, rho A = rho c h; explicit values override these. The mass is spread uniformly over the
+    local chord, the reference line at the same fraction a of it. SceneError if a derived property is not a finite
+    number > 0 (a product of finite values may overflow or underflow).
+
+    Args:
+        spec: the section table (fmu_common.wing_spec.SectionSpec), SI units.
+        s: fraction of the body's length from the root, in [0, 1].
+    """
+    local = {name: _linear(getattr(spec, name), spec.tip(name), s) for name in TAPERED}
+    chord, axis, h = local["chord"], spec.axis_position, local["thickness"]
     derived = {}
     if h is not None:
         E, rho = spec.youngs_modulus, spec.density
         derived = {"axial_stiffness": E * chord * h, "bending_stiffness_flap": E * chord * h**3 / 12,
                    "bending_stiffness_chord": E * h * chord**3 / 12, "mass_per_length": rho * chord * h}
-    given = {name: getattr(spec, name) for name in EXPLICIT}
+    given = {name: local[name] for name in EXPLICIT}
     values = {name: value if value is not None else derived[name] for name, value in given.items()}
     for name, value in values.items():
         if not (math.isfinite(value) and value > 0):
             plate = {k: getattr(spec, k) for k in ("chord", *PLATE) if getattr(spec, k) is not None}
-            raise SceneError(spec.key, plate, f"a section whose {name} (derived from the plate: {value:g}) is a "
-                                              "finite number > 0")
+            raise SceneError(spec.key, plate | dict(spec.tips), f"a section whose {name} (derived from the plate: "
+                                                                f"{value:g}) is a finite number > 0")
     mu = values["mass_per_length"]
     lead, trail = -axis * chord, (1.0 - axis) * chord
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
-                   chordwise=values["bending_stiffness_chord"], torsion=spec.torsional_rigidity,
+                   chordwise=values["bending_stiffness_chord"], torsion=local["torsional_rigidity"],
                    mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
-                   thickness=h, rotary_inertia=spec.rotary_inertia, youngs_modulus=spec.youngs_modulus,
+                   thickness=h, rotary_inertia=local["rotary_inertia"], youngs_modulus=spec.youngs_modulus,
                    poissons_ratio=spec.poissons_ratio if h is not None else None)
+
+
+def _linear(root, tip, s):
+    """root + s (tip - root); None where the root is not given."""
+    return None if root is None else root + s * (tip - root)
+
+
+def element_points(specs, fractions):
+    """The Sections of elements at their Gauss points (`section_at`), (n, g) nested lists.
+
+    Args:
+        specs: (n,) the SectionSpec of each element's body.
+        fractions: (n, g) the Gauss points' fractions of their body's length from its root.
+    """
+    return [[section_at(spec, float(s)) for s in row] for spec, row in zip(specs, np.asarray(fractions))]
 
 
 SHEET_DERIVED = ("axial_stiffness", "bending_stiffness_chord")

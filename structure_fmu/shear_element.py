@@ -6,7 +6,8 @@ numbers, metres for r and dimensionless for the gradients; the position r(x, y) 
 functions of fmu_common.shape_functions (cubic Hermite along x for r and r_x, r_y linear along x): the element's
 mass matrix and body forces are those of `element`. Every kernel is a pure function vectorized over elements:
 arrays of element coordinates have shape (n, 18), element lengths (n,), sections (n, 7) with the columns of
-`SECTION_COLUMNS`.
+`SECTION_COLUMNS` (or (n, g, 7) at the element's g Gauss points along x, for a section that varies along the
+span; E and G, the material's, are constant).
 
 Elastic energy, written down here because the paper is planar:
   * the sheet of the section's chord (x along the span, y along the chord from the reference line) is the
@@ -21,7 +22,10 @@ Elastic energy, written down here because the paper is planar:
     stiffen bending to lambda + 2 mu = E (1 - nu) / ((1 + nu) (1 - 2 nu)); G = E / (2 (1 + nu)) keeps the
     material's shear modulus (nu: the section's poissons_ratio, default 0);
   * W is integrated over the section: exactly, 5 Gauss points along x (W is of degree 8 in x) times 3 across
-    the chord (degree 4 in y), times the plate thickness h;
+    the chord (degree 4 in y), times the plate thickness h; a section that varies along the span (a section array
+    (n, g, 7) at the g Gauss points of each element, element.VARYING_POINTS) is integrated over its trapezoid,
+    the 3 points across the local chord c(x) from the local leading edge, times the local h(x): W c h is then of
+    degree 10 in x, which 7 points integrate exactly;
   * out of the sheet, where the continuum of the chord has no thickness coordinate, the element keeps the flap
     bending (EI_yy) and torsion (GJ) of `element` (the curvature of the reference line along the sheet's normal
     and the twist of r_y; Kirchhoff-like, shear-rigid). In planar motion in the sheet's plane these terms
@@ -46,7 +50,6 @@ _CHORD_XI, _CHORD_W = np.polynomial.legendre.leggauss(3)
 CHORD_XI = 0.5 * (_CHORD_XI + 1.0)     # Gauss points on [0, 1] across the chord; 3 integrate degree 5 exactly
 CHORD_W = 0.5 * _CHORD_W
 C_SOURCE = Path(__file__).with_name("shear_element_kernels.c")   # the compiled sheet force and tangent
-_POINTS = len(element.GAUSS_W) * len(CHORD_W)
 
 
 def section_table(sections):
@@ -54,13 +57,24 @@ def section_table(sections):
     -a c from the reference line.
 
     Args:
-        sections: the n elements' plate Sections (structure_fmu.section; thickness, youngs_modulus given).
+        sections: the n elements' plate Sections (structure_fmu.section; thickness, youngs_modulus given), or
+            (n, g) nested lists of them at the elements' Gauss points (structure_fmu.model.element_sections).
 
     Returns:
-        (n, 7) SI.
+        (n, 7), or (n, g, 7), SI.
     """
-    return np.array([[s.youngs_modulus, s.youngs_modulus / (2.0 * (1.0 + s.poissons_ratio)), s.chord,
-                      -s.axis_position * s.chord, s.thickness, s.flap, s.torsion] for s in sections]).reshape(-1, 7)
+    def row(s):
+        return [s.youngs_modulus, s.youngs_modulus / (2.0 * (1.0 + s.poissons_ratio)), s.chord,
+                -s.axis_position * s.chord, s.thickness, s.flap, s.torsion]
+    if len(sections) and isinstance(sections[0], list):
+        return np.array([[row(s) for s in points] for points in sections])
+    return np.array([row(s) for s in sections]).reshape(-1, 7)
+
+
+def _material(section):
+    """E and G (Pa) per element, (n, 1) each, from a section array (n, 7) or (n, g, 7)."""
+    per_element = section if section.ndim == 2 else section[:, 0]
+    return per_element[:, :1], per_element[:, 1:2]
 
 
 def _point_basis(length, section):
@@ -69,25 +83,26 @@ def _point_basis(length, section):
 
     Args:
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, gx, 7) columns SECTION_COLUMNS.
 
     Returns:
         (a (n, P, 6) with r_x = sum_j a_j v_j (1/m on r^A, r^B; dimensionless on r_x, r_y), b (n, P, 6) with
-        r_y = sum_j b_j v_j, weights (n, P) m^3), P = 15 points, x-major.
+        r_y = sum_j b_j v_j, weights (n, P) m^3), P = 3 gx points (gx = 5 for (n, 7)), x-major.
     """
     length = np.asarray(length, dtype=float)
-    _, dN, _, L = element.gauss_basis(length)                      # (n, 5, 4), (n, 5, 2)
-    chord, lead, thickness = section[:, 2], section[:, 3], section[:, 4]
-    y = lead[:, None] + chord[:, None] * CHORD_XI[None, :]          # (n, 3), m
-    n, gx, gy = len(length), len(element.GAUSS_W), len(CHORD_W)
+    gx = element.points_of((section, 2))
+    _, dN, _, L = element.gauss_basis(length, gx)                  # (n, gx, 4), (n, gx, 2)
+    chord, lead, thickness = (element.at_points(section[..., k], gx) for k in (2, 3, 4))     # (n, gx) each
+    y = lead[..., None] + chord[..., None] * CHORD_XI                # (n, gx, 3), m
+    n, gy = len(length), len(CHORD_W)
     a = np.zeros((n, gx, gy, 6))
     a[..., [0, 1, 3, 4]] = dN[:, :, None, :]
-    a[..., 2] = -(y / length[:, None])[:, None, :]                 # y r_y' = y (r_y^B - r_y^A) / l
-    a[..., 5] = (y / length[:, None])[:, None, :]
+    a[..., 2] = -y / length[:, None, None]                         # y r_y' = y (r_y^B - r_y^A) / l
+    a[..., 5] = y / length[:, None, None]
     b = np.zeros((n, gx, gy, 6))
     b[..., 2], b[..., 5] = L[:, :, None, 0], L[:, :, None, 1]
-    weights = (length[:, None, None] * element.GAUSS_W[None, :, None]
-               * (chord * thickness)[:, None, None] * CHORD_W[None, None, :])
+    weights = (length[:, None, None] * element.gauss_rule(gx)[1][None, :, None]
+               * (chord * thickness)[..., None] * CHORD_W[None, None, :])
     return a.reshape(n, -1, 6), b.reshape(n, -1, 6), weights.reshape(n, -1)
 
 
@@ -103,9 +118,10 @@ def _strains(e, length, section):
 
 
 def _out_of_sheet(section):
-    """The stiffness table of `element` (n, 4) for the flap bending and torsion only: [0, EI_yy, 0, GJ]."""
-    zero = np.zeros(len(section))
-    return np.stack([zero, section[:, 5], zero, section[:, 6]], axis=1)
+    """The stiffness table of `element` (n, 4), or (n, g, 4), for the flap bending and torsion only:
+    [0, EI_yy, 0, GJ]."""
+    zero = np.zeros_like(section[..., 5])
+    return np.stack([zero, section[..., 5], zero, section[..., 6]], axis=-1)
 
 
 def sheet_energy(e, length, section):
@@ -114,13 +130,13 @@ def sheet_energy(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n,) J.
     """
     s = _strains(e, length, section)
-    E, G = section[:, :1], section[:, 1:2]
+    E, G = _material(section)
     density = 0.5 * (E * (s["e11"] ** 2 + s["e22"] ** 2) + G * s["gamma"] ** 2)
     return np.sum(s["weights"] * density, axis=1)
 
@@ -136,7 +152,7 @@ def sheet_force(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n, 18) N and N m, global frame.
@@ -145,7 +161,7 @@ def sheet_force(e, length, section):
     if kernels is not None:
         return _compiled(kernels.sheet_force, e, length, section, (18,))
     s = _strains(e, length, section)
-    E, G = section[:, :1, None], section[:, 1:2, None]
+    E, G = (m[..., None] for m in _material(section))
     w = s["weights"][..., None]
     g_rx = w * (E * s["e11"][..., None] * s["rx"] + G * s["gamma"][..., None] * s["ry"])
     g_ry = w * (E * s["e22"][..., None] * s["ry"] + G * s["gamma"][..., None] * s["rx"])
@@ -164,7 +180,7 @@ def sheet_jacobian(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n, 18, 18) N/m, N and N m.
@@ -173,7 +189,7 @@ def sheet_jacobian(e, length, section):
     if kernels is not None:
         return _compiled(kernels.sheet_jacobian, e, length, section, (18, 18))
     s = _strains(e, length, section)
-    E, G = section[:, :1, None, None], section[:, 1:2, None, None]
+    E, G = (m[..., None, None] for m in _material(section))
     rx, ry, eye = s["rx"], s["ry"], np.eye(3)
     outer = lambda u, v: u[..., :, None] * v[..., None, :]     # noqa: E731
     hxx = E * (outer(rx, rx) + s["e11"][..., None, None] * eye) + G * outer(ry, ry)
@@ -194,7 +210,7 @@ def elastic_energy(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n,) J.
@@ -208,7 +224,7 @@ def elastic_force(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n, 18) N and N m, global frame.
@@ -222,7 +238,7 @@ def elastic_jacobian(e, length, section):
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
-        section: (n, 7) columns SECTION_COLUMNS.
+        section: (n, 7) or (n, g, 7) columns SECTION_COLUMNS.
 
     Returns:
         (n, 18, 18).
@@ -242,33 +258,35 @@ _TABLES: dict[tuple, tuple] = {}
 
 def _table(length, section):
     """The C kernels' table per element (shear_element_kernels.c): [E, G, weights (P,), a (P, 6), b_A (P,),
-    b_B (P,)], cached per lengths and sections (at most 64 kept), and its address."""
+    b_B (P,)], cached per lengths and sections (at most 64 kept), its address and P."""
     length = np.ascontiguousarray(length, dtype=float)
     section = np.ascontiguousarray(section, dtype=float)
-    key = (length.tobytes(), section.tobytes())
+    key = (length.tobytes(), section.shape, section.tobytes())
     found = _TABLES.get(key)
     if found is None:
-        if length.ndim != 1 or section.shape != (len(length), len(SECTION_COLUMNS)):
+        if (length.ndim != 1 or section.ndim not in (2, 3) or section.shape[0] != len(length)
+                or section.shape[-1] != len(SECTION_COLUMNS)):
             raise ValueError(f"shear element kernels: length {length.shape}, section {section.shape}; expected (n,), "
-                             f"(n, {len(SECTION_COLUMNS)})")
+                             f"(n, {len(SECTION_COLUMNS)}) or (n, g, {len(SECTION_COLUMNS)})")
         if len(_TABLES) > 64:
             _TABLES.clear()
         a, b, weights = _point_basis(length, section)
-        table = np.ascontiguousarray(np.concatenate([section[:, :2], weights, a.reshape(len(length), -1),
-                                                     b[..., 2], b[..., 5]], axis=1))
-        found = _TABLES[key] = (table, table.ctypes.data)
+        table = np.ascontiguousarray(np.concatenate([np.concatenate(_material(section), axis=1), weights,
+                                                     a.reshape(len(length), -1), b[..., 2], b[..., 5]], axis=1))
+        found = _TABLES[key] = (table, table.ctypes.data, weights.shape[1])
     return found
 
 
 def _compiled(kernel, e, length, section, shape):
-    """`kernel` of shear_element_kernels.c on e (n, 18), length (n,) and section (n, 7): its result, (n, *shape)."""
+    """`kernel` of shear_element_kernels.c on e (n, 18), length (n,) and section (n, 7) or (n, g, 7): its result,
+    (n, *shape)."""
     e = np.ascontiguousarray(e, dtype=float)
     if e.shape != (len(length), 18):
         raise ValueError(f"shear element kernels: e {e.shape} for {len(length)} element lengths; expected (n, 18)")
     out = np.empty((len(e), *shape))
     if len(e):
-        table, address = _table(length, section)    # the table is held until the C call returns
-        status = kernel(len(e), _POINTS, address, e.ctypes.data, out.ctypes.data)
+        table, address, points = _table(length, section)    # the table is held until the C call returns
+        status = kernel(len(e), points, address, e.ctypes.data, out.ctypes.data)
         if status != 0:
-            raise ValueError(f"the shear element C kernels refused {_POINTS} Gauss points (shear_element_kernels.c)")
+            raise ValueError(f"the shear element C kernels refused {points} Gauss points (shear_element_kernels.c)")
     return out

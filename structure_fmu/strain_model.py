@@ -22,6 +22,7 @@ from scipy.linalg import cho_factor, cho_solve
 from fmu_common.errors import SceneError
 from fmu_common.vectors import cross
 
+from . import element
 from . import strain_kinematics as sk
 from .model import StructureModel
 from .motion import SpinUp
@@ -103,11 +104,15 @@ class StrainBasedModel(StructureModel):
             offset += sk.STRAINS * n_el
         self.n_q = offset
         self._q0 = np.concatenate(eta0)
-        section = [topology.bodies[b].section for b in topology.element_body]
-        # K = ds diag(EA, GJ, EI_yy, EI_zz) per element (Otsuka et al. 2022, Eq. 9's constant K)
+        # K = ds diag(EA, GJ, EI_yy, EI_zz) per element (Otsuka et al. 2022, Eq. 9's constant K); a section that
+        # varies along the span gives the element's integral of each stiffness, exact on the Gauss points of
+        # self.stiffness (the strains being constant over the element, int K(x) xi^2 dx = xi^2 int K dx)
+        stiffness = self.stiffness
+        if stiffness.ndim == 3:
+            stiffness = np.einsum("ngk,g->nk", stiffness, element.gauss_rule(stiffness.shape[1])[1])
         self.stiffness_diagonal = np.zeros(self.n_q)
         for name, body in topology.bodies.items():
-            k = np.array([[s.axial, s.torsion, s.flap, s.chordwise] for s in (section[e] for e in body.elements)])
+            k = stiffness[body.elements][:, [0, 3, 1, 2]]       # EA, GJ, EI_yy, EI_zz
             self.stiffness_diagonal[self.strain_slices[name]] = (k * self.lengths[body.elements, None]).ravel()
         self._element_columns = {}       # the column of each element's first strain in q, by body
         for name, body in topology.bodies.items():

@@ -2,18 +2,21 @@
 masses and loads, and the map to reduced coordinates.
 
 Exchanged coordinates E (length 9 n_nodes): per node r, r_x, r_y (Otsuka et al. 2019, Eq. 3), each 3-vector a
-"slot" (slots.py): a linear combination of free vectors q_j and prescribed vectors p_j(t), so that
-E = (T kron I3) q + (P kron I3) p(t).
+"slot" (slots.py): a linear combination of free vectors q_j, free scalars s_j along constant directions (a
+slider's travel) and prescribed vectors p_j(t), so that E = T q + P p(t), q the free vectors and then the
+scalars.
 
 Joint points are not Lagrange constraints here but shared or prescribed coordinates (the master/slave
 elimination of Peng et al. 2019, Sec. 3). A ball, universal or revolute joint shares r between the parent's tip
 node and the child's root node (with the ground: r is prescribed at the child's root); a revolute joint about
 the chord of both bodies also shares r_y (with the ground: prescribed); a rigid body has r = r^A + s r_x^A,
 r_x = r_x^A, r_y = r_y^A at every node s along it, the linear rows of Otsuka et al. 2019, Eq. (17); a clamp or
-driven root is prescribed; pins and sliders at any node are pins.py's. What remains as Lagrange constraints is
-nonlinear: unit length and orthogonality (Otsuka et al. 2019, Eqs. 6, 17), the axis products of universal
-joints and of revolute joints about any other axis (constraints.py `AxisProduct`), and the rows of sliders and
-of pins that close a loop of rigid bodies.
+driven root is prescribed; pins and sliders at any node are pins.py's (a slider on a fixed line or plane is a
+point eliminated for one or two scalars). What remains as Lagrange constraints is nonlinear: unit length and
+orthogonality (Otsuka et al. 2019, Eqs. 6, 17), the axis products of universal joints and of revolute joints
+about any other axis (constraints.py `AxisProduct`), the rows of sliders carried by another body, and the
+linear rows of pins that close a loop of rigid bodies and of fixed sliders whose node has no point vector left
+to eliminate.
 
 Coordinates and constraints per joint at the child's root node (free 3-vectors x 3 coordinates; constraint rows
 including the node's own unit-length and orthogonality rows), the same with a parent and with the ground:
@@ -31,7 +34,7 @@ import numpy as np
 from fmu_common import topology
 from fmu_common.errors import SceneError
 from fmu_common.choices import fidelity_names
-from fmu_common.wing_spec import ParentJointSpec, StructureSpec
+from fmu_common.wing_spec import ParentJointSpec, SectionSpec, StructureSpec
 from fmu_common.vectors import perpendiculars, unit
 
 from .constraints import AxisProduct, LinearRow
@@ -46,10 +49,12 @@ from .slots import RX, RY, R, Slot, compact
 
 @dataclass
 class StructureBody(topology.Body):
-    """A Body with its beam section (stiffness, mass) and its damping alpha (1/s)."""
+    """A Body with its beam section (stiffness, mass; the root's), the section table it comes from (a section that
+    varies along the span: structure_fmu.section.section_at) and its damping alpha (1/s)."""
 
     section: Section = None
     damping: float = 0.0
+    section_spec: SectionSpec = None
 
 
 @dataclass(frozen=True)
@@ -99,6 +104,7 @@ class StructureTopology(topology.Topology):
         self.slots: list[Slot] = []
         self.free_initial: list[np.ndarray] = []
         self.free_is_position: list[bool] = []
+        self.scalar_initial: list[float] = []                      # free scalars along directions, m
         self.prescribed_initial: list[np.ndarray] = []
         self.prescribed_is_position: list[bool] = []
         self.prescribed_motion: list[int] = []
@@ -149,13 +155,22 @@ class StructureTopology(topology.Topology):
             require_plate(spec.section, self.fidelity.name)
         section = section_from_spec(spec.section)
         return StructureBody(spec.name, spec.length, section.chord, section.axis_position, section=section,
-                             damping=spec.damping)
+                             damping=spec.damping, section_spec=spec.section)
 
     def _new_free(self, value, position=False):
         """A slot of a new free vector with initial `value` (3,); `position`: a point (m), else a gradient."""
         self.free_initial.append(np.asarray(value, float))
         self.free_is_position.append(position)
         return Slot(free={len(self.free_initial) - 1: 1.0})
+
+    def new_scalar(self, direction):
+        """A slot d s of a new free scalar s (m, 0 at t = 0) along a constant direction d.
+
+        Args:
+            direction: d (3,), unit, global frame.
+        """
+        self.scalar_initial.append(0.0)
+        return Slot(along={len(self.scalar_initial) - 1: np.asarray(direction, float)})
 
     def _new_prescribed(self, value, is_position, motion):
         self.prescribed_initial.append(np.asarray(value, float))
@@ -348,24 +363,29 @@ class StructureTopology(topology.Topology):
     # ------------------------------------------------------------------ queries
     @property
     def n_free(self):
-        """Number of free coordinates n_q, 3 per free vector."""
-        return 3 * len(self.free_initial)
+        """Number of free coordinates n_q: 3 per free vector, 1 per free scalar."""
+        return 3 * len(self.free_initial) + len(self.scalar_initial)
 
     def maps(self):
-        """(T, P): E = T q + P p(t), dense (9 n_nodes, 3 n_free) and (9 n_nodes, 3 n_prescribed)."""
+        """(T, P): E = T q + P p(t), dense (9 n_nodes, n_free) and (9 n_nodes, 3 n_prescribed); T's columns are the
+        free vectors' (3 each, kron I3) and then the free scalars' (their directions)."""
         n_slots = len(self.slots)
         t_vec = np.zeros((n_slots, len(self.free_initial)))
         p_vec = np.zeros((n_slots, len(self.prescribed_initial)))
+        directions = np.zeros((n_slots, 3, len(self.scalar_initial)))
         for s, slot in enumerate(self.slots):
             for j, c in slot.free.items():
                 t_vec[s, j] = c
             for j, c in slot.prescribed.items():
                 p_vec[s, j] = c
-        return np.kron(t_vec, np.eye(3)), np.kron(p_vec, np.eye(3))
+            for j, d in slot.along.items():
+                directions[s, :, j] = d
+        T = np.hstack([np.kron(t_vec, np.eye(3)), directions.reshape(3 * n_slots, -1)])
+        return T, np.kron(p_vec, np.eye(3))
 
     def initial_free(self):
-        """q at t = 0: the free vectors stacked, (n_q,), m and 1, global frame."""
-        return np.concatenate(self.free_initial) if self.free_initial else np.zeros(0)
+        """q at t = 0: the free vectors stacked (m and 1, global frame), then the free scalars (m), (n_q,)."""
+        return np.concatenate([*self.free_initial, np.array(self.scalar_initial, float)])
 
     def fold_angles(self, e):
         """Fold angle of each revolute joint: the child's signed angle about the axis relative to the parent.

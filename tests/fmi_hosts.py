@@ -83,11 +83,8 @@ def time_grid(steps: int, step: float, stop: float) -> list[float]:
 
 
 # ---- the C host ---------------------------------------------------------------------------------------
-def run_c_host(host: Path, units: list[UnitSpec], steps: int, step: float, stop: float, mode: list[str],
-               folder: Path, env: dict[str, str] | None = None, root: Path | None = None) -> dict[str, np.ndarray]:
-    """The C host on `units` in environment `env` (default: numeric_env()); {phase: rows (time, then every
-    unit's outputs in order)}. With `root`, the host runs in the system whose root folder that is (chroot,
-    an empty environment): `host` and the units' folders are paths in it, `folder` is under `root`."""
+def host_input(units: list[UnitSpec], steps: int, step: float, stop: float) -> str:
+    """The C host's input file (its format: the header comment of tests/fmi/c_host/fmi2_host.c) for `units`."""
     lines = [f"steps {steps}", f"step {step!r}", f"stop {stop!r}"]
     for unit in units:
         lines += [f"unit {unit.name}", f"location {unit.folder}", f"identifier {unit.identifier}",
@@ -95,8 +92,16 @@ def run_c_host(host: Path, units: list[UnitSpec], steps: int, step: float, stop:
         lines += [f"output {vr} {name}" for vr, name in unit.outputs]
         lines += [f"input {vr} {source} {source_vr}" for vr, source, source_vr in unit.connected]
         lines += [f"fixed {vr} {value!r}" for vr, value in unit.fixed]
+    return "\n".join(lines) + "\n"
+
+
+def run_c_host(host: Path, units: list[UnitSpec], steps: int, step: float, stop: float, mode: list[str],
+               folder: Path, env: dict[str, str] | None = None, root: Path | None = None) -> dict[str, np.ndarray]:
+    """The C host on `units` in environment `env` (default: numeric_env()); {phase: rows (time, then every
+    unit's outputs in order)}. With `root`, the host runs in the system whose root folder that is (chroot,
+    an empty environment): `host` and the units' folders are paths in it, `folder` is under `root`."""
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "input.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (folder / "input.txt").write_text(host_input(units, steps, step, stop), encoding="utf-8")
     files = [folder / "input.txt", folder / "out.csv"]
     command = [str(host), *(str(f) for f in files), *mode]
     if root is not None:

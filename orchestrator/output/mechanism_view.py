@@ -142,7 +142,7 @@ def mechanism_figure(result, topology=None):
     plane = drawing_plane(points)
     colors = colormaps[COLORMAP](np.linspace(0.0, 0.85, len(times)) if len(times) > 1 else [0.0])
 
-    fig = Figure(figsize=(7, 6))
+    fig = Figure(figsize=(7, 6), layout="constrained")
     ax = fig.add_subplot() if plane is not None else fig.add_subplot(projection="3d")
     project = (lambda p: p @ plane.basis.T) if plane is not None else (lambda p: p)
     for t, drawn, e, color in zip(times, lines, coordinates, colors):
@@ -159,8 +159,8 @@ def mechanism_figure(result, topology=None):
         ax.set_ylabel(plane.labels[1])
         ax.grid(True, alpha=0.3)
     else:
-        _equal_3d(ax, points)
-    ax.legend(fontsize=8)
+        equal_3d(ax, points)
+    fig.legend(loc="outside right upper", fontsize=8)   # outside the axes: over neither the title nor the lines
     instants = f"{len(times)} instants" if len(times) > 1 else "t = 0"
     where = f"in {plane.name}" if plane is not None else "in 3D"
     status = "" if result.status == "ok" else f"; the run {result.status} at t = {result.simulated_time_s:.4g} s"
@@ -169,7 +169,7 @@ def mechanism_figure(result, topology=None):
     return fig
 
 
-def _equal_3d(ax, points: np.ndarray) -> None:
+def equal_3d(ax, points: np.ndarray) -> None:
     """Limits and box aspect of a 3D axis with equal scales on x, y, z (m), labelled; a view thin along an axis
     looks nearly along it (``VIEWS``)."""
     from matplotlib.ticker import MaxNLocator

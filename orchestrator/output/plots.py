@@ -7,8 +7,11 @@
 - ``probe_velocities.png`` and ``probe_accelerations.png``: each probe's global velocity (m/s) and acceleration
   (m/s^2), per global component, vs time (s), as the structure unit outputs them;
 - ``strain_gauges.png`` (scenes with strain gauges): surface strain of each gauge (microstrain) vs time (s);
-- ``energy_residual.png``: energy (J) and constraint residual (log scale) vs time (s), with the joints'
-  monitors (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
+- ``energy_residual.png``: the energy balance, the change of the energy since t = 0 (E - E_0), the external work
+  (the point loads' and Q's since t = 0) and their difference E - E_0 - W (J; zero but for damping, driven motions
+  and the integrator's drift, the numerator of summary.json's ``energy_drift``), or the energy alone where no
+  external work is recorded, and the constraint residual (log scale) vs time (s), with the joints' monitors
+  (``<joint>_point_mismatch`` m, ``_axis_product`` / ``_axis_error``) in the residual panel;
 - ``lift_coefficient.png`` (aero scenes): lift coefficient CL (-) and lift (N) vs time (s);
 - ``wake_3d.png`` (aero scenes): a 3D view of the wing and its wake at 4 instants, drawn by replaying the
   aero unit in-process with the recorded inputs (``orchestrator.output.wake_view``; capped in wall time);
@@ -20,6 +23,11 @@
 
 A failure of one of the three pictures prints a warning and never affects the other plots or the run's status.
 
+Layout: matplotlib's constrained layout, so titles (wrapped at ``TITLE_CHARS`` characters) and axis labels are
+never clipped; a legend of more than ``LEGEND_INSIDE`` entries goes outside the axes, right of them, so it covers
+neither the title nor the curves. A panel whose every curve is zero (or has no finite value) over the run says so
+in a note at its centre (``note_flat_panels``), so that an empty-looking panel is not taken for a missing one.
+
 A plot that does not apply (no hinge, no probe, no sample) is not written, and a stale file of
 that name from an earlier run in the same folder is removed. Each PNG is written to a temporary name in the
 folder and renamed (``orchestrator.files.write_file``): a PNG under its own name is complete.
@@ -29,6 +37,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -42,11 +51,49 @@ from orchestrator.scene.load import hinge_joints
 PLOT_FILES = ("fold_angles.png", "probe_displacements.png", "probe_velocities.png", "probe_accelerations.png",
               "strain_gauges.png", "energy_residual.png", "lift_coefficient.png")
 DPI = 120
+TITLE_CHARS = 64
+"""Titles are wrapped at this many characters, which fit the 7-inch-wide figures at the default font size."""
+LEGEND_INSIDE = 4
+"""A legend of more entries than this is placed outside the axes."""
+LEGEND_FONT = 8
+FLAT_NOTE = "zero throughout the run"
+NO_VALUE_NOTE = "no finite value in the run"
 
 
 def _title(result: RunResult, what: str) -> str:
     status = "" if result.status == "ok" else f" ({result.status} at t = {result.simulated_time_s:.4g} s)"
-    return f"{result.scene['name']}: {what}{status}"
+    return textwrap.fill(f"{result.scene['name']}: {what}{status}", TITLE_CHARS)
+
+
+def _figure(width: float, height: float) -> Figure:
+    """A figure with constrained layout (titles, labels and outside legends kept within it)."""
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def legend(fig: Figure, ax) -> None:
+    """The legend of ``ax``'s labelled artists: inside it (best place) up to LEGEND_INSIDE entries, else outside
+    the figure's axes on the right, in columns of at most 20 entries."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    if len(handles) <= LEGEND_INSIDE:
+        ax.legend(fontsize=LEGEND_FONT)
+    else:
+        fig.legend(handles, labels, loc="outside right upper", fontsize=LEGEND_FONT, ncols=-(-len(handles) // 20))
+
+
+def note_flat_panels(fig: Figure, no_value: str = NO_VALUE_NOTE) -> None:
+    """Write FLAT_NOTE (``no_value``) at the centre of each 2D axis of ``fig`` whose every line is zero (has no
+    finite value) at every sample."""
+    for ax in fig.axes:
+        if ax.name != "rectilinear" or not ax.lines:
+            continue
+        values = np.concatenate([np.asarray(line.get_ydata(), dtype=float).ravel() for line in ax.lines])
+        finite = values[np.isfinite(values)]
+        note = no_value if finite.size == 0 else FLAT_NOTE if not finite.any() else None
+        if note is not None:
+            ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center", fontsize=10, color="0.3",
+                    bbox={"boxstyle": "round", "facecolor": "white", "edgecolor": "0.6", "alpha": 0.9})
 
 
 def fold_angles_figure(result: RunResult) -> Figure | None:
@@ -54,7 +101,7 @@ def fold_angles_figure(result: RunResult) -> Figure | None:
     if not series.hinge_names:
         return None
     stops = {j["name"]: j["stop_angle_deg"] for j in hinge_joints(result.scene)}
-    fig = Figure(figsize=(7, 4))
+    fig = _figure(7, 4)
     ax = fig.add_subplot()
     for i, hinge in enumerate(series.hinge_names):
         line, = ax.plot(series.time, series.fold_angles_deg[:, i], label=hinge)
@@ -66,7 +113,7 @@ def fold_angles_figure(result: RunResult) -> Figure | None:
                         label=f"{hinge} latched, {latched:.4g} s")
     ax.set(title=_title(result, "fold angles"), xlabel="time (s)", ylabel="fold angle (deg)")
     ax.grid(True, alpha=0.3)
-    ax.legend()
+    legend(fig, ax)
     return fig
 
 
@@ -92,7 +139,7 @@ def _probe_figure(result: RunResult, values: np.ndarray, what: str, label: str) 
     series = result.series
     if not series.probe_names or not np.isfinite(values).any():
         return None
-    fig = Figure(figsize=(7, 7))
+    fig = _figure(7, 7)
     axes = fig.subplots(3, 1, sharex=True)
     for c, (ax, axis) in enumerate(zip(axes, "xyz")):
         for i, probe in enumerate(series.probe_names):
@@ -100,7 +147,7 @@ def _probe_figure(result: RunResult, values: np.ndarray, what: str, label: str) 
         ax.set_ylabel(label.format(axis))
         ax.grid(True, alpha=0.3)
     axes[0].set_title(_title(result, f"{what} (global frame)"))
-    axes[0].legend()
+    legend(fig, axes[0])
     axes[-1].set_xlabel("time (s)")
     return fig
 
@@ -110,7 +157,7 @@ def strain_figure(result: RunResult) -> Figure | None:
     if not series.strain_names:
         return None
     gauges = {g["name"]: g for g in result.scene["strain_gauges"]}
-    fig = Figure(figsize=(7, 4))
+    fig = _figure(7, 4)
     ax = fig.add_subplot()
     for i, name in enumerate(series.strain_names):
         g = gauges.get(name, {})
@@ -119,16 +166,26 @@ def strain_figure(result: RunResult) -> Figure | None:
     ax.set(title=_title(result, "surface strain (bending curvature x distance to the surface)"),
            xlabel="time (s)", ylabel="strain (microstrain)")
     ax.grid(True, alpha=0.3)
-    ax.legend()
+    legend(fig, ax)
     return fig
 
 
 def monitors_figure(result: RunResult) -> Figure:
     series = result.series
-    fig = Figure(figsize=(7, 6))
+    fig = _figure(7, 6)
     energy_ax, residual_ax = fig.subplots(2, 1, sharex=True)
-    energy_ax.plot(series.time, series.energy)
-    energy_ax.set(title=_title(result, "energy and constraint residual"), ylabel="energy (J)")
+    energy, work = series.energy, series.external_work
+    if np.isfinite(work).any():   # the balance: what the energy gained against the work done on the structure
+        start = energy[np.isfinite(energy)][0] if np.isfinite(energy).any() else np.nan
+        energy_ax.plot(series.time, energy - start, label=f"energy - E_0 (E_0 = {start:.4g} J)")
+        energy_ax.plot(series.time, work, label="external work")
+        energy_ax.plot(series.time, energy - start - work, linestyle="--", label="energy - E_0 - external work")
+        energy_ax.set(ylabel="change since t = 0 (J)")
+    else:
+        energy_ax.plot(series.time, energy, label="energy")
+        energy_ax.set(ylabel="energy (J)")
+    energy_ax.set_title(_title(result, "energy balance and constraint residual"))
+    legend(fig, energy_ax)
     residual = series.constraint_residual
     residual_ax.plot(series.time, residual, label="constraint residual")
     curves = [residual]
@@ -138,7 +195,7 @@ def monitors_figure(result: RunResult) -> Figure:
     if any(np.any(np.isfinite(c) & (c > 0)) for c in curves):
         residual_ax.set_yscale("log")
     if series.joint_names:
-        residual_ax.legend(fontsize=7)
+        legend(fig, residual_ax)
     residual_ax.set(xlabel="time (s)", ylabel="residual, joint monitors (-, m)")
     for ax in (energy_ax, residual_ax):
         ax.grid(True, alpha=0.3)
@@ -149,7 +206,7 @@ def lift_figure(result: RunResult) -> Figure | None:
     series = result.series
     if not series.has_aero:
         return None
-    fig = Figure(figsize=(7, 6))
+    fig = _figure(7, 6)
     cl_ax, lift_ax = fig.subplots(2, 1, sharex=True)
     cl_ax.plot(series.time, series.CL)
     model = result.scene["aero"]["model"]
@@ -176,7 +233,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
             path.unlink(missing_ok=True)
             continue
         FigureCanvasAgg(fig)
-        fig.tight_layout()
+        note_flat_panels(fig)
         write_file(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=DPI))   # whole or not at all
         written.append(path)
     pictures = (("wake_view", "wake_3d.png", "wake"), ("mechanism_view", "mechanism.png", "mechanism"),

@@ -11,11 +11,11 @@ file that exists is complete (a failed write leaves the previous summary in plac
 
 Summary fields (SI units, angles in degrees):
 
-- ``status`` ("ok" | "diverged" | "error"; "running" only in the summary written before the run, which
-  a run that was killed leaves behind), ``message``, ``wall_time_s`` (s, the whole run: loading the
-  units included), ``stepping_wall_time_s`` (s, the communication steps alone, null if none ran; over
-  ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the resolved scene,
-  after ``--set``);
+- ``status`` ("ok" | "diverged" | "error" | "interrupted" (Ctrl-C or SIGTERM); "running" only in the summary
+  written before the run, which a run that was killed leaves behind), ``message``, ``wall_time_s`` (s, the
+  whole run: loading the units included), ``stepping_wall_time_s`` (s, the communication steps alone, null
+  if none ran; over ``simulated_time_s`` it is the real-time factor), ``simulated_time_s``, ``scene`` (the
+  resolved scene, after ``--set``);
 - ``deployment_time_s``: the time, s, at which every hinge that has a ``stop_angle_deg`` has latched
   (for a single hinge: the first time its fold angle reaches the stop, from either side), as the
   structure unit reports it (output ``latch_time_<hinge>``: interpolated within its internal step, not
@@ -69,6 +69,7 @@ import numpy as np
 
 from fmu_common.errors import SceneError
 from orchestrator.files import WriteError, write_file
+from orchestrator.output.column_units import column_units, header_cell, split_header_cell
 from orchestrator.output.structure_counts import structure_counts
 from orchestrator.run.master import RunResult, new_series
 from orchestrator.scene.load import hinge_joints
@@ -299,9 +300,25 @@ def check_out_dir(path: Path, option: str = "--out") -> Path:
 
 
 def write_timeseries(series: TimeSeries, path: Path) -> None:
-    """CSV with a header row (``time`` first) and one row per sample; NaN written as ``nan``."""
-    np.savetxt(path, series.table(), delimiter=",", header=",".join(series.columns), comments="",
-               fmt="%.12g")
+    """CSV with a header row (``time [s]`` first: each column's name and unit, ``column_units``) and one row per
+    sample; NaN written as ``nan``."""
+    header = ",".join(header_cell(name, unit) for name, unit in column_units(series).items())
+    np.savetxt(path, series.table(), delimiter=",", header=header, comments="", fmt="%.12g")
+
+
+def read_timeseries(path: Path) -> tuple[np.ndarray, dict[str, str]]:
+    """A ``timeseries.csv`` read back: (samples, {column: unit}), the samples a numpy structured array with one
+    float field per column named as the column (``time``, ``tip_z``, ...), shape (samples,). A header cell
+    without a unit (a file written before the header carried units) gets the unit ``""``."""
+    with Path(path).open() as handle:
+        cells = handle.readline().rstrip("\n").split(",")
+        lines = handle.read().splitlines()
+    names, units = zip(*(split_header_cell(cell) for cell in cells))
+    rows = np.loadtxt(lines, delimiter=",", ndmin=2).reshape(-1, len(names)) if lines else np.empty((0, len(names)))
+    samples = np.empty(len(rows), dtype=[(name, float) for name in names])
+    for k, name in enumerate(names):
+        samples[name] = rows[:, k]
+    return samples, {name: unit or "" for name, unit in zip(names, units)}
 
 
 def write_summary(result: RunResult, path: Path, summary: dict | None = None) -> None:

@@ -4,8 +4,8 @@
 (``orchestrator.files.process_record``: ``run_id``, ``pid``, ``host``, ``command``, ``started``), the
 ``overrides`` (``--set`` items) and any fields the caller adds (a sweep adds ``sweep``). ``finish_record``
 rewrites it last, once every other file is written, with ``complete`` true, ``finished`` (UTC) and ``files``:
-the SHA-256 of each file the run wrote ({name: hex digest}). ``complete_record`` reads it back and checks those
-digests: a folder whose run was killed, or whose files were changed or truncated since, is not complete.
+the SHA-256 of each file the run wrote ({path from the folder: hex digest}). ``complete_record`` reads it back and
+checks those digests: a folder whose run was killed, or whose files were changed or truncated since, is not complete.
 """
 from __future__ import annotations
 
@@ -29,10 +29,15 @@ def start_record(out_dir: Path, holder: dict, overrides: Iterable[str], **extra)
 
 def finish_record(out_dir: Path, record: dict, files: Iterable[Path]) -> dict:
     """Rewrite ``out_dir/run.json`` as `record`, complete, with the SHA-256 of each of `files` (the files the run
-    wrote, in `out_dir`); the last file a run writes. Returns the record. WriteError naming the file."""
+    wrote, in `out_dir` or below it, named by their path from it: ``vtk/structure.pvd``); the last file a run
+    writes. Returns the record. WriteError naming the file."""
+    def name(f: Path) -> str:
+        return f.relative_to(out_dir).as_posix() if f.is_relative_to(out_dir) else f.name
+
+    out_dir = Path(out_dir)
     done = {**record, "complete": True,
             "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "files": {Path(f).name: file_sha256(Path(f)) for f in sorted(set(map(Path, files)))}}
+            "files": {name(f): file_sha256(f) for f in sorted(set(map(Path, files)))}}
     _write(Path(out_dir), done)
     return done
 

@@ -15,7 +15,8 @@ def structure_counts(scene: dict) -> dict[str, Any]:
 
     Returns:
         {"fidelity": structure.fidelity, "coordinates": n_q, the generalized coordinates q the integrator
-        advances (after the coordinates shared by pins and those prescribed are eliminated, E = T q + P p);
+        advances (after the coordinates shared by pins and those prescribed are eliminated, and the point of a
+        node on a fixed slider line or plane is replaced by its travel along it, E = T q + P p);
         "exchanged_coordinates": n, the coordinates E the unit exchanges (9 per node: r, r_x, r_y, Otsuka et
         al. 2019, Eq. 3; the strain-based fidelity's too); "constraint_rows": m, the rows of Phi(q, t) = 0 the
         integrator solves (internal, joint and slider rows, the redundant rows of planar rigid loops left out)}.

@@ -46,6 +46,7 @@ SLENDER = 8.0              # a picture whose longest extent exceeds SLENDER x th
 WINDOW = 1.5               # the window's width along the longest extent, x the next extent
 DPI = 100
 MAX_WAKE_EDGES = 300       # above this many drawn wake rings, they are drawn without edges
+FONT_SIZE = 10             # axis labels and panel titles; ticks 2 points smaller (legible at DPI in a 10-inch figure)
 
 
 @dataclass
@@ -113,7 +114,7 @@ def instant_steps(n_steps: int, count: int = INSTANTS) -> list[int]:
 
 
 # ---- drawing -------------------------------------------------------------------------------------------
-def _quads(grid: np.ndarray) -> np.ndarray:
+def quads(grid: np.ndarray) -> np.ndarray:
     """The quadrilaterals (Q, 4, 3) of a structured grid (B, rows, cols, 3), row-major per body."""
     g = np.asarray(grid, dtype=float)
     quads = np.stack([g[:, :-1, :-1], g[:, 1:, :-1], g[:, 1:, 1:], g[:, :-1, 1:]], axis=3)
@@ -193,8 +194,8 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
     from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    wings = [_quads(s.wing) for s in snapshots]
-    wakes = [None if s.vortex["wake"] is None else _quads(s.vortex["wake"]) for s in snapshots]
+    wings = [quads(s.wing) for s in snapshots]
+    wakes = [None if s.vortex["wake"] is None else quads(s.vortex["wake"]) for s in snapshots]
     gammas = [None if s.vortex["wake_gamma"] is None else s.vortex["wake_gamma"].ravel() for s in snapshots]
     legs = [_legs(s) for s in snapshots]
     points = np.concatenate([w.reshape(-1, 3) for w in wings]
@@ -236,7 +237,7 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
                  f"{points[:, axis].max():.4g}] m"
     if note:
         title += f"\n{note}"
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(title, fontsize=FONT_SIZE + 1)
     for i, (snap, (w, k, g, leg)) in enumerate(zip(snapshots, drawn)):
         ax = fig.add_subplot(rows, cols, i + 1, projection="3d")
         if k:
@@ -250,23 +251,23 @@ def wake_figure(scene: dict, snapshots: list[Snapshot], note: str = ""):
         ax.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
         ax.set_zlim(centre[2] - span[2] / 2, centre[2] + span[2] / 2)
         ax.set_box_aspect(tuple(span))                                     # equal scales on x, y, z
-        ax.set_xlabel("x (m)", fontsize=7)
-        ax.set_ylabel("y (m)", fontsize=7)
-        ax.set_zlabel("z (m)", fontsize=7)
-        ax.tick_params(labelsize=6)
+        ax.set_xlabel("x (m)", fontsize=FONT_SIZE)
+        ax.set_ylabel("y (m)", fontsize=FONT_SIZE)
+        ax.set_zlabel("z (m)", fontsize=FONT_SIZE)
+        ax.tick_params(labelsize=FONT_SIZE - 2)
         for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
             axis.set_major_locator(MaxNLocator(4))
         for name, c, s in zip("xyz", centre, span):   # a flat axis gets one tick, not a smudge of labels
             if s < 0.1 * span.max():
                 tick = 0.0 if abs(c) < 1e-6 * span.max() else float(f"{c:.2g}")
                 getattr(ax, f"set_{name}ticks")([tick], [f"{tick:g}"])
-        ax.set_title(f"t = {snap.time:.4g} s", fontsize=9)
+        ax.set_title(f"t = {snap.time:.4g} s", fontsize=FONT_SIZE)
     if live:
         from matplotlib.cm import ScalarMappable
 
         bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=fig.axes, shrink=0.6, pad=0.08)
-        bar.set_label("wake ring circulation (m^2/s)", fontsize=8)
-        bar.ax.tick_params(labelsize=7)
+        bar.set_label("wake ring circulation (m^2/s)", fontsize=FONT_SIZE)
+        bar.ax.tick_params(labelsize=FONT_SIZE - 2)
     return fig
 
 

@@ -9,6 +9,7 @@
 - ``acceleration``  interface acceleration of the implicit scheme
 - ``master``        the run loop: step the units and record what the scene asks for
 - ``timeseries``    the recorded samples (time, probe positions, fold angles, monitors)
-- ``progress``      the progress line on stderr
+- ``progress``      the progress line on stderr, with the time left and a note for a long run
+- ``estimate``      the size of a run's timeseries.csv, announced before a run that writes a large one
 - ``allocator``     glibc's allocator thresholds for the processes wingsim owns
 """

@@ -64,7 +64,7 @@ from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
 
 log = logging.getLogger(__name__)
 
-STATUSES = ("ok", "diverged", "error")
+STATUSES = ("ok", "diverged", "error", "interrupted")
 
 STRUCTURE_RECORD_VALUES = AERO_INPUT_RECORD_VALUES
 """The structure coordinates are recorded up to about this many numbers (8 bytes each), the bound of the aero
@@ -117,7 +117,7 @@ class StructureCoordinates:
 class RunResult:
     """Outcome of one run: what ``summary.json`` and ``timeseries.csv`` are written from."""
 
-    status: str               # "ok" | "diverged" | "error"
+    status: str               # "ok" | "diverged" | "error" | "interrupted" (Ctrl-C, SIGTERM)
     message: str
     wall_time_s: float        # s, from unit start-up to the end of the run
     simulated_time_s: float   # s, last communication point reached
@@ -217,7 +217,7 @@ def _classify(err: BaseException, unit_error: type, phase: str) -> tuple[str, st
     if is_divergence(err, unit_error):
         return "diverged", str(err)
     if isinstance(err, KeyboardInterrupt):
-        return "error", f"interrupted by the user during {phase}"
+        return "interrupted", f"interrupted ({err or 'SIGINT'}) during {phase}"
     if isinstance(err, unit_error):
         return "error", f"{phase}: {err}"
     return "error", f"{phase}: {type(err).__name__}: {err}"
@@ -233,7 +233,13 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     ``topology`` (default the scene's ``fmu_common.topology.Topology``) gives the number of coordinates the
     structure unit must have (``n_coordinates``).
     Both are parameters so that the loop can be tested without the physics.
+    ``backend="fmu"`` needs ``fmu_dir``, the folder of the scene's built FMUs: ValueError without it, before
+    anything runs (``wingsim.run(scene, backend="fmu")`` builds them when needed).
     """
+    if backend == "fmu" and fmu_dir is None:
+        raise ValueError("run_scene(backend='fmu') needs fmu_dir, the folder of the scene's built FMUs (wingsim build "
+                         "SCENE writes them; wingsim.run(scene, backend='fmu') builds them when needed); "
+                         "backend='direct' runs the units in this process without FMUs")
     start = _time.perf_counter()
     if units is None:
         units = importlib.import_module("orchestrator.run.units")  # lazy: loads fmpy and the slaves

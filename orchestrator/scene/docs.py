@@ -4,9 +4,10 @@
     python -m orchestrator.scene.docs --check    # exit 1 if docs/scenes.md differs from the generated text
 
 The template (orchestrator/templates/scenes.md) holds the introduction and the explanations; its markers
-``{{ reference }}`` and ``{{ bounds }}`` become the reference of every key (type, unit, default, allowed,
-description; one table per scene table, one per variant of a table whose keys depend on a selector) and
-the size bounds (fmu_common.scene_bounds.BOUNDS).
+``{{ reference }}``, ``{{ bounds }}`` and ``{{ plausible }}`` become the reference of every key (type, unit,
+default, allowed, description; one table per scene table, one per variant of a table whose keys depend on a
+selector), the size bounds (fmu_common.scene_bounds.BOUNDS) and the plausible ranges
+(orchestrator.scene.plausibility.PLAUSIBLE).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from fmu_common.scene_bounds import BOUNDS
+from orchestrator.scene.plausibility import PLAUSIBLE
 from fmu_common.scene_schema import SCENE
 from fmu_common.schema import (REQUIRED, Absent, Choice, Integer, Key, Name, Number, Table, Tables, Text, Variants,
                                Vector)
@@ -127,10 +129,16 @@ def bounds() -> str:
     return "\n".join(["| what | bound | why |", "|---|---|---|", *rows]) + "\n"
 
 
+def plausible() -> str:
+    rows = [f"| `{r.key}` | {r.low:g} to {r.high:.4g} {r.unit} | {_cell(r.why)} |" for r in PLAUSIBLE]
+    return "\n".join(["| key | plausible | why |", "|---|---|---|", *rows]) + "\n"
+
+
 def generate() -> str:
     """The text of docs/scenes.md."""
     text = TEMPLATE.read_text(encoding="utf-8")
-    return text.replace("{{ reference }}\n", reference()).replace("{{ bounds }}\n", bounds())
+    return (text.replace("{{ reference }}\n", reference()).replace("{{ bounds }}\n", bounds())
+            .replace("{{ plausible }}\n", plausible()))
 
 
 def write_or_check(path: Path, text: str, check: bool, source: str, command: str) -> int:

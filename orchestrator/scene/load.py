@@ -36,6 +36,7 @@ from fmu_common.scene_schema import PARENT_JOINTS, SCENE
 from fmu_common.scene_schema import resolve_scene as resolve_schema
 from fmu_common.schema import MISSING, is_number
 from orchestrator.scene.overrides import apply_overrides
+from orchestrator.scene.shipped import locate, missing_hint
 from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
 from structure_fmu.joint_monitors import monitor_names
 
@@ -52,13 +53,14 @@ class SceneFileError(SceneError):
 
 
 def read_scene_file(path: str | Path) -> dict:
-    """The raw TOML table of a scene file; raises SceneFileError when unreadable or not TOML."""
-    path = Path(path)
+    """The raw TOML table of a scene file, or of the shipped scene `path` names (``orchestrator.scene.shipped``:
+    a file that exists wins); raises SceneFileError when unreadable or not TOML."""
+    given, path = path, locate(path)
     try:
         with path.open("rb") as f:
             return tomllib.load(f)
     except FileNotFoundError:
-        raise SceneFileError(path, "no such file") from None
+        raise SceneFileError(path, missing_hint(given)) from None
     except IsADirectoryError:
         raise SceneFileError(path, "it is a directory, not a .toml file") from None
     except OSError as err:

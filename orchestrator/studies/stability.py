@@ -197,11 +197,18 @@ def divergence_speed(pressure: float, density: float) -> float:
 
 def stiffness_overrides(scene: dict, body: str, youngs_modulus: float) -> list[str]:
     """``--set`` overrides giving ``body`` Young's modulus E (Pa) with every stiffness scaled with it: EA and
-    EI follow from the section, GJ is scaled by E / E_scene (a material of fixed Poisson ratio)."""
+    EI of the plate follow from the section; GJ, the stiffnesses given explicitly and their tip values (a section
+    varying along the span) are scaled by E / E_scene (a material of fixed Poisson ratio)."""
     section = next(b for b in scene["structure"]["bodies"] if b["name"] == body)["section"]
     factor = youngs_modulus / section["youngs_modulus"]
+    keys = [key for name in STIFFNESSES for key in (name, f"{name}_tip")]
+    given = [key for key in keys if section.get(key) is not None]
     return [f"structure.bodies.{body}.section.youngs_modulus={float(youngs_modulus)!r}",
-            f"structure.bodies.{body}.section.torsional_rigidity={float(section['torsional_rigidity'] * factor)!r}"]
+            *(f"structure.bodies.{body}.section.{key}={float(section[key] * factor)!r}" for key in given)]
+
+
+STIFFNESSES = ("torsional_rigidity", "axial_stiffness", "bending_stiffness_flap", "bending_stiffness_chord")
+"""The section keys that are stiffnesses (N or N m^2): each scales with Young's modulus."""
 
 
 def frequency_range(scene: dict) -> tuple[float, float]:

@@ -9,7 +9,7 @@ import pytest
 
 from repository import ROOT
 
-PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator")
+PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator", "wingsim")
 STAGES = ("scene", "build", "run", "output", "export", "sweep", "cli", "__main__")
 """The master's stages in order (orchestrator/__init__.py): each may import only itself and those before it."""
 

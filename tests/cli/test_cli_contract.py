@@ -14,7 +14,7 @@ from orchestrator.run.master import RunResult, communication_times, run_scene
 from orchestrator.scene.overrides import apply_overrides
 from orchestrator.output.plots import fold_angles_figure, write_plots
 from orchestrator.run.progress import Progress
-from orchestrator.output.results import deployment_time, energy_drift, summarize, write_results
+from orchestrator.output.results import deployment_time, energy_drift, read_timeseries, summarize, write_results
 from orchestrator.scene.load import read_scene_file, resolve_scene
 from orchestrator.run.timeseries import TimeSeries
 from subprocesses import wingsim
@@ -121,11 +121,13 @@ def test_timeseries_csv_columns_and_rows(scene, tmp_path):
     write_results(synthetic(scene), tmp_path)
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0] == ["time", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz", "tip_ax", "tip_ay", "tip_az",
-                       "fold_angle_fold", "energy", "kinetic_energy", "constraint_residual", "external_work"]
+    # each header cell is the column's name and its unit, as the units' interface tables declare it
+    assert rows[0] == ["time [s]", "tip_x [m]", "tip_y [m]", "tip_z [m]", "tip_vx [m/s]", "tip_vy [m/s]",
+                       "tip_vz [m/s]", "tip_ax [m/s2]", "tip_ay [m/s2]", "tip_az [m/s2]", "fold_angle_fold [deg]",
+                       "energy [J]", "kinetic_energy [J]", "constraint_residual [-]", "external_work [J]"]
     data = np.array(rows[1:], dtype=float)
     assert data.shape == (len(TIME), 15)
-    column = {name: data[:, k] for k, name in enumerate(rows[0])}
+    column = {name.partition(" [")[0]: data[:, k] for k, name in enumerate(rows[0])}
     np.testing.assert_allclose(column["time"], TIME)
     np.testing.assert_allclose(data[:, 1:4], TIP)
     np.testing.assert_allclose(np.column_stack([column[f"tip_v{axis}"] for axis in "xyz"]), TIP_V)
@@ -159,7 +161,7 @@ def test_aero_scene_adds_CL_and_lift_columns_summary_and_plot(scene, tmp_path):
     write_results(result, tmp_path)
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0][0] == "time" and rows[0][-3:] == ["hinge_moment_fold", "CL", "lift"]
+    assert rows[0][0] == "time [s]" and rows[0][-3:] == ["hinge_moment_fold [N.m]", "CL [-]", "lift [N]"]
     np.testing.assert_allclose(np.array(rows[1:], dtype=float)[:, -2], cl)
     np.testing.assert_allclose(np.array(rows[1:], dtype=float)[:, -3], moment)
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -183,8 +185,8 @@ def test_run_without_samples_writes_nulls(scene, tmp_path):
     assert summary["probes"] == {"tip": {"initial": None, "final": None,
                                          "min_displacement": None, "max_displacement": None}}
     assert (tmp_path / "timeseries.csv").read_text().splitlines() == [
-        "time,tip_x,tip_y,tip_z,tip_vx,tip_vy,tip_vz,tip_ax,tip_ay,tip_az,fold_angle_fold,energy,kinetic_energy,"
-        "constraint_residual,external_work"]
+        "time [s],tip_x [m],tip_y [m],tip_z [m],tip_vx [m/s],tip_vy [m/s],tip_vz [m/s],tip_ax [m/s2],tip_ay [m/s2],"
+        "tip_az [m/s2],fold_angle_fold [deg],energy [J],kinetic_energy [J],constraint_residual [-],external_work [J]"]
 
 
 def test_deployment_time_waits_for_every_latched_hinge(scene):
@@ -394,8 +396,7 @@ def test_run_example_scene(tmp_path, backend):
     assert set(summary) == SUMMARY_FIELDS | {"aero", "strain_gauges", "joint_monitors"}
     assert set(summary["joint_monitors"]) == {"fold_point_mismatch", "fold_axis_error"}
     assert max(summary["joint_monitors"].values()) < 1e-12
-    with (tmp_path / "out" / "timeseries.csv").open() as f:
-        header = next(csv.reader(f))
+    header = list(read_timeseries(tmp_path / "out" / "timeseries.csv")[0].dtype.names)
     assert header[0] == "time" and "fold_angle_fold" in header and "tip_z" in header
     assert {f"tip_{kind}{axis}" for kind in "va" for axis in "xyz"} <= set(header)   # every probe's rates
     assert "strain_20mm" in header and "CL" in header
@@ -416,5 +417,5 @@ def test_diverging_run_exits_1_and_keeps_its_results(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "diverged" and "diverged" in summary["message"]
     assert summary["simulated_time_s"] < 0.05
-    assert (tmp_path / "out" / "timeseries.csv").read_text().startswith("time,")
+    assert (tmp_path / "out" / "timeseries.csv").read_text().startswith("time [s],")
     assert f"not deployed: fold had not latched at t = {summary['simulated_time_s']:g} s" in proc.stdout

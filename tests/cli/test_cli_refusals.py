@@ -22,7 +22,7 @@ import orchestrator.output.results
 from orchestrator.build.fmus import build_digest, embedded_scene
 from orchestrator.cli import FMU_ROOT, fmu_dir, main
 from orchestrator.run.master import RunResult, new_series
-from orchestrator.output.results import summarize
+from orchestrator.output.results import read_timeseries, summarize
 from orchestrator.scene.load import load_scene
 from orchestrator.files import process_record
 from orchestrator.output.run_record import finish_record, start_record
@@ -220,7 +220,7 @@ def test_a_sweep_goes_on_past_an_unwritable_run_folder_a_full_disk_and_a_diverge
     # run 1's summary is complete; run 2's results are all there
     assert json.loads((out / "runs" / names[1] / "summary.json").read_text())["status"] == "ok"
     assert not (out / "runs" / names[1] / "timeseries.csv").exists()
-    assert (out / "runs" / names[2] / "timeseries.csv").read_text().startswith("time,")
+    assert (out / "runs" / names[2] / "timeseries.csv").read_text().startswith("time [s],")
 
 
 def test_resume_reruns_a_run_that_was_running_or_lost_its_timeseries(tmp_path):
@@ -382,9 +382,9 @@ def test_a_signal_to_a_run_writes_its_results_so_far(signum, code, tmp_path):
     assert proc.returncode == code, err
     assert "Traceback" not in err
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "error" and "interrupted" in summary["message"]
+    assert summary["status"] == "interrupted" and "interrupted" in summary["message"]
     assert summary["simulated_time_s"] < 200
-    assert (out / "timeseries.csv").read_text().startswith("time,")
+    assert (out / "timeseries.csv").read_text().startswith("time [s],")
 
 
 # --- FMU folders of --set variants ------------------------------------------------------------------------
@@ -432,6 +432,26 @@ def test_concurrent_runs_of_tunable_variants_share_one_build(tmp_path):
     for speed in speeds:
         summary = json.loads((tmp_path / f"out{speed}" / "summary.json").read_text())
         assert summary["status"] == "ok" and summary["scene"]["flow"]["speed"] == float(speed)
-        with open(tmp_path / f"out{speed}" / "timeseries.csv", newline="") as handle:
-            lift[speed] = float(list(csv.DictReader(handle))[-1]["lift"])
+        lift[speed] = float(read_timeseries(tmp_path / f"out{speed}" / "timeseries.csv")[0]["lift"][-1])
     assert lift["8"] != lift["12"]   # each run got its own speed
+
+
+def test_ctrl_c_on_the_fmu_backend_is_recorded_as_interrupted(tmp_path):
+    """SIGINT while the FMUs run: the signal reaches the slave's Python inside an FMI call, which the FMI layer
+    turns into fmi2Fatal; the run is still recorded as interrupted (not as an error quoting the FMU), exit 130."""
+    overrides = ["--set", "aero.model=none", "--set", "time.stop=200"]
+    out = tmp_path / "out"
+    built = subprocess.run([sys.executable, "-m", "orchestrator", "build", SCENE, *overrides], cwd=tmp_path,
+                           env={**os.environ, "PYTHONPATH": str(CODE_ROOT)}, capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr
+    proc = start("run", SCENE, *overrides, "--out", out, cwd=tmp_path, marker=uuid.uuid4().hex)
+    wait_for(lambda: b"structure.so" in _proc(proc.pid, "maps"), "the structure FMU's binary loaded")
+    time.sleep(1.0)   # into the steps (an earlier signal is an interruption too, before the first step)
+    proc.send_signal(signal.SIGINT)
+    err = ended(proc, "the run")
+    assert proc.returncode == 130, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["message"].startswith("interrupted (SIGINT)")
+    assert "Fatal" not in summary["message"] and "Traceback" not in err
+    assert summary["simulated_time_s"] < 200
+    assert f"t = {summary['simulated_time_s']:.4g} / 200 s" in err and err.endswith(": interrupted\n")   # progress

@@ -23,7 +23,7 @@ import pytest
 
 from repository import ROOT
 
-PACKAGES = ("structure_fmu", "aero_fmu", "fmu_common")
+PACKAGES = ("structure_fmu", "aero_fmu", "fmu_common", "wingsim")
 
 _ENTRY = re.compile(r"^\*{0,2}(?P<name>\w+)\s*(\([^)]*\))?\s*:")
 _IGNORED = {"self", "cls"}

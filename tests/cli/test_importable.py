@@ -13,7 +13,7 @@ import pytest
 from repository import ROOT
 from subprocesses import wingsim
 
-PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator")
+PACKAGES = ("fmu_common", "structure_fmu", "aero_fmu", "orchestrator", "wingsim")
 EXCLUDED = {
     "orchestrator.__main__": "runs the command line when imported (`python -m orchestrator`); pdoc skips it too",
 }

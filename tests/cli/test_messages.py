@@ -30,7 +30,7 @@ def test_a_run_without_a_stop_angle_says_nothing_of_deployment(tmp_path):
 def test_validate_calls_a_folder_a_folder(tmp_path):
     folder = tmp_path / "structure.fmu"
     folder.mkdir()
-    assert validate(folder) == [f"a folder, not an FMU file: {folder}"]
+    assert validate(folder).compliance == [f"a folder, not an FMU file: {folder}"]
 
 
 def test_a_corrupted_fmu_is_named_by_the_file_given(built_fmus, tmp_path):
@@ -42,6 +42,6 @@ def test_a_corrupted_fmu_is_named_by_the_file_given(built_fmus, tmp_path):
         for item in given.infolist():
             data = given.read(item)
             out.writestr(item, b"not a library" if item.filename == "binaries/linux64/structure.so" else data)
-    problems = " ".join(validate(broken))
+    problems = " ".join(validate(broken).compliance)
     assert f"{broken}:binaries/linux64/structure.so" in problems
     assert tempfile.gettempdir() + "/tmp" not in problems and "wingsim_validate_" not in problems

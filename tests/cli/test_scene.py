@@ -8,6 +8,7 @@ import pytest
 from orchestrator.scene.overrides import apply_overrides, parse_override, parse_value
 from orchestrator.scene.load import MISSING, load_scene, read_scene_file, resolve_scene
 from fmu_common.errors import SceneError
+from fmu_common.scene_schema import TAPERED
 from repository import SCENES
 
 EXAMPLE = SCENES / "deploy_rigid.toml"
@@ -108,10 +109,10 @@ def test_defaults_of_a_minimal_scene():
     assert body == [{"name": "b", "length": 1.0, "root": [0.0, 0.0, 0.0], "span_axis": [1.0, 0.0, 0.0],
                      "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "elements": None, "angular_velocity": None,
                      "sweep_deg": None, "twist_deg": 0.0, "dihedral_deg": 0.0,
-                     "section": {**SECTION, "chord_tip": None, "axis_position": 0.5, "axial_stiffness": None,
+                     "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
                                  "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0,
-                                 "airfoil": None}}]
+                                 "airfoil": None, **{f"{name}_tip": None for name in TAPERED}}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
     assert list(scene) == ["name", "description", "time", "coupling", "flow", "aero", "structure", "probes",

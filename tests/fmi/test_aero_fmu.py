@@ -505,7 +505,7 @@ def test_strip_theory_scene_runs_end_to_end(tmp_path):
     assert summary["status"] == "ok" and summary["scene"]["aero"]["model"] == "strip"
     assert summary["aero"]["model"] == "strip" and 0.2 < summary["aero"]["CL_final"] < 0.6   # 5 deg, AR 8
     header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
-    assert header[0] == "time" and header[-2:] == ["CL", "lift"]
+    assert header[0] == "time [s]" and header[-2:] == ["CL [-]", "lift [N]"]
     assert (out / "lift_coefficient.png").stat().st_size > 1000
     variant = load_scene(SCENES / "steady_wing.toml", ["aero.model=strip"])
     file_scene = load_scene(SCENES / "steady_wing.toml")

@@ -9,16 +9,21 @@ in the same Gauss-Seidel order.
 """
 from __future__ import annotations
 
+import csv
+import os
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, numeric_env, run_c_host
+from fmi_hosts import FmpyHost, UnitSpec, coupled_units, fmpy_run, host_input, numeric_env, run_c_host
 from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
-from repository import SCENES
+from repository import ROOT, SCENES
+from subprocesses import CODE_ROOT
 
 SCENE = SCENES / "deploy_rigid.toml"
 
@@ -186,3 +191,46 @@ def test_runs_with_an_empty_environment(c_host, unzipped, scene, tmp_path):
         rest = [k for k in range(reference.shape[1]) if k not in solved]
         np.testing.assert_allclose(c["round1"][:, rest], reference[:, rest], rtol=1e-11, atol=1e-12)
         np.testing.assert_allclose(c["round1"][:, solved], reference[:, solved], rtol=1e-8, atol=1e-9)
+
+
+def test_host_input_writes_the_input_of_the_coupled_run(fmus, unzipped, scene, tmp_path):
+    """tests/fmi/c_host/host_input.py (the docs' way to the host's input file) writes the input the coupled test
+    above runs the host on (the host's rows equal fmpy's and the master's there), but for the unzipped folders."""
+    proc = subprocess.run([sys.executable, str(ROOT / "tests" / "fmi" / "c_host" / "host_input.py"),
+                           str(fmus["structure"].parent), str(tmp_path)], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(CODE_ROOT)}, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    h, stop = scene["coupling"]["step"], scene["time"]["stop"]
+    expected = host_input(coupled_units(unzipped), round(stop / h), h, stop)
+    for kind, folder in unzipped.items():
+        expected = expected.replace(str(folder), str(tmp_path.resolve() / kind))
+        expected = expected.replace(folder.as_uri(), (tmp_path.resolve() / kind).as_uri())
+    assert proc.stdout == expected
+
+
+@pytest.mark.slow
+def test_the_c_host_example_of_the_docs_runs_as_written(c_compiler, scene, tmp_path):
+    """docs/fmu.md, "A plain C host": its commands, run in an empty folder with the repository's paths and
+    virtual environment put in, build the FMUs, write the input file, compile and run the host; the host's rows
+    equal wingsim's own run of the same FMUs (to 1e-12: `env -i` may select other BLAS kernels)."""
+    text = (ROOT / "docs" / "fmu.md").read_text().split("### A plain C host", 1)[1]
+    block = text.split("```sh\n", 1)[1].split("```", 1)[0]
+    script = (block.replace(".venv/bin/", f"{Path(sys.executable).parent}/")
+              .replace("scenes/", f"{ROOT}/scenes/").replace("tests/", f"{ROOT}/tests/")
+              .replace("cc -std", f"{' '.join(c_compiler)} -std"))
+    assert "host_input.py fmus/deploy_rigid unzipped > input.txt" in block
+    proc = subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=tmp_path, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(CODE_ROOT)}, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    with open(tmp_path / "out.csv", newline="") as f:
+        header = next(csv.reader(f))
+    c = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1, usecols=range(1, len(header)))
+    result = run_scene(scene, "fmu", tmp_path / "fmus" / "deploy_rigid")
+    assert result.status == "ok" and c.shape[0] == len(result.series) == 301
+    np.testing.assert_array_equal(c[:, 0], result.series.column("time"))
+    for name in ("fold_angle_fold", "energy"):
+        np.testing.assert_allclose(c[:, header.index(f"structure.{name}") - 1], result.series.column(name),
+                                   rtol=1e-12, atol=1e-12)
+    for name in ("CL", "lift"):
+        np.testing.assert_allclose(c[:, header.index(f"aero.{name}") - 1], result.series.column(name),
+                                   rtol=1e-12, atol=1e-12)

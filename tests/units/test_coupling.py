@@ -113,7 +113,7 @@ def test_implicit_coupling_converges_at_every_step_and_reports_its_iterations(im
                                    "max_residual": pytest.approx(float(np.max(residual[1:])), rel=1e-12)}
     with (tmp_path / "timeseries.csv").open() as f:
         rows = list(csv.reader(f))
-    assert rows[0][-2:] == ["coupling_iterations", "coupling_residual"]
+    assert rows[0][-2:] == ["coupling_iterations [-]", "coupling_residual [-]"]
     np.testing.assert_array_equal(np.array([r[-2] for r in rows[1:]], float), iterations)
 
 

@@ -102,20 +102,24 @@ def test_force_is_gradient_of_energy_and_jacobian_is_its_derivative():
         np.testing.assert_allclose(-jac[:, :, k], dF, rtol=1e-5, atol=1e-5 * np.abs(jac).max())
 
 
+@pytest.mark.parametrize("section", ["constant", "varying"])
 @pytest.mark.parametrize("term", ["axial", "flap", "chordwise", "torsion"])
-def test_analytic_tangent_equals_the_complex_step_derivative_of_the_force(term):
-    """Each energy term alone (its stiffness column only), on bent, twisted, stretched elements: the analytic
-    second derivative against the complex-step derivative of the force, exact to round-off (no
-    cancellation), so the two agree to 1e-12 and a wrong block of any term shows."""
+def test_analytic_tangent_equals_the_complex_step_derivative_of_the_force(term, section):
+    """Each energy term alone (its stiffness column only), on bent, twisted, stretched elements, its stiffness per
+    element or varying along the span: the analytic second derivative against the complex-step derivative of the
+    force, exact to round-off (no cancellation), so the two agree to 1e-12 and a wrong block of any term shows."""
     column = ["axial", "flap", "chordwise", "torsion"].index(term)
     stiffness = np.zeros((3, 4))
     stiffness[:, column] = [1e6, 2.0, 50.0, 3.0][column] * np.array([1.0, 0.2, 7.0])
+    if section == "varying":
+        stiffness = varying(stiffness, RNG)
     l = np.array([0.3, 0.5, 0.02])
     e = np.stack([straight(x) for x in l]) + 0.05 * RNG.standard_normal((3, 18))
     h = 1e-30
     perturbed = np.repeat(e[None].astype(complex), 18, axis=0)               # copy k moves e_k by i h
     perturbed[np.arange(18), :, np.arange(18)] += 1j * h
-    force = element.elastic_force(perturbed.reshape(-1, 18), np.tile(l, 18), np.tile(stiffness, (18, 1)))
+    force = element.elastic_force(perturbed.reshape(-1, 18), np.tile(l, 18),
+                                  np.tile(stiffness, (18,) + (1,) * (stiffness.ndim - 1)))
     complex_step = -np.moveaxis(force.imag.reshape(18, 3, 18), 0, 2) / h
     jac = element.elastic_jacobian(e, l, stiffness)
     assert np.abs(complex_step).max() > 0
@@ -201,12 +205,23 @@ def test_the_slot_basis_has_the_zero_pattern_the_c_kernels_skip():
         np.stack([1.0 - element.GAUSS_XI, element.GAUSS_XI], axis=-1), (11, g, 2)), rtol=1e-15, atol=1e-15)
 
 
-def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch):
+def varying(stiffness, rng):
+    """The stiffness table (n, 4) made to vary along each element: (n, VARYING_POINTS, 4), each column scaled by
+    independent random factors in [0.5, 2] at the Gauss points."""
+    g = element.VARYING_POINTS
+    return stiffness[:, None, :] * rng.uniform(0.5, 2.0, (len(stiffness), g, 4))
+
+
+@pytest.mark.parametrize("section", ["constant", "varying"])
+def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch, section):
     """element_kernels.c against element.elastic_force's numpy form on random elements (every term active:
-    stretch, both bendings, torsion): equal to 1e-12 of the largest component."""
+    stretch, both bendings, torsion), with a stiffness per element and one that varies along the span (given at
+    the Gauss points): equal to 1e-12 of the largest component."""
     rng = np.random.default_rng(11)
     e = rng.standard_normal((7, 18))
     length, stiffness = rng.uniform(0.05, 0.5, 7), rng.uniform(1.0, 1e3, (7, 4))
+    if section == "varying":
+        stiffness = varying(stiffness, rng)
     forces = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
@@ -214,17 +229,21 @@ def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch):
     assert np.abs(forces["compiled"] - forces["numpy"]).max() <= 1e-12 * np.abs(forces["numpy"]).max()
 
 
+@pytest.mark.parametrize("section", ["constant", "varying"])
 @pytest.mark.parametrize("term", ["all", "axial", "flap", "chordwise", "torsion"])
-def test_the_c_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term):
+def test_the_c_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term, section):
     """element_kernels.c's tangent against element.elastic_jacobian's numpy form on random stretched, bent and
-    twisted elements of different lengths and stiffnesses: every term together, then each alone (so that a
-    wrong block of a small term cannot hide under the axial one), equal to 1e-12 of the largest entry."""
+    twisted elements of different lengths and stiffnesses (per element, or varying along the span): every term
+    together, then each alone (so that a wrong block of a small term cannot hide under the axial one), equal to
+    1e-12 of the largest entry."""
     rng = np.random.default_rng(13)
     length = rng.uniform(0.02, 0.5, 7)
     e = np.stack([straight(x) for x in length]) + 0.1 * rng.standard_normal((7, 18))
     stiffness = rng.uniform(0.5, 2.0, (7, 4)) * np.array([1e6, 2.0, 50.0, 3.0])
+    if section == "varying":
+        stiffness = varying(stiffness, rng)
     if term != "all":
-        stiffness[:, ["axial", "flap", "chordwise", "torsion"].index(term) != np.arange(4)] = 0.0
+        stiffness[..., ["axial", "flap", "chordwise", "torsion"].index(term) != np.arange(4)] = 0.0
     tangents = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
@@ -266,8 +285,28 @@ def test_the_c_kernels_refuse_arguments_they_cannot_read(monkeypatch):
     with pytest.raises(ValueError, match=r"stiffness \(3, 3\)"):
         element.elastic_force(e, length, stiffness[:, :3])
     kernels, out = element.c_kernels(), np.full((3, 18, 18), 7.0)
-    table, address = element._table(length, stiffness)
+    table, address, _ = element._table(length, stiffness)
     for g in (0, 9):                            # the table holds 5 points: the kernel must not read it at all
         assert kernels.elastic_force(3, g, address, e.ctypes.data, out.ctypes.data) == -1
         assert kernels.elastic_jacobian(3, g, address, e.ctypes.data, out.ctypes.data) == -1
     assert np.all(out == 7.0)
+
+
+def test_properties_given_at_the_gauss_points_with_constant_values_are_the_constant_section():
+    """The same section given per element and at the VARYING_POINTS Gauss points, a finer rule of the same exact
+    integrals: the mass matrix and body force equal to 1e-13, and the bending and torsion energy of a deformed
+    element to 1e-12 (its integrands are polynomials of degree 8; the axial term is left out, its arc length
+    |r'| being the one non-polynomial integrand, which no rule integrates exactly)."""
+    g = element.VARYING_POINTS
+    l, mu, mu1, mu2, rotary = np.array([0.37]), np.array([2.1]), np.array([0.13]), np.array([0.045]), np.array([1e-3])
+    spread = [np.full((1, g), v[0]) for v in (mu, mu1, mu2, rotary)]
+    np.testing.assert_allclose(element.mass_matrix(l, *spread), element.mass_matrix(l, mu, mu1, mu2, rotary),
+                               rtol=1e-13, atol=1e-15)
+    gravity = np.array([0.0, 0.0, -9.81])
+    np.testing.assert_allclose(element.distributed_force(l, spread[0], spread[1], gravity),
+                               element.distributed_force(l, mu, mu1, gravity), rtol=1e-13, atol=1e-15)
+    stiffness = np.array([[0.0, 2.0, 50.0, 3.0]])       # no axial term: every other integrand is a polynomial
+    e = straight(0.37)[None] + 0.05 * RNG.standard_normal((1, 18))
+    per_point = np.repeat(stiffness[:, None, :], g, axis=1)
+    assert element.elastic_energy(e, l, per_point) == pytest.approx(element.elastic_energy(e, l, stiffness),
+                                                                     rel=1e-12)

@@ -101,15 +101,18 @@ def test_a_rigid_loop_keeps_one_closing_row_out_and_a_flexible_one_none():
 
 
 def test_shared_pivots_coincide_to_round_off_through_a_run():
-    """Every pin of a flexible scissor chain is a shared coordinate: its two nodes coincide to 1e-12 m while the
-    chain deploys (the rows of the rigid chain's closing pins hold to the projection's 1e-9)."""
-    for fidelity, closing in (("flexible", 1e-12), ("rigid", 1e-9)):
+    """Every pin of a flexible or shear-deformable scissor chain is a shared coordinate: its two nodes coincide to
+    1e-12 m while the chain deploys (the rows of the rigid chain's closing pins hold to the projection's 1e-9);
+    the shear-deformable chain, whose slider is a coordinate too, has no constraint row."""
+    for fidelity, closing in (("flexible", 1e-12), ("shear-deformable", 1e-12), ("rigid", 1e-9)):
         scene = scissor_chain(fidelity)
         solver = StructureSolver(StructureUnitSpec.from_scene(scene))
         top = solver.model.top
         pins = pin_nodes(top, scene)
-        if fidelity == "flexible":
+        if fidelity != "rigid":
             assert all(shared(top, a, b) for _, a, b in pins)
+        if fidelity == "shear-deformable":
+            assert solver.model.constraint_count == 0
         solver.advance(0.05)
         X = solver.e.reshape(-1, 3)
         for name, a, b in pins:

@@ -24,15 +24,28 @@ def test_rigid_motion_gives_zero_elastic_force_and_objectivity():
     assert_rigid_motion_free_and_objective(shear_element, plate(0.02, 0.005), E_AL * 0.02 * 0.005)
 
 
-def test_sheet_force_and_tangent_are_the_complex_step_derivatives():
-    """-dU/de and d^2U/de^2 of the sheet against complex steps of its energy and force: exact to round-off."""
+def tapered(section, rng):
+    """Section rows (n, 7) made to vary along each element: (n, VARYING_POINTS, 7), the chord, leading edge,
+    thickness, EI_yy and GJ scaled by random factors in [0.5, 2] at the Gauss points (E and G, the material's,
+    constant)."""
+    factors = rng.uniform(0.5, 2.0, (len(section), element.VARYING_POINTS, 7))
+    factors[..., :2] = 1.0
+    return section[:, None, :] * factors
+
+
+@pytest.mark.parametrize("varies", [False, True])
+def test_sheet_force_and_tangent_are_the_complex_step_derivatives(varies):
+    """-dU/de and d^2U/de^2 of the sheet against complex steps of its energy and force, its section per element or
+    varying along the span: exact to round-off."""
     l = np.array([0.3, 0.5, 0.05])
     section = plate(0.02, 0.005, 3, leading_edge=-0.004)      # reference line off the centroid: every term
+    if varies:
+        section = tapered(section, RNG)
     e = np.stack([straight(x) for x in l]) + 0.05 * RNG.standard_normal((3, 18))
     h = 1e-30
     perturbed = np.repeat(e[None].astype(complex), 18, axis=0)
     perturbed[np.arange(18), :, np.arange(18)] += 1j * h
-    many = (np.tile(l, 18), np.tile(section, (18, 1)))
+    many = (np.tile(l, 18), np.tile(section, (18,) + (1,) * (section.ndim - 1)))
     gradient = shear_element.sheet_energy(perturbed.reshape(-1, 18), *many).imag.reshape(18, 3).T / h
     force = shear_element.sheet_force(e, l, section)
     np.testing.assert_allclose(-force, gradient, rtol=0, atol=1e-12 * np.abs(force).max())
@@ -42,13 +55,17 @@ def test_sheet_force_and_tangent_are_the_complex_step_derivatives():
     np.testing.assert_allclose(jac, complex_step, rtol=0, atol=1e-12 * np.abs(complex_step).max())
 
 
+@pytest.mark.parametrize("varies", [False, True])
 @pytest.mark.parametrize("kernel", ["sheet_force", "sheet_jacobian"])
-def test_the_c_kernels_equal_the_numpy_reference(monkeypatch, kernel):
-    """shear_element_kernels.c against the numpy forms on random elements and sections: equal to 1e-12."""
+def test_the_c_kernels_equal_the_numpy_reference(monkeypatch, kernel, varies):
+    """shear_element_kernels.c against the numpy forms on random elements and sections (per element, or varying
+    along the span): equal to 1e-12."""
     rng = np.random.default_rng(17)
     length = rng.uniform(0.02, 0.5, 6)
     e = np.stack([straight(x) for x in length]) + 0.1 * rng.standard_normal((6, 18))
     section = plate(0.02, 0.005, 6) * rng.uniform(0.5, 2.0, (6, 7))
+    if varies:
+        section = tapered(section, rng)
     results = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)

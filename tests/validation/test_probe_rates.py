@@ -3,11 +3,10 @@ independent numbers: the analytic kinematics of a rigid body in known rotation (
 alpha x r and the centripetal omega x (omega x r)), and the time derivatives of the recorded positions and
 velocities by central differences at the recording step (Richardson-extrapolated where the integrator is
 fourth-order), for RK4 on a rigid pendulum and for generalized-alpha on a flexible beam."""
-import csv
 
 import numpy as np
 
-from orchestrator.output.results import write_results
+from orchestrator.output.results import read_timeseries, write_results
 from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
 from repository import SCENES
@@ -49,10 +48,8 @@ def recorded(scene, tmp_path):
     result = run_scene(scene, backend="direct")
     assert result.status == "ok", result.message
     write_results(result, tmp_path)
-    with (tmp_path / "timeseries.csv").open() as f:
-        rows = list(csv.reader(f))
-    data = np.array(rows[1:], dtype=float)
-    return {name: data[:, k] for k, name in enumerate(rows[0])}, rows[0]
+    samples, units = read_timeseries(tmp_path / "timeseries.csv")
+    return {name: samples[name] for name in samples.dtype.names}, list(samples.dtype.names)
 
 
 def probe(columns, name, kind=""):

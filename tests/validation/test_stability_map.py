@@ -98,3 +98,19 @@ def test_a_run_that_fails_in_its_first_step_gets_no_coupling_hint():
     result = run_scene(scene, backend="direct")
     assert result.status == "diverged" and result.simulated_time_s == 0.0, result.message
     assert "structure.integrator" in result.message and "coupling" not in result.message
+
+
+def test_every_stiffness_of_a_varying_section_scales_with_youngs_modulus():
+    """GJ and its tip value scale by E / E_scene, so the wing's frequencies scale by sqrt(E / E_scene) (a material of
+    fixed Poisson ratio and density: every stiffness times the factor, the mass unchanged)."""
+    tapered = ["structure.bodies.wing.section.torsional_rigidity_tip=0.05"]
+    scene = load_scene(SCENE, tapered)
+    E = scene["structure"]["bodies"][0]["section"]["youngs_modulus"]
+    scaled = stability.stiffness_overrides(scene, "wing", 4.0 * E)
+    section = load_scene(SCENE, tapered + scaled)["structure"]["bodies"][0]["section"]
+    assert section["torsional_rigidity_tip"] == pytest.approx(4.0 * 0.05, rel=1e-15)
+    assert section["torsional_rigidity"] == pytest.approx(4.0 * scene["structure"]["bodies"][0]["section"]
+                                                          ["torsional_rigidity"], rel=1e-15)
+    (low, high), (low4, high4) = stability.frequency_range(scene), stability.frequency_range(load_scene(
+        SCENE, tapered + scaled))
+    assert low4 / low == pytest.approx(2.0, rel=1e-9) and high4 / high == pytest.approx(2.0, rel=1e-9)
