@@ -6,7 +6,8 @@ points is v_p = T_p Gamma with T (n_panels, 3, n_panels) from Otsuka et al. 2019
 contractions of it, each invariant under a rigid motion of the lattice (and of the flat wake with it):
 
     A   = n . T      normal wash, the matrix of the no-penetration condition (Otsuka et al. 2019, Eq. 22)
-    A_x = r_x . T    and  A_y = r_y . T: the products V . r_x, V . r_y of Eq. (23) (m/s per m^2/s)
+    A_x = w_s . T    and  A_y = w_c . T, w_s, w_c the panels' Geometry.span_weight, chord_weight: the products
+                     of Eq. (23) as aero_fmu.vlm.pressure_jump_forces writes them (m^2/s per m^2/s)
 
 `BoundSystem` builds them (one kernel pass) and the LU of A at a reference geometry, and reuses them
 while the current geometry is the reference moved rigidly (`rigid.rigid_fit`, tolerance
@@ -107,8 +108,10 @@ class BoundSystem:
             legs_start, legs = self._semi_infinite_legs
             T += influence(geometry.collocation, corners[legs_start], np.broadcast_to(direction, (len(legs_start), 3)),
                            legs, core, True)
-        # A = n . T, A_x = r_x . T, A_y = r_y . T in one batched product over the collocation points
-        directions = np.concatenate([geometry.normal, geometry.r_x, geometry.r_y], axis=1).reshape(-1, 3, 3)
+        # A = n . T, A_x = span_weight . T, A_y = chord_weight . T in one batched product over the collocation
+        # points (aero_fmu.vlm.pressure_jump_forces)
+        directions = np.concatenate([geometry.normal, geometry.span_weight, geometry.chord_weight],
+                                    axis=1).reshape(-1, 3, 3)
         products = directions @ T                                                               # (P, 3, n)
         A, A_x, A_y = products[:, 0], products[:, 1], products[:, 2]
         lu, pivot_rows, _ = dgetrf(A)         # LAPACK directly: a zero pivot is reported below, with the reason

@@ -65,7 +65,8 @@ def prescribed_pose_allowance(topology, structure) -> np.ndarray:
         structure: the scene's structure table (fmu_common.wing_spec.StructureSpec).
 
     Returns:
-        (n_nodes,) m: 2 |sin(theta_0 / 2)| |p - a| c of each node's body; zeros without a prescribed motion.
+        (n_nodes,) m: 2 |sin(theta_0 / 2)| |p - a| c of each node's body (c its larger end chord); zeros without
+        a prescribed motion.
     """
     allowance = np.zeros(topology.n_nodes)
     motion = structure.motion
@@ -77,7 +78,8 @@ def prescribed_pose_allowance(topology, structure) -> np.ndarray:
         theta = math.radians(motion.pitch_amplitude_deg) * math.sin(math.radians(motion.phase_deg))
     for body in topology.bodies.values():
         pivot = body.axis_position if motion.pitch_axis_position is None else motion.pitch_axis_position
-        allowance[body.nodes] = 2.0 * abs(math.sin(theta / 2.0)) * abs(pivot - body.axis_position) * body.chord
+        chord = max(body.planform.chord_root, body.planform.chord_tip)
+        allowance[body.nodes] = 2.0 * abs(math.sin(theta / 2.0)) * abs(pivot - body.axis_position) * chord
     return allowance
 
 

@@ -16,7 +16,13 @@ section normal n, like the UVLM's panel forces (Otsuka et al. 2019, Eq. 25), so 
     F_j = pi rho c_j |V_perp| (V_rel . n) Delta s_j n,   c_j = |r_y| c,   Delta s_j = |r_x| L / N
         = pi rho |r_y| c (V_rel . n) |r_x x V_rel| (L / N) n
 
-at the quarter chord; Q by Otsuka et al. 2019, Eq. (12). No division: zero in still air, and a wing moving normal to
+at the quarter chord; Q by Otsuka et al. 2019, Eq. (12). On a planform (docs/aero.md, Planform) c_j is the
+local chord at mid strip, n the normal of the twisted chord line, and a cambered section lifts from its
+thin-airfoil zero-lift angle alpha_L0 (fmu_common.airfoil): V_rel . n becomes |V_perp| sin(alpha_eff - alpha_L0)
+= cos(alpha_L0) (V_rel . n) - sin(alpha_L0) (V_rel . t), t = n x t_x the unit chord direction toward the
+trailing edge (the strips' lattice has the chord lines only).
+
+No division: zero in still air, and a wing moving normal to
 itself in still air (alpha_eff = 90 deg, e.g. deployment at 0 m/s) gets a normal force resisting the
 motion (2 pi instead of a flat plate's drag coefficient of about 2: the linear theory is outside its
 range there), not a chordwise one. The 3/4-chord point carries the pitch-rate effect of quasi-steady
@@ -30,7 +36,7 @@ scaled by Helmbold's lifting-line lift slope over 2 pi,
 
     a / (2 pi) = A / (2 + sqrt(A^2 + 4)),   A = b^2 / S,
 
-b the sum of the body lengths (the deployed span of a folding wing) and S the sum of length x chord. It
+b the sum of the body lengths (the deployed span of a folding wing) and S the sum of the planform areas. It
 tends to 1 for a slender wing (0.998 at A = 1000) and to A / 4 (slender-wing theory, pi A / 2) for a
 short one; for a rectangular wing it is within about 7% of our vortex lattice between A = 4 and 8
 (docs/aero.md). "none" keeps the 2D slope (the formulas above, exactly).
@@ -44,14 +50,14 @@ from .loads import Loads, resultants, zero_loads
 
 
 def aspect_ratio(topology) -> float:
-    """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of length x chord (m^2).
+    """A = b^2 / S of the wing: b the sum of the body lengths (m), S the sum of the planform areas (m^2).
 
     Args:
         topology: the aero unit's topology.
     """
     bodies = topology.bodies.values()
     span = sum(b.length for b in bodies)
-    return span ** 2 / sum(b.length * b.chord for b in bodies)
+    return span ** 2 / sum(b.planform.area for b in bodies)
 
 
 def helmbold_factor(aspect: float) -> float:
@@ -86,7 +92,9 @@ class StripTheory:
 
     def __init__(self, topology, spanwise, span_correction="helmbold"):
         self.topology = topology
-        self.lattice = Lattice(topology, 1, spanwise)
+        self.lattice = Lattice(topology, 1, spanwise, camber=False)
+        alpha0 = self.lattice.zero_lift_angle
+        self._camber = (np.cos(alpha0), np.sin(alpha0))
         self.lift_slope_factor = (helmbold_factor(aspect_ratio(topology)) if span_correction == "helmbold"
                                   else 1.0)
 
@@ -118,10 +126,18 @@ class StripTheory:
         lat = self.lattice
         geometry = lat.geometry(E)
         relative = U - lat.collocation_matrix @ np.asarray(dE, dtype=float).reshape(-1, 3)    # V_rel (P, 3)
-        normal_flow = np.sum(relative * geometry.normal, axis=1)                              # V_rel . n
+        normal = geometry.normal
+        if not lat.flat:      # the section's normal: a twisted surface's normal off the reference line leans spanwise
+            span = geometry.r_x / np.sqrt(np.sum(geometry.r_x ** 2, axis=1))[:, None]
+            normal = normal - np.sum(normal * span, axis=1)[:, None] * span
+            normal /= np.sqrt(np.sum(normal ** 2, axis=1))[:, None]
+        chordwise = np.cross(normal, geometry.r_x)                                            # toward the trailing edge
+        chordwise /= np.sqrt(np.sum(chordwise ** 2, axis=1))[:, None]
+        cos0, sin0 = self._camber                            # |V_perp| sin(alpha_eff - alpha_L0), module docstring
+        normal_flow = cos0 * np.sum(relative * normal, axis=1) - sin0 * np.sum(relative * chordwise, axis=1)
         chord = np.sqrt(np.sum(geometry.r_y ** 2, axis=1)) * lat.chord                        # |r_y| c
         in_plane = np.sqrt(np.sum(np.cross(geometry.r_x, relative) ** 2, axis=1))              # |V_perp| |r_x|
         forces = ((self.lift_slope_factor * np.pi * density) * chord * normal_flow * in_plane
-                  * lat.panel_span)[:, None] * geometry.normal
+                  * lat.panel_span)[:, None] * normal
         loads = resultants(lat, geometry, forces, direction, float(np.linalg.norm(U)), density, 0)
         return StripState(float(t_end), True, loads)

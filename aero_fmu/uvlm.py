@@ -246,7 +246,7 @@ class UVLM:
             relative = relative + wakes.velocity(geometry.collocation, wake, self.wake_core, lat.core_radius)
         rhs = -np.einsum("ij,ij->i", relative, geometry.normal)
         gamma = dgetrs(*lu, rhs)[0]                          # LAPACK directly (lu from factorization.BoundSystem)
-        v_x = np.einsum("ij,ij->i", relative, geometry.r_x) + A_x @ gamma          # V . r_x, V = U + w - r'
-        v_y = np.einsum("ij,ij->i", relative, geometry.r_y) + A_y @ gamma
+        v_x = np.einsum("ij,ij->i", relative, geometry.span_weight) + A_x @ gamma    # V . (l_c x n), V = U + w - r'
+        v_y = np.einsum("ij,ij->i", relative, geometry.chord_weight) + A_y @ gamma   # V . (n x l_s)
         rate = circulation_rate(gamma, history, steps)
         return gamma, pressure_jump_forces(lat, geometry, gamma, v_x, v_y, density, rate)

@@ -214,28 +214,34 @@ def pressure_forces(lattice: Lattice, geometry, gamma, velocity, density, dgamma
     Returns:
         (n_panels, 3) panel forces a, N, global frame.
     """
-    v_x = np.sum(velocity * geometry.r_x, axis=1)
-    v_y = np.sum(velocity * geometry.r_y, axis=1)
-    return pressure_jump_forces(lattice, geometry, gamma, v_x, v_y, density, dgamma_dt)
+    v_s = np.sum(velocity * geometry.span_weight, axis=1)
+    v_c = np.sum(velocity * geometry.chord_weight, axis=1)
+    return pressure_jump_forces(lattice, geometry, gamma, v_s, v_c, density, dgamma_dt)
 
 
-def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, dgamma_dt=None) -> np.ndarray:
+def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_s, v_c, density, dgamma_dt=None) -> np.ndarray:
     """Panel forces from the tangential velocity products.
 
     Otsuka et al. 2019, Eqs. 23, 25
 
     Delta p_ij = rho [V . (tau_x (G_ij - G_i,j-1) / Delta x + tau_y (G_ij - G_i-1,j) / Delta y) + dG_ij/dt]
     with V the fluid velocity relative to the panel at its collocation point, tau the unit tangents
-    (Eq. 24), Delta x = |r_x| L/N, Delta y = |r_y| c/M the panel's span and chord lengths,
-    G_i,-1 = G_-1,j = 0 at the body's root edge and leading edge; a = Delta p * area * n (Eq. 25).
-    Only V . r_x and V . r_y enter, since tau / Delta = r / (|r|^2 * reference length).
+    (Eq. 24), Delta x, Delta y the panel's span and chord lengths, G_i,-1 = G_-1,j = 0 at the body's root edge
+    and leading edge; a = Delta p * area * n (Eq. 25). On a panel that is not a rectangle (taper, sweep, twist,
+    camber) the same jump is the normal part of the Kutta-Joukowski force rho V x (sum of the panel's edge
+    vortices): with l_c its chordwise and l_s its spanwise (bound) edge,
+
+        Delta p * area = rho [(G_ij - G_i,j-1) V . (l_c x n) + (G_ij - G_i-1,j) V . (n x l_s)] + rho dG_ij/dt area,
+
+    which on a rectangle (l_c = Delta y tau_y, l_s = Delta x tau_x) is Eq. 23 times the area:
+    l_c x n = Delta y tau_x, n x l_s = Delta x tau_y. Geometry.span_weight = l_c x n, chord_weight = n x l_s.
 
     Args:
         lattice: the Lattice.
         geometry: its Geometry.
         gamma: (n_panels,) m^2/s.
-        v_x: (n_panels,) V . r_x, m/s (r_x dimensionless).
-        v_y: (n_panels,) V . r_y, m/s (r_y dimensionless).
+        v_s: (n_panels,) V . span_weight, m^2/s.
+        v_c: (n_panels,) V . chord_weight, m^2/s.
         density: kg/m^3.
         dgamma_dt: (n_panels,) m^2/s^2, or None (steady).
 
@@ -247,12 +253,10 @@ def pressure_jump_forces(lattice: Lattice, geometry, gamma, v_x, v_y, density, d
     dG_span, dG_chord = G.copy(), G.copy()                 # G_ij - G_i,j-1 and G_ij - G_i-1,j
     dG_span[:, :, 1:] -= G[:, :, :-1]
     dG_chord[:, 1:] -= G[:, :-1]
-    rx, ry = geometry.r_x, geometry.r_y
-    dp = density * (v_x * dG_span.ravel() / (np.einsum("ij,ij->i", rx, rx) * lattice.panel_span)
-                    + v_y * dG_chord.ravel() / (np.einsum("ij,ij->i", ry, ry) * lattice.panel_chord))
+    jump = density * (v_s * dG_span.ravel() + v_c * dG_chord.ravel())          # Delta p * area, N
     if dgamma_dt is not None:
-        dp = dp + density * np.asarray(dgamma_dt, dtype=float)
-    return (dp * geometry.area)[:, None] * geometry.normal
+        jump = jump + density * np.asarray(dgamma_dt, dtype=float) * geometry.area
+    return jump[:, None] * geometry.normal
 
 
 def kutta_joukowski_forces(segments: Segments, gamma_segments, velocity, density) -> np.ndarray:

@@ -27,6 +27,8 @@ from . import choices
 from .errors import SceneError
 from .scene_bounds import (DENSE_AERO, DENSE_STRUCTURE, MAX_CHORDWISE_PANELS, MAX_COUPLING_ITERATIONS,
                            MAX_ELEMENTS_PER_BODY, MAX_SPANWISE_PANELS, MAX_WAKE_ROWS, check_sizes)
+from .airfoil import naca_camber
+from .planform import Planform
 from .scissors import expand_scissors
 from .vectors import unit
 from .fmi_units import fmi_unit
@@ -125,6 +127,30 @@ def _tip_rule(key: str, section: dict) -> None:
                              f"absent unless {key}.{name} gives the root value it varies from")
 
 
+def _airfoil_rule(key: str, section: dict) -> None:
+    """A camber line the aero unit can build: a NACA 4-digit designation."""
+    if section["airfoil"] is not None:
+        try:
+            naca_camber(section["airfoil"])
+        except ValueError as error:
+            raise SceneError(f"{key}.airfoil", section["airfoil"], str(error)) from None
+
+
+def _planform_rule(key: str, body: dict) -> None:
+    """The reference line (the beam) stays within the chord: a sweep that carries the leading edge behind it, or
+    the trailing edge ahead of it, at the tip is refused."""
+    section = body["section"]
+    chord_tip = section["chord_tip"] if section["chord_tip"] is not None else section["chord"]
+    planform = Planform.of(body["length"], section["chord"], chord_tip, section["axis_position"], body["sweep_deg"])
+    lead = planform.leading_edge_tip
+    if lead > 1e-12 * chord_tip or lead + chord_tip < -1e-12 * chord_tip:
+        side = "leading edge lies behind" if lead > 0 else "trailing edge lies ahead of"
+        raise SceneError(f"{key}.sweep_deg", body["sweep_deg"],
+                         f"a sweep that keeps the reference line within the chord: at the tip the {side} it by "
+                         f"{abs(lead if lead > 0 else lead + chord_tip):.4g} m (the lattice would leave the beam); "
+                         "sweep the beam itself with span_axis or a joint's orientation_deg")
+
+
 def _slider_rule(key: str, slider: dict) -> None:
     """A slider keeps its node on a line or on a plane: exactly one of the two."""
     given = [name for name in ("line", "plane_normal") if slider[name] is not None]
@@ -192,9 +218,12 @@ SECTION = Table({
     "rotary_inertia_tip": non_negative("kg m", "rho I_yy at the tip; rho I_yy varies linearly from "
                                                "section.rotary_inertia at the root",
                                        Absent("section.rotary_inertia: a constant rho I_yy")),
+    "airfoil": Text("-", Absent("a flat plate: no camber"), "camber line of the aerodynamic surface: a NACA 4-digit "
+                                                            "designation such as 'naca2412' (its thickness is not "
+                                                            "modelled; docs/aero.md, Planform)"),
 }, doc="Cross-section of the body: a rectangular plate (thickness, density, youngs_modulus) or explicit "
        "properties, which override the plate's; a key `*_tip` makes its property vary linearly along the body from "
-       "the root's value to the tip's", rules=(_section_rule, _tip_rule))
+       "the root's value to the tip's", rules=(_section_rule, _tip_rule, _airfoil_rule))
 
 BODY = Table({
     "name": Name("-", REQUIRED, "body name, referenced by joints, masses, loads, probes and strain gauges"),
@@ -214,8 +243,19 @@ BODY = Table({
                         why=DENSE_STRUCTURE),
     "angular_velocity": Vector("rad/s", Absent("at rest"), "initial rigid rotation rate about the root, global "
                                                             "frame"),
+    "sweep_deg": angle("leading-edge sweep: the angle in the body's plane from span_axis to the leading edge, "
+                       "positive toward the trailing edge (the leading edge starts a c ahead of the root); the "
+                       "reference line must stay within every chord (docs/aero.md, Planform)",
+                       Absent("the reference line stays at section.axis_position of every chord"), limit=90.0),
+    "twist_deg": angle("twist of the tip section relative to the root section, nose up, linear along the body, "
+                       "about the reference line; a hinge's child starts with its parent's tip twist (a root body "
+                       "with none)", 0.0, limit=90.0),
+    "dihedral_deg": angle("tilt of span_axis about chord_axis toward the section normal span_axis x chord_axis "
+                          "(not for a hinge's child: its joint's orientation_deg [0, -dihedral, 0] gives it)", 0.0,
+                          limit=90.0),
     "section": SECTION,
-}, doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
+}, rules=(_planform_rule,),
+   doc="One table per body, in any order (a hinge's parent need not come first); `section.*` is the table "
        "`section = { ... }` of the body")
 
 _BODY_REF = "name of a body of structure.bodies"

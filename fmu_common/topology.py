@@ -17,17 +17,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .airfoil import FLAT, naca_camber
 from .choices import Fidelity
 from .errors import SceneError
+from .planform import Planform
 from .shape_functions import hermite, shape_row
 from .wing_spec import BodySpec, JointSpec, ParentJointSpec, RevoluteSpec, StructureSpec, UniversalSpec
 from .vectors import rotation_about, unit
 
 @dataclass
 class Body:
-    """A body of the wing: length (m), chord c (m), reference line at axis_position a (fraction of the chord
-    from the leading edge), global element and node indices (root first), and its frame at t = 0: root
-    position (m), unit span direction and chord direction (-)."""
+    """A body of the wing: length (m), chord c (m) at the root, reference line at axis_position a (fraction of
+    the root chord from the leading edge), global element and node indices (root first), its frame at t = 0:
+    root position (m), unit span direction and chord direction (-), and its planform
+    (fmu_common.planform.Planform: taper, sweep, twist, camber)."""
 
     name: str
     length: float
@@ -38,14 +41,18 @@ class Body:
     root: np.ndarray = None
     span_axis: np.ndarray = None
     chord_axis: np.ndarray = None
+    planform: Planform = None
 
-    def chord_offset(self, chord_fraction):
-        """y (m) of the point at `chord_fraction` of the chord from the leading edge.
+    def chord_offset(self, chord_fraction, span=0.0):
+        """y (m) of the point at `chord_fraction` of the chord at `span` (m from the root) of the flat planform.
 
         Args:
             chord_fraction: 0 at the leading edge, 1 at the trailing edge.
+            span: m from the root.
         """
-        return (chord_fraction - self.axis_position) * self.chord
+        if self.planform is None:
+            return (chord_fraction - self.axis_position) * self.chord
+        return float(self.planform.chord_offset(span, chord_fraction))
 
 
 @dataclass(frozen=True)
@@ -153,7 +160,12 @@ class Topology:
         if isinstance(joint, ParentJointSpec):
             line = self._joint_line(joint, spec)
             self.joint_lines.append(line)
-        if line is not None and line.parent is not None:
+        parent = self.bodies[line.parent] if line is not None and line.parent is not None else None
+        body.planform = _planform(spec, parent)
+        if parent is not None:
+            if spec.planform.dihedral_deg != 0.0:
+                raise SceneError(f"{key}.dihedral_deg", spec.planform.dihedral_deg, "0 for a hinge's child: its "
+                                 "joint's orientation_deg [0, -dihedral, 0] turns it about its chord axis")
             tip = self.bodies[line.parent].nodes[-1]
             r0, x_parent, y_parent = self.node_initial[tip]
             frame = line.child_frame(_frame(x_parent, y_parent))
@@ -173,6 +185,7 @@ class Topology:
             y0 = unit(spec.chord_axis)
             if abs(x0 @ y0) > 1e-9:
                 raise SceneError(f"{key}.chord_axis", list(spec.chord_axis), "a direction perpendicular to span_axis")
+            x0 = dihedral_span_axis(x0, y0, spec.planform.dihedral_deg)
         body.root, body.span_axis, body.chord_axis = r0, x0, y0
         first_node = len(self.node_names)
         positions = [r0 + x0 * length * i / n_el for i in range(n_el + 1)]
@@ -204,7 +217,9 @@ class Topology:
         elif isinstance(joint, UniversalSpec):
             axis, child_axis = unit(joint.parent_axis), unit(joint.child_axis)
         if parent is None:      # the ground: the child's own axes give its frame at t = 0
-            start = _frame(unit(child.span_axis), unit(child.chord_axis))
+            chord_axis = unit(child.chord_axis)
+            start = _frame(dihedral_span_axis(unit(child.span_axis), chord_axis, child.planform.dihedral_deg),
+                           chord_axis)
             turn = rotation_about(axis, initial) if kind == "revolute" else np.eye(3)
             orientation = turn.T @ start
         if kind == "universal" and abs(axis @ orientation @ child_axis) > 1e-9:
@@ -257,7 +272,7 @@ class Topology:
         n_el = len(body.elements)
         l_el = body.length / n_el
         k = min(int(span / l_el), n_el - 1)
-        return body.elements[k], span - k * l_el, body.chord_offset(chord_fraction)
+        return body.elements[k], span - k * l_el, body.chord_offset(chord_fraction, span)
 
     def point_rows(self, body, span, chord_fraction=0.0):
         """Scalar shape rows of the material point at `span` and `chord_fraction` of `body`.
@@ -310,10 +325,39 @@ class Topology:
             "nodes": self.node_names,
             "elements": self.element_nodes,
             "bodies": {n: [b.length, b.chord, b.axis_position, len(b.elements)] for n, b in self.bodies.items()},
+            "planforms": {n: [b.planform.chord_tip, b.planform.leading_edge_tip, b.planform.twist_root,
+                              b.planform.twist_tip, b.planform.camber.m, b.planform.camber.p]
+                          for n, b in self.bodies.items()},
             "hinges": self.hinge_names,
             "joints": [[j.name, j.kind, j.parent, j.child] for j in self.joint_lines],
         }
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def dihedral_span_axis(span_axis, chord_axis, dihedral_deg):
+    """The span axis tilted by the dihedral Gamma about the chord axis toward the section normal n = x0 x y0:
+    cos(Gamma) x0 + sin(Gamma) n.
+
+    Args:
+        span_axis: (3,) unit x0.
+        chord_axis: (3,) unit y0, perpendicular to x0.
+        dihedral_deg: Gamma, deg.
+
+    Returns:
+        (3,) unit.
+    """
+    gamma = np.radians(dihedral_deg)
+    return np.cos(gamma) * span_axis + np.sin(gamma) * np.cross(span_axis, chord_axis)
+
+
+def _planform(spec: BodySpec, parent: Body | None) -> Planform:
+    """The Planform of a body spec; a hinge's child starts with its parent's tip twist."""
+    keys, section = spec.planform, spec.section
+    chord_tip = section.tip("chord")
+    twist_root = 0.0 if parent is None else float(np.degrees(parent.planform.twist_tip))
+    camber = FLAT if keys.airfoil is None else naca_camber(keys.airfoil)
+    return Planform.of(spec.length, section.chord, chord_tip, section.axis_position, keys.sweep_deg, twist_root,
+                       keys.twist_deg, camber)
 
 
 NODE_SPACING_TOLERANCE = 1e-6

@@ -73,11 +73,33 @@ class SectionSpec:
 
 
 @dataclass(frozen=True)
+class PlanformSpec:
+    """A body's planform keys (docs/aero.md, Planform) beside its section's chords (SectionSpec.chord and its tip):
+    leading-edge sweep_deg (deg; None: the reference line at axis_position of every chord), twist_deg of the tip
+    relative to the root (deg, nose up), dihedral_deg (deg, a tilt of span_axis about chord_axis) and the camber
+    line `airfoil` (a NACA 4-digit designation; None: flat)."""
+
+    sweep_deg: float | None = None
+    twist_deg: float = 0.0
+    dihedral_deg: float = 0.0
+    airfoil: str | None = None
+
+    @classmethod
+    def from_table(cls, body: dict) -> "PlanformSpec":
+        """The planform keys of a resolved body table.
+
+        Args:
+            body: the resolved body table.
+        """
+        return cls(body["sweep_deg"], body["twist_deg"], body["dihedral_deg"], body["section"]["airfoil"])
+
+
+@dataclass(frozen=True)
 class BodySpec:
     """A body: length (m) along the span, `elements` ANCF elements (its own count, else the fidelity's: the
     count the topology builds), damping alpha (1/s); at t = 0 its root (m), span_axis and chord_axis (-), each
     None for a jointed child (its parent's tip frame gives them; a given chord_axis is checked), and an initial
-    rigid rotation rate angular_velocity (rad/s, about the root) or None."""
+    rigid rotation rate angular_velocity (rad/s, about the root) or None; its planform (PlanformSpec)."""
 
     key: str
     name: str
@@ -89,6 +111,7 @@ class BodySpec:
     chord_axis: Vector | None
     angular_velocity: Vector | None
     section: SectionSpec
+    planform: PlanformSpec = PlanformSpec()
 
 
 # --- joints ----------------------------------------------------------------------------------------
@@ -362,7 +385,8 @@ class StructureSpec:
             bodies.append(BodySpec(key, body["name"], body["length"], body_elements(structure, body), body["damping"],
                                    _vector(body["root"]), _vector(body["span_axis"]), _vector(body["chord_axis"]),
                                    _vector(body["angular_velocity"]),
-                                   SectionSpec.from_table(f"{key}.section", body["section"])))
+                                   SectionSpec.from_table(f"{key}.section", body["section"]),
+                                   PlanformSpec.from_table(body)))
         joints = [joint_spec(f"structure.joints.{item_label(i, joint)}", joint)
                   for i, joint in enumerate(structure["joints"])]
         masses = [MassSpec(f"structure.masses.{i}", m["body"], m["span"], m["mass"])

@@ -8,6 +8,7 @@
 - ``run_folders``      the folder of each ``--set`` variant, and the run folders ``wingsim results`` lists
 - ``mechanism_view``   the mechanism at several instants (``mechanism.png``)
 - ``wake_view``        the wing and its wake in 3D (``wake_3d.png``), by replaying the aero unit
+- ``planform_view``    the planform and vortex lattice of each body as designed (``planform.png``)
 - ``geometry_history`` the structure and the lattice at chosen instants, for the animation and the VTK files
 - ``animation``        ``animation.gif`` (``wingsim run --animate``): the run's geometry moving, with the wake
 - ``vtk``              the geometry history for ParaView (``wingsim run --vtk``): ``vtk/*.vtu`` and ``*.pvd``

@@ -17,9 +17,11 @@
   aero unit in-process with the recorded inputs (``orchestrator.output.wake_view``; capped in wall time);
 - ``mechanism.png``: the bodies' reference lines at 5 instants from t = 0 to the end, from the structure
   coordinates the master recorded (``orchestrator.output.mechanism_view``), in the mechanism's plane when it is
-  planar, else in 3D.
+  planar, else in 3D;
+- ``planform.png`` (aero scenes): the planform and vortex lattice of each body as designed, unfolded
+  (``orchestrator.output.planform_view``).
 
-A failure of one of the two pictures prints a warning and never affects the other plots or the run's status.
+A failure of one of the three pictures prints a warning and never affects the other plots or the run's status.
 
 Layout: matplotlib's constrained layout, so titles (wrapped at ``TITLE_CHARS`` characters) and axis labels are
 never clipped; a legend of more than ``LEGEND_INSIDE`` entries goes outside the axes, right of them, so it covers
@@ -33,6 +35,7 @@ folder and renamed (``orchestrator.files.write_file``): a PNG under its own name
 
 from __future__ import annotations
 
+import importlib
 import sys
 import textwrap
 from pathlib import Path
@@ -233,22 +236,14 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         note_flat_panels(fig)
         write_file(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=DPI))   # whole or not at all
         written.append(path)
-    try:
-        from orchestrator.output.wake_view import write_wake_view
-
-        path = write_wake_view(result, out_dir)
-        if path is not None:
-            written.append(path)
-    except Exception as err:  # the picture is a courtesy: never fail the run or the other plots
-        (out_dir / "wake_3d.png").unlink(missing_ok=True)  # no stale picture of an earlier run
-        print(f"warning: wake picture not written: {type(err).__name__}: {err}", file=sys.stderr)
-    try:
-        from orchestrator.output.mechanism_view import write_mechanism_view
-
-        path = write_mechanism_view(result, out_dir)
-        if path is not None:
-            written.append(path)
-    except Exception as err:  # as the wake picture
-        (out_dir / "mechanism.png").unlink(missing_ok=True)
-        print(f"warning: mechanism picture not written: {type(err).__name__}: {err}", file=sys.stderr)
+    pictures = (("wake_view", "wake_3d.png", "wake"), ("mechanism_view", "mechanism.png", "mechanism"),
+                ("planform_view", "planform.png", "planform"))
+    for module, filename, what in pictures:
+        try:
+            path = getattr(importlib.import_module(f"orchestrator.output.{module}"), f"write_{module}")(result, out_dir)
+            if path is not None:
+                written.append(path)
+        except Exception as err:  # the pictures are a courtesy: never fail the run or the other plots
+            (out_dir / filename).unlink(missing_ok=True)  # no stale picture of an earlier run
+            print(f"warning: {what} picture not written: {type(err).__name__}: {err}", file=sys.stderr)
     return written

@@ -403,7 +403,8 @@ def test_run_example_scene(tmp_path, backend):
     assert header[header.index("energy") + 1] == "kinetic_energy" and "constraint_residual" in header
     assert {p.name for p in (tmp_path / "out").glob("*.png")} == {
         "fold_angles.png", "probe_displacements.png", "probe_velocities.png", "probe_accelerations.png",
-        "strain_gauges.png", "energy_residual.png", "lift_coefficient.png", "wake_3d.png", "mechanism.png"}
+        "strain_gauges.png", "energy_residual.png", "lift_coefficient.png", "wake_3d.png", "mechanism.png",
+        "planform.png"}
     assert "results in" in proc.stdout
     assert f"deployment time: {summary['deployment_time_s']:.6g} s" in proc.stdout
 

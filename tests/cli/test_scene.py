@@ -108,10 +108,11 @@ def test_defaults_of_a_minimal_scene():
         "scissors": [], "masses": [], "loads": []}
     assert body == [{"name": "b", "length": 1.0, "root": [0.0, 0.0, 0.0], "span_axis": [1.0, 0.0, 0.0],
                      "chord_axis": [0.0, 1.0, 0.0], "damping": 0.0, "elements": None, "angular_velocity": None,
+                     "sweep_deg": None, "twist_deg": 0.0, "dihedral_deg": 0.0,
                      "section": {**SECTION, "axis_position": 0.5, "axial_stiffness": None,
                                  "bending_stiffness_flap": None, "bending_stiffness_chord": None,
                                  "mass_per_length": None, "poissons_ratio": 0.0, "rotary_inertia": 0.0,
-                                 **{f"{name}_tip": None for name in TAPERED}}}]
+                                 "airfoil": None, **{f"{name}_tip": None for name in TAPERED}}}]
     assert scene["probes"] == []
     assert scene["strain_gauges"] == []
     assert scene["record"] == {"probes": "acceleration", "monitors": "all"}     # everything timeseries.csv holds
