@@ -119,12 +119,14 @@ def output_units(ssp: Path) -> dict[str, str]:
     return units
 
 
-def assert_same_outputs(oms: dict[str, float], cosim: dict[str, float], ssp: Path) -> None:
-    """Every output libcosim reports is in OMSimulator's result and equal to RTOL of its scale: the largest
-    magnitude among the outputs of its element in the same unit (a moment about an axis of symmetry, an
-    acceleration at rest are round-off, with no scale of their own)."""
+def assert_same_outputs(oms: dict[str, float], cosim: dict[str, float], ssp: Path,
+                        rtol: dict[str, float] | None = None) -> None:
+    """Every output libcosim reports is in OMSimulator's result and equal to RTOL (or `rtol` of its FMI unit, None
+    to leave the unit out) of its scale: the largest magnitude among the outputs of its element in the same unit
+    (a moment about an axis of symmetry, an acceleration at rest are round-off, with no scale of their own)."""
     units = output_units(ssp)
-    outputs = {k: v for k, v in cosim.items() if k in units}
+    rtol = dict.fromkeys(set(units.values()), RTOL) | (rtol or {})
+    outputs = {k: v for k, v in cosim.items() if k in units and rtol[units[k]] is not None}
     assert len(outputs) > 10 and set(outputs) <= set(oms), sorted(set(outputs) - set(oms))[:5]
     scale: dict[tuple, float] = {}
     for name, value in outputs.items():
@@ -132,7 +134,7 @@ def assert_same_outputs(oms: dict[str, float], cosim: dict[str, float], ssp: Pat
         scale[group] = max(scale.get(group, 0.0), abs(value))
     ratio = {name: abs(oms[name] - value) / (scale[name.split(".")[0], units[name]] or 1.0)
              for name, value in outputs.items()}
-    off = [(name, oms[name], outputs[name], ratio[name]) for name in outputs if ratio[name] > RTOL]
+    off = [(name, oms[name], outputs[name], ratio[name]) for name in outputs if ratio[name] > rtol[units[name]]]
     assert not off, off[:5]
     worst = max(ratio, key=ratio.get)
     print(f"\n{len(outputs)} outputs; largest |OMSimulator - libcosim| / scale {ratio[worst]:.1e} ({worst})")
@@ -219,13 +221,27 @@ GAUSS_SEIDEL_ONLY = ("scissor_wing_flexible",)
 (docs/fmu.md), where they diverge as `wingsim run --set coupling.algorithm=jacobi` does (the test below)."""
 
 
+SETTLED_RTOL = 1e-6
+SETTLED = ("hale_wing",)
+"""Scenes that end settled near rest, where their outputs are the remainder of the structure's Newton iteration
+(stopped at relative tolerances of 1e-9 on q and VELOCITY_TOLERANCE = 1e-8 on q', structure_fmu.integrators): the
+two hosts form their communication points a few ulps apart (OMSimulator adds the step sizes, libcosim counts
+nanoseconds), which moves where an iteration stops. For the light, long HALE wing this gives up to 4e-7 of the lift
+between the hosts, and the tip accelerations of its stiff axial direction (EA 1e8 N) move by 1e-3 of their size
+when wingsim's own step moves by one ulp. These scenes are held to SETTLED_RTOL on positions, forces, moments,
+energies and coefficients, a thousand times finer than the 1 mm to which the scene's header says its wing has
+settled; their velocities (of the points, m/s, and of the gradients, 1/s) and accelerations at rest are not
+compared."""
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scene", [s for s in AERO_SCENES if s != "deploy_rigid" and s not in GAUSS_SEIDEL_ONLY])
 def test_every_aero_scene_runs_in_omsimulator_as_in_libcosim(omsimulator, scene, tmp_path):
     ssp = export(tmp_path, scene)
     log, oms = run_cli(omsimulator, ssp, stop_time(ssp), tmp_path)
     assert not ALGEBRAIC_LOOP.search(log), log
-    assert_same_outputs(oms, run_libcosim(ssp), ssp)
+    settled = {"m/s": None, "1/s": None, "m/s2": None} | dict.fromkeys(("m", "N", "N.m", "J", "1"), SETTLED_RTOL)
+    assert_same_outputs(oms, run_libcosim(ssp), ssp, settled if scene in SETTLED else None)
 
 
 @pytest.mark.slow
