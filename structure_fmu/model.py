@@ -524,23 +524,41 @@ class StructureModel:
 
 def element_sections(topology):
     """The Sections of the elements: (n_elements, g) nested lists, at the g = element.VARYING_POINTS Gauss points of
-    each element (structure_fmu.section.section_at), when a section varies along its body; else (n_elements,) each
-    element's body's one Section.
+    each element (structure_fmu.section.section_at), when a section varies along its body or a swept planform moves
+    the chord about the reference line (the mass follows the chord: its first moment and chord inertia vary); else
+    (n_elements,) each element's body's one Section.
 
     Args:
         topology: the StructureTopology.
     """
     bodies = topology.bodies
-    if not any(body.section_spec is not None and varies(body.section_spec) for body in bodies.values()):
+    if not any(_varies(body) for body in bodies.values()):
         return [bodies[b].section for b in topology.element_body]
     xi, _ = element.gauss_rule(element.VARYING_POINTS)
-    fractions, specs = [], []
+    fractions, specs, leads = [], [], []
     for k, name in enumerate(topology.element_body):
         body = bodies[name]
         index, count = list(body.elements).index(k), len(body.elements)
-        fractions.append((index + xi) / count)
+        fraction = (index + xi) / count
+        fractions.append(fraction)
         specs.append(body.section_spec)
-    return element_points(specs, fractions)
+        leads.append(body.planform.leading_edge(fraction * body.length) if _swept(body) else [None] * len(xi))
+    return element_points(specs, fractions, leads)
+
+
+def _swept(body) -> bool:
+    """Whether the body's planform moves its chord about the reference line: the leading edge is not at the fraction
+    axis_position of every chord (a sweep_deg other than the one that keeps it there, fmu_common.planform)."""
+    planform = body.planform
+    if planform is None:
+        return False
+    kept = -planform.axis_position * planform.chord_tip
+    return abs(planform.leading_edge_tip - kept) > 1e-12 * planform.chord_tip
+
+
+def _varies(body) -> bool:
+    """Whether the body's section differs between Gauss points: tip values given, or a swept planform."""
+    return (body.section_spec is not None and varies(body.section_spec)) or _swept(body)
 
 
 def section_property(sections, name):

@@ -30,7 +30,8 @@ class Section:
     kg m: the rotary inertia of the section about its chord axis, kinetic energy 1/2 rho I_yy |dr'/dt|^2 per unit
     length, Otsuka et al. 2022, Table 4; element.mass_matrix), youngs_modulus (E, Pa) and poissons_ratio (nu) of
     a plate (None for a section given by explicit stiffnesses; the shear-deformable element integrates E over the
-    plate, shear_element).
+    plate, shear_element), leading_edge (m: the leading edge's y from the reference line, -a c unless a swept
+    planform moves the chord, `section_at`).
     """
 
     axial: float
@@ -46,6 +47,7 @@ class Section:
     rotary_inertia: float = 0.0
     youngs_modulus: float | None = None
     poissons_ratio: float | None = None
+    leading_edge: float | None = None
 
     @property
     def stiffness(self):
@@ -71,7 +73,7 @@ def varies(spec: SectionSpec) -> bool:
     return bool(spec.tips)
 
 
-def section_at(spec: SectionSpec, s: float) -> Section:
+def section_at(spec: SectionSpec, s: float, leading_edge: float | None = None) -> Section:
     """The Section at the fraction s of the body's length from its root (0: root, 1: tip); errors name its key.
 
     The keys of TAPERED are linear in s between their root and tip values (SectionSpec.tip). A rectangular plate
@@ -83,6 +85,9 @@ def section_at(spec: SectionSpec, s: float) -> Section:
     Args:
         spec: the section table (fmu_common.wing_spec.SectionSpec), SI units.
         s: fraction of the body's length from the root, in [0, 1].
+        leading_edge: the leading edge's offset from the reference line along r_y at s, m (a swept planform's,
+            fmu_common.planform.Planform.leading_edge); None: -a c, the reference line at the fraction a of the chord.
+            The mass spreads over the chord from there, so its first moment and chord inertia follow the sweep.
     """
     local = {name: _linear(getattr(spec, name), spec.tip(name), s) for name in TAPERED}
     chord, axis, h = local["chord"], spec.axis_position, local["thickness"]
@@ -99,13 +104,14 @@ def section_at(spec: SectionSpec, s: float) -> Section:
             raise SceneError(spec.key, plate | dict(spec.tips), f"a section whose {name} (derived from the plate: "
                                                                 f"{value:g}) is a finite number > 0")
     mu = values["mass_per_length"]
-    lead, trail = -axis * chord, (1.0 - axis) * chord
+    lead = -axis * chord if leading_edge is None else float(leading_edge)
+    trail = lead + chord
     return Section(axial=values["axial_stiffness"], flap=values["bending_stiffness_flap"],
                    chordwise=values["bending_stiffness_chord"], torsion=local["torsional_rigidity"],
                    mass_per_length=mu, first_moment=mu * (trail**2 - lead**2) / (2 * chord),
                    chord_inertia=mu * (trail**3 - lead**3) / (3 * chord), chord=chord, axis_position=axis,
                    thickness=h, rotary_inertia=local["rotary_inertia"], youngs_modulus=spec.youngs_modulus,
-                   poissons_ratio=spec.poissons_ratio if h is not None else None)
+                   poissons_ratio=spec.poissons_ratio if h is not None else None, leading_edge=lead)
 
 
 def _linear(root, tip, s):
@@ -113,14 +119,19 @@ def _linear(root, tip, s):
     return None if root is None else root + s * (tip - root)
 
 
-def element_points(specs, fractions):
+def element_points(specs, fractions, leading_edges=None):
     """The Sections of elements at their Gauss points (`section_at`), (n, g) nested lists.
 
     Args:
         specs: (n,) the SectionSpec of each element's body.
         fractions: (n, g) the Gauss points' fractions of their body's length from its root.
+        leading_edges: (n, g) the leading edge's offset from the reference line at those points, m (`section_at`);
+            None: the reference line at the fraction axis_position of every chord.
     """
-    return [[section_at(spec, float(s)) for s in row] for spec, row in zip(specs, np.asarray(fractions))]
+    fractions = np.asarray(fractions)
+    leads = np.full(fractions.shape, None) if leading_edges is None else np.asarray(leading_edges)
+    return [[section_at(spec, float(s), lead) for s, lead in zip(row, leads_row)]
+            for spec, row, leads_row in zip(specs, fractions, leads)]
 
 
 SHEET_DERIVED = ("axial_stiffness", "bending_stiffness_chord")

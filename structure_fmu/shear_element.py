@@ -65,7 +65,7 @@ def section_table(sections):
     """
     def row(s):
         return [s.youngs_modulus, s.youngs_modulus / (2.0 * (1.0 + s.poissons_ratio)), s.chord,
-                -s.axis_position * s.chord, s.thickness, s.flap, s.torsion]
+                s.leading_edge, s.thickness, s.flap, s.torsion]
     if len(sections) and isinstance(sections[0], list):
         return np.array([[row(s) for s in points] for points in sections])
     return np.array([row(s) for s in sections]).reshape(-1, 7)

@@ -44,10 +44,14 @@ def mass_per_length(x):
     return RHO * chord(x) * thickness(x)
 
 
-def cantilever(fidelity, elements, section=TAPERED, load=None, gravity=(0.0, 0.0, 0.0)):
-    """A cantilever along x, the chord along y, clamped at its root, with a tip load (3,) N or a gravity (3,)."""
+def cantilever(fidelity, elements, section=TAPERED, load=None, gravity=(0.0, 0.0, 0.0), sweep_deg=None):
+    """A cantilever along x, the chord along y, clamped at its root, with a tip load (3,) N or a gravity (3,), its
+    leading edge swept by sweep_deg (None: the reference line at axis_position of every chord)."""
+    body = {"name": "wing", "length": LENGTH, "section": section}
+    if sweep_deg is not None:
+        body["sweep_deg"] = sweep_deg
     structure = {"fidelity": fidelity, "elements_per_body": elements, "gravity": list(gravity),
-                 "bodies": [{"name": "wing", "length": LENGTH, "section": section}],
+                 "bodies": [body],
                  "joints": [{"type": "clamp", "body": "wing"}]}
     if load is not None:
         structure["loads"] = [{"body": "wing", "span": LENGTH, "force": list(load)}]
@@ -189,11 +193,16 @@ def test_tapered_cantilever_first_frequency_is_the_rayleigh_ritz_one(fidelity, o
 AXIS = 0.25     # the reference line a quarter chord behind the leading edge: the first moment about it is not zero
 
 
-def rigid_mass_matrix():
+def rigid_mass_matrix(sweep_deg=None):
     """The 6 x 6 mass matrix of the tapered plate's rigid motions (v, omega) about the root, its reference line
-    along x and chord along y: int int rho h(x) B^T B dy dx over the trapezoid y in [-a c(x), (1 - a) c(x)],
-    B = [I, -[p]x] at p = (x, y, 0), plus the rotary inertia int rho I_yy(x) dx on omega_y and omega_z (the
-    Rayleigh term turns with the span direction), by dblquad."""
+    along x and chord along y: int int rho h(x) B^T B dy dx over the trapezoid y in [-a c(x), (1 - a) c(x)] (swept:
+    from the leading edge y_LE(x) = -a c_r + x tan(sweep) over the chord c(x)), B = [I, -[p]x] at p = (x, y, 0),
+    plus the rotary inertia int rho I_yy(x) dx on omega_y and omega_z (the Rayleigh term turns with the span
+    direction), by dblquad."""
+    if sweep_deg is None:
+        lead = lambda x: -AXIS * chord(x)
+    else:
+        lead = lambda x: -AXIS * ROOT_CHORD + x * np.tan(np.radians(sweep_deg))
     def integrand(y, x, i, j):
         p = np.array([x, y, 0.0])
         B = np.hstack([np.eye(3), -np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])])
@@ -201,9 +210,8 @@ def rigid_mass_matrix():
     matrix = np.zeros((6, 6))
     for i in range(6):
         for j in range(i, 6):
-            matrix[i, j] = matrix[j, i] = dblquad(integrand, 0.0, LENGTH, lambda x: -AXIS * chord(x),
-                                                  lambda x: (1 - AXIS) * chord(x), args=(i, j), epsabs=0.0,
-                                                  epsrel=1e-13)[0]
+            matrix[i, j] = matrix[j, i] = dblquad(integrand, 0.0, LENGTH, lead, lambda x: lead(x) + chord(x),
+                                                  args=(i, j), epsabs=0.0, epsrel=1e-13)[0]
     rotary = quad(lambda x: 1e-4 + (3e-4 - 1e-4) * x / LENGTH, 0.0, LENGTH)[0]
     matrix[4, 4] += rotary
     matrix[5, 5] += rotary
@@ -211,13 +219,16 @@ def rigid_mass_matrix():
 
 
 @pytest.mark.parametrize("fidelity, elements", [("rigid", 1), ("flexible", 3)])
-def test_a_tapered_body_has_the_mass_centre_and_inertia_of_its_trapezoid(fidelity, elements):
+@pytest.mark.parametrize("sweep_deg", [None, 1.0])
+def test_a_tapered_body_has_the_mass_centre_and_inertia_of_its_trapezoid(fidelity, elements, sweep_deg):
     """The kinetic energy of every rigid motion (v, omega) of the body, 1/2 dE^T M_E dE with dE the nodal vectors'
     rates (v + omega x r, omega x r_x, omega x r_y), against the integrals over the plate: the mass, the first
     moments (the centre) and the inertia tensor, exact (rho A ~ c h, rho Q_z ~ c^2 h, rho I_zz ~ c^3 h and the
-    rotary inertia integrated exactly at the Gauss points): equal to 1e-12."""
+    rotary inertia integrated exactly at the Gauss points): equal to 1e-12. A swept leading edge moves the chord,
+    and the mass with it, about the reference line."""
     section = dict(TAPERED, axis_position=AXIS, rotary_inertia=1e-4, rotary_inertia_tip=3e-4)
-    solver = StructureSolver(StructureUnitSpec.from_scene(cantilever(fidelity, elements, section)))
+    solver = StructureSolver(StructureUnitSpec.from_scene(cantilever(fidelity, elements, section,
+                                                                     sweep_deg=sweep_deg)))
     model = solver.model
     nodes = model.top.initial_coordinates().reshape(-1, 3, 3)       # per node: r, r_x, r_y
     rates = np.zeros((len(nodes), 3, 3, 6))                          # d(node vectors) / d(v, omega)
@@ -227,7 +238,7 @@ def test_a_tapered_body_has_the_mass_centre_and_inertia_of_its_trapezoid(fidelit
             rates[k, slot, :, 3:] = -np.array([[0.0, -vector[2], vector[1]], [vector[2], 0.0, -vector[0]],
                                                [-vector[1], vector[0], 0.0]])
     R = rates.reshape(-1, 6)
-    reference = rigid_mass_matrix()
+    reference = rigid_mass_matrix(sweep_deg)
     np.testing.assert_allclose(R.T @ model.mass_E @ R, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
     assert reference[0, 0] == pytest.approx(quad(mass_per_length, 0.0, LENGTH)[0], rel=1e-13)
 

@@ -20,7 +20,7 @@ def pterasoftware_wing(span, root_chord, tip_chord, sweep_deg, axis_position, M,
     """PteraSoftware's (airplane, wing, problem) of `planform_wing.tapered_wing`: three cross sections (left tip,
     centre, right tip) with their leading edges where ours are, N uniform spanwise panels between each pair, M
     uniform chordwise panels, a symmetric section (PteraSoftware meshes its camber line: a flat plate)."""
-    import pterasoftware as ps
+    import pterasoftware as ps     # the `peers` extra; the slow set needs it (README, Tests), so a missing one fails
 
     half, section = 0.5 * span, ps.geometry.airfoil.Airfoil("naca0012")
     lead_tip = -axis_position * tip_chord                        # x of the tips' leading edges
@@ -44,7 +44,6 @@ def pterasoftware_wing(span, root_chord, tip_chord, sweep_deg, axis_position, M,
 def test_swept_tapered_wing_against_pterasoftware(sweep_deg):
     """b = 6 m, chords 1.4 m at the centre and 0.6 m at the tips (A = 6), leading edge swept back by sweep_deg,
     M x N = 4 x 12 per half, alpha = 2 deg: C_L and the lift of each spanwise strip within 1% of PteraSoftware's."""
-    pytest.importorskip("pterasoftware")
     span, root, tip, a, M, N = 6.0, 1.4, 0.6, 0.25, 4, 12
     top = topology_of(wing_scene(tapered_wing(span, root, tip, sweep_deg, a)))
     ours = SteadyVLM(top, M, N).solve(top.initial_coordinates(), stream(ALPHA_DEG, SPEED), RHO)
