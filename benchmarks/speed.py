@@ -38,7 +38,7 @@ from orchestrator.build.fmus import build_fmus
 from orchestrator.run.master import run_scene
 from orchestrator.scene.load import load_scene
 
-TARGET = {"deploy_rigid": 0.5, "deploy_flexible": 5.0}   # real-time factor through the FMUs
+TARGET = {"deploy_rigid": 0.1, "deploy_flexible": 1.0}   # real-time factor through the FMUs (docs/performance.md)
 FMU_OVERHEAD_TARGET = 0.10
 STANDALONE_OVERHEAD_TARGET = {"deploy_rigid": 0.10, "deploy_flexible": 0.03}
 # A standalone run's turn: ten steps, so that the worker's wake-up after the other run's turn (a worker sleeps
