@@ -1,6 +1,6 @@
 """What a unit imports when it runs: run as a script by `orchestrator.build.runtime` while a standalone FMU is built.
 
-    python -I import_trace.py RESOURCES STEPS
+    python -I import_trace.py RESOURCES STEPS PACKAGES
 
 imports the slave module named in RESOURCES/slavemodule.txt from RESOURCES (as pythonfmu does), instantiates
 its slave class on that folder's scene, and drives it as a host would: experiment set up, initialization,
@@ -8,12 +8,32 @@ STEPS communication steps of the scene's `coupling.step`, every Real read and th
 saved, serialized, read back and restored, refused calls, termination. It then imports every standard library
 module that the unit's own sources name in an import statement anywhere (inside functions too: a call the run
 did not make may import it), and prints, as JSON, every loaded module that comes from a file: {module name:
-file}. Itself it imports only `ast`, `json`, `os` and `sys`, so that the list is the unit's.
+file}. Itself it imports only `ast`, `json`, `os` and `sys`, so that the list is the unit's. PACKAGES (comma
+separated) are the top-level packages of the unit's requirements: any other top-level module of site-packages is
+refused as not installed (`OnlyRequired`), so that an optional import of a requirement (numpy.f2py's of
+charset_normalizer) takes the path it takes where only the requirements are installed.
 """
 import ast
 import json
 import os
 import sys
+
+
+class OnlyRequired:
+    """A meta path finder that refuses, as not installed, every top-level module of site-packages that is not among
+    `packages` (the requirements' top-level packages); the standard library and the unit's resources are untouched."""
+
+    def __init__(self, packages):
+        installed = set()
+        for folder in (p for p in sys.path if os.path.basename(p) in ("site-packages", "dist-packages")):
+            if os.path.isdir(folder):
+                installed.update(entry.split(".")[0] for entry in os.listdir(folder))
+        self.refused = installed - set(packages)
+
+    def find_spec(self, name, path=None, target=None):
+        if "." not in name and name in self.refused:
+            raise ModuleNotFoundError(f"No module named {name!r} (not among the unit's requirements)", name=name)
+        return None
 
 
 def slave_class(module):
@@ -70,8 +90,9 @@ def unit_sources(resources: str) -> list[str]:
     return found
 
 
-def main(resources: str, steps: int) -> None:
+def main(resources: str, steps: int, packages: list[str]) -> None:
     sys.path.insert(0, resources)
+    sys.meta_path.insert(0, OnlyRequired(packages))
     with open(f"{resources}/slavemodule.txt", encoding="utf-8") as f:
         name = f.read().strip()
     with open(f"{resources}/scene.json", encoding="utf-8") as f:
@@ -87,4 +108,4 @@ def main(resources: str, steps: int) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]))
+    main(sys.argv[1], int(sys.argv[2]), [p for p in sys.argv[3].split(",") if p])

@@ -224,13 +224,40 @@ def _package_folder(source: Path) -> list[Path]:
 
 
 def _traced_modules(resources: Path) -> dict[str, str]:
-    """{module: file} the unit loads when it runs (import_trace.py in a subprocess of this interpreter)."""
+    """{module: file} the unit loads when it runs (import_trace.py in a subprocess of this interpreter), with only
+    the site-packages of its requirements importable (`required_packages`)."""
     trace = Path(__file__).with_name("import_trace.py")
-    proc = subprocess.run([sys.executable, "-I", str(trace), str(resources), str(TRACE_STEPS)],
-                          capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-I", str(trace), str(resources), str(TRACE_STEPS),
+                           ",".join(required_packages(resources))], capture_output=True, text=True)
     if proc.returncode != 0:
         raise RuntimeUnavailable(f"running the unit to find what it imports failed:\n{proc.stderr.strip()[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def required_packages(resources: Path) -> list[str]:
+    """The top-level packages of the distributions a unit requires (its resources' requirements.txt, pythonfmu,
+    and what they require in turn, as installed here): all the unit may import from site-packages when it is
+    traced. A package of another distribution that happens to be installed (charset_normalizer, which numpy.f2py
+    imports when it finds it) is then absent, as on a machine with the requirements alone, and the runtime does not
+    depend on it."""
+    import importlib.metadata as metadata
+    import re
+
+    canonical = lambda name: re.sub(r"[-_.]+", "-", name).lower()
+    pending = [line.split("==")[0] for line in (resources / "requirements.txt").read_text().split()] + ["pythonfmu"]
+    seen: set[str] = set()
+    while pending:
+        name = canonical(pending.pop())
+        if name in seen:
+            continue
+        seen.add(name)
+        try:
+            requires = metadata.requires(name) or []
+        except metadata.PackageNotFoundError:
+            continue
+        pending += [re.match(r"[A-Za-z0-9_.-]+", r).group(0) for r in requires if "extra ==" not in r]
+    return sorted(top for top, dists in metadata.packages_distributions().items()
+                  if any(canonical(d) in seen for d in dists))
 
 
 # ---- which libraries --------------------------------------------------------------------------------------
