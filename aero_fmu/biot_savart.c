@@ -189,3 +189,92 @@ int velocity_sum(long n_points, const double *points, long n_segments, const dou
     }
     return 0;
 }
+
+/* ---------------------------------------------------------------------------------------------------------------
+ * Treecode (Barnes and Hut 1986) for the velocity of finite segments of known circulations (aero_fmu/treecode.py
+ * builds the tree and is the numpy reference of this evaluation).
+ *
+ * nodes (K, NODE_FIELDS): center c (3) m, radius rho m (every point of every segment of the node lies within rho
+ * of c), monopole A = sum_i alpha_i (3), dipole D (3 x 3, row-major) D_ab = sum_i alpha_ia (m_i - c)_b, strength
+ * sum_i |alpha_i|, with alpha_i = Gamma_i (b_i - a_i) m^3/s and m_i the segment's midpoint. links (K, 4): first
+ * segment, segment count, first child, child count (0: a leaf). seg (7, S): the segments sorted by node, in the
+ * structure of arrays of `segments` above; gamma (S,) in the same order.
+ *
+ * For each point p, from the root: a node with rho < theta |p - c| is far and adds its monopole and dipole
+ * terms, with r = p - c, d = |r|:
+ *     v = [A x r - w + 3 (D r) x r / d^2] / (4 pi d^3),   w_a = eps_abc D_bc
+ * (the Biot-Savart line integral's Taylor expansion about c to first order); its truncation and the core it
+ * leaves out add to bound[p]  sum |alpha| [3 rho^2 / (d - rho)^4 + delta / (2 (d - rho)^3)] / (4 pi)
+ * (treecode.py derives it). A near leaf adds its segments exactly (`pair`, the cored kernel); a near node that
+ * is not a leaf opens its children.
+ */
+#define NODE_FIELDS 17
+#define TREE_STACK 1024                  /* nodes waiting per point: at most 7 per level + 8, far above any depth */
+#define LEAF_CHUNK 64                    /* pairs computed before they are summed: the loop vectorizes */
+
+const long node_fields = NODE_FIELDS;    /* for treecode.py, which packs the nodes */
+
+/* out (P, 3) m/s and bound (P,) m/s: the treecode velocity and its error bound (above). Returns 0, or -2 if a
+ * point's traversal would overflow TREE_STACK (a tree deeper than treecode.py builds). */
+VECTOR_CLONES
+int tree_velocity(long n_points, const double *points, const double *nodes, const long *links, long S,
+                  const double *seg, const double *gamma, double core, double theta, double *out, double *bound) {
+    const double *ax = seg, *ay = seg + S, *az = seg + 2 * S, *r0x = seg + 3 * S, *r0y = seg + 4 * S,
+                 *r0z = seg + 5 * S, *l2 = seg + 6 * S;
+    const double core2 = core * core, theta2 = theta * theta;
+    long stack[TREE_STACK];
+    double tx[LEAF_CHUNK], ty[LEAF_CHUNK], tz[LEAF_CHUNK];
+    for (long p = 0; p < n_points; p++) {
+        const double px = points[3 * p], py = points[3 * p + 1], pz = points[3 * p + 2];
+        double vx = 0.0, vy = 0.0, vz = 0.0, e = 0.0;
+        long top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const long k = stack[--top];
+            const double *n = nodes + NODE_FIELDS * k;
+            const long *link = links + 4 * k;
+            const double rx = px - n[0], ry = py - n[1], rz = pz - n[2];
+            const double d2 = rx * rx + ry * ry + rz * rz, rho = n[3];
+            if (rho * rho < theta2 * d2) {
+                const double *A = n + 4, *D = n + 7;
+                const double d = sqrt(d2), scale = 1.0 / (FOUR_PI * d2 * d), g = d - rho;
+                const double ux = D[0] * rx + D[1] * ry + D[2] * rz;        /* D r */
+                const double uy = D[3] * rx + D[4] * ry + D[5] * rz;
+                const double uz = D[6] * rx + D[7] * ry + D[8] * rz;
+                const double three = 3.0 / d2;
+                vx += ((A[1] * rz - A[2] * ry) - (D[5] - D[7]) + three * (uy * rz - uz * ry)) * scale;
+                vy += ((A[2] * rx - A[0] * rz) - (D[6] - D[2]) + three * (uz * rx - ux * rz)) * scale;
+                vz += ((A[0] * ry - A[1] * rx) - (D[1] - D[3]) + three * (ux * ry - uy * rx)) * scale;
+                e += n[16] * (3.0 * rho * rho / (g * g * g * g) + core / (2.0 * g * g * g)) / FOUR_PI;
+            } else if (link[3] == 0) {
+                const long first = link[0], last = link[0] + link[1];
+                for (long lo = first; lo < last; lo += LEAF_CHUNK) {
+                    const long m = last - lo < LEAF_CHUNK ? last - lo : LEAF_CHUNK;
+                    for (long i = 0; i < m; i++) {
+                        const long s = lo + i;
+                        double cx, cy, cz, kk;
+                        pair(px - ax[s], py - ay[s], pz - az[s], r0x[s], r0y[s], r0z[s], l2[s], core2, 0,
+                             &cx, &cy, &cz, &kk);
+                        kk *= gamma[s];
+                        tx[i] = cx * kk;
+                        ty[i] = cy * kk;
+                        tz[i] = cz * kk;
+                    }
+                    for (long i = 0; i < m; i++) {
+                        vx += tx[i];
+                        vy += ty[i];
+                        vz += tz[i];
+                    }
+                }
+            } else {
+                if (top + link[3] > TREE_STACK) return -2;
+                for (long c = link[2] + link[3] - 1; c >= link[2]; c--) stack[top++] = c;
+            }
+        }
+        out[3 * p] = vx;
+        out[3 * p + 1] = vy;
+        out[3 * p + 2] = vz;
+        bound[p] = e;
+    }
+    return 0;
+}

@@ -195,7 +195,8 @@ def c_kernels():
     return c_library.kernels(C_SOURCE, {
         "normal_wash": (ctypes.c_int, [n, _ARRAY, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]),
         "components": (ctypes.c_int, [n, _ARRAY, n, _ARRAY, _ARRAY, real, flag, _ARRAY]),
-        "velocity_sum": (ctypes.c_int, [n, _ARRAY, n, _ARRAY, _ARRAY, _ARRAY, real, flag, _ARRAY])})
+        "velocity_sum": (ctypes.c_int, [n, _ARRAY, n, _ARRAY, _ARRAY, _ARRAY, real, flag, _ARRAY]),
+        "tree_velocity": (ctypes.c_int, [n, _ARRAY, _ARRAY, _ARRAY, n, _ARRAY, _ARRAY, real, real, _ARRAY, _ARRAY])})
 
 
 def _compiled_influence(kernels, out, points, starts, ends, weights, core, semi_infinite, normals, block):

@@ -61,7 +61,9 @@ class AerodynamicModel(Protocol):
 def _uvlm(wake):
     return lambda topology, aero, max_wake_rows: UVLM(topology, aero.chordwise_panels, aero.spanwise_panels,
                                                       wake=wake, wake_length=aero.wake_length,
-                                                      max_wake_rows=max_wake_rows)
+                                                      max_wake_rows=max_wake_rows,
+                                                      wake_opening=(aero.wake_opening
+                                                                    if aero.wake_far_field == "treecode" else None))
 
 
 MODELS = {

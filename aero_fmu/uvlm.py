@@ -58,7 +58,6 @@ import numpy as np
 from scipy.linalg.lapack import dgetrs
 
 from . import wake as wakes
-from .biot_savart import influence
 from .factorization import BoundSystem
 from .lattice import Lattice
 from .loads import Loads, resultants, zero_loads
@@ -134,16 +133,19 @@ class UVLM:
         wake: the WakeModel (FLAT, PRESCRIBED or FREE).
         wake_length: truncation of the wake, chords (inf: never; flat: semi-infinite legs).
         max_wake_rows: at most this many shed rows.
+        wake_opening: the treecode opening parameter of the free wake's convection (wake.segment_sum), or None:
+            exact sums.
     """
 
     def __init__(self, topology, chordwise, spanwise, wake=PRESCRIBED, wake_length=np.inf,
-                 max_wake_rows=wakes.MAX_WAKE_ROWS):
+                 max_wake_rows=wakes.MAX_WAKE_ROWS, wake_opening=None):
         self.topology = topology
         self.lattice = Lattice(topology, chordwise, spanwise)
         self.rings = ring_segments(self.lattice)
         self.wake_model = wake
         self.wake_length = float(wake_length)
         self.max_wake_rows = int(max_wake_rows)
+        self.wake_opening = wake_opening if wake.free else None
         self.system = BoundSystem(self.lattice, self.rings, flat_wake=not wake.shed, wake_length=wake_length)
         lat = self.lattice
         smallest = float(min(lat.panel_span.min(), lat.panel_chord.min()))
@@ -228,7 +230,7 @@ class UVLM:
         # bound rings and wake share the convection core: one sum over the segments of both
         bound = self._bound_segments(state.corners, self.rings.incidence @ state.gamma)
         starts, ends, circulation = (np.concatenate(parts) for parts in zip(bound, wakes.live_segments(state.wake)))
-        w = influence(points, starts, ends, circulation[:, None], self.convection_core)[:, :, 0]
+        w = wakes.segment_sum(points, starts, ends, circulation, self.convection_core, self.wake_opening)
         return (U + w).reshape(state.wake.corners.shape) * dt
 
     def _bound_segments(self, corners, circulation):

@@ -11,6 +11,9 @@ cannot hang a run.
 $WINGSIM_KERNELS selects the kernels: `compiled` (the default) or `numpy`, the pure-numpy reference that every
 kernel keeps beside it (tests check both agree to 1e-12 relative). `numpy` runs without a C compiler (an FMU
 build still puts the C kernels into the FMU, for the hosts that select them).
+
+$WINGSIM_THREADS sets the threads of the threaded kernels (the free wake's treecode, aero_fmu/treecode.py): by
+default the cores this process may run on (os.sched_getaffinity; os.cpu_count where that is not available).
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ from pathlib import Path
 KERNELS_VARIABLE = "WINGSIM_KERNELS"
 CACHE_VARIABLE = "WINGSIM_CACHE_DIR"
 COMPILE_SECONDS_VARIABLE = "WINGSIM_COMPILE_SECONDS"
+THREADS_VARIABLE = "WINGSIM_THREADS"
 CHOICES = ("compiled", "numpy")
 COMPILE_SECONDS = 60.0
 """Default time limit of one C kernel's compilation, s: each compiles in under a second; the margin is for a
@@ -55,3 +59,15 @@ def compile_seconds() -> float:
     if not 0 < seconds < float("inf"):
         raise ValueError(f"{COMPILE_SECONDS_VARIABLE}={text!r}: a time limit in seconds, a number > 0")
     return seconds
+
+
+def kernel_threads() -> int:
+    """Threads of the threaded kernels: $WINGSIM_THREADS, else the cores this process may run on (module
+    docstring); ValueError naming the variable for a value that is not an integer >= 1."""
+    text = os.environ.get(THREADS_VARIABLE, "").strip()
+    if not text:
+        cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else range(os.cpu_count() or 1)
+        return max(1, len(cores))
+    if not text.isdigit() or int(text) < 1:
+        raise ValueError(f"{THREADS_VARIABLE}={text!r}: a number of threads, an integer >= 1")
+    return int(text)

@@ -39,6 +39,7 @@ ALGORITHMS = ("gauss-seidel", "jacobi", "implicit")
 ACCELERATIONS = ("aitken", "iqn-ils")
 AERO_MODELS = tuple(choices.AERO_MODELS)
 SPAN_CORRECTIONS = ("helmbold", "none")
+WAKE_FAR_FIELDS = ("treecode", "exact")
 FIDELITIES = tuple(choices.FIDELITIES)
 PARENT_JOINTS = ("revolute", "ball", "universal")
 PIN_AXES = ("chord", "normal", "free")
@@ -488,6 +489,14 @@ SCENE = Table({
                                           f"kept whole up to {MAX_WAKE_ROWS} rows", 5.0, inf=True),
         "step": positive("s", "internal aero step: the aero side of multi-rate coupling",
                          Absent("one aero step per communication step")),
+        "wake_far_field": Choice("-", "treecode", "uvlm-free only: how the wake's corners are convected: treecode "
+                                                  "(a cluster of segments beyond aero.wake_opening enters by its "
+                                                  "monopole and dipole, Barnes and Hut 1986; near segments exact) or "
+                                                  "exact (every segment summed); the collocation points always sum "
+                                                  "the wake exactly", options=WAKE_FAR_FIELDS),
+        "wake_opening": Number("-", 0.3, "treecode opening parameter theta: a cluster of segments of radius rho is "
+                                         "far from a point at distance d when rho < theta d (smaller: closer to "
+                                         "exact, slower)", low=0.0, high=1.0, low_open=True, high_open=True),
         "span_correction": Choice("-", "helmbold", "strip theory only: helmbold scales the 2D lift slope 2 pi "
                                                    "by A / (2 + sqrt(A^2 + 4)) (Helmbold 1942); none keeps 2D "
                                                    "strips", options=SPAN_CORRECTIONS),

@@ -74,7 +74,8 @@ class AeroSpec:
     """`aero`: the model (its traits, fmu_common.choices: strip, uvlm-flat, uvlm-prescribed, uvlm-free; none
     builds no aero unit; aero_fmu.models builds the others), M chordwise_panels and N spanwise_panels per body,
     the wake truncation wake_length (chords; inf allowed), the internal aero step (s; None: one per
-    communication step) and the strip theory's span_correction."""
+    communication step), the strip theory's span_correction, and the free wake's far-field sum (wake_far_field,
+    treecode or exact, with the treecode's opening parameter wake_opening)."""
 
     model: AeroModel
     chordwise_panels: int
@@ -82,6 +83,8 @@ class AeroSpec:
     wake_length: float
     step: float | None
     span_correction: str
+    wake_far_field: str
+    wake_opening: float
 
 
 @dataclass(frozen=True)
@@ -194,7 +197,8 @@ class AeroUnitSpec:
         return cls(TimeSpec(scene["time"]["stop"]), CouplingSpec(scene["coupling"]["step"]),
                    FlowSpec(flow["speed"], flow["density"], tuple(flow["direction"])),
                    AeroSpec(aero_model(aero["model"]), aero["chordwise_panels"], aero["spanwise_panels"],
-                            aero["wake_length"], aero["step"], aero["span_correction"]),
+                            aero["wake_length"], aero["step"], aero["span_correction"],
+                            aero["wake_far_field"], aero["wake_opening"]),
                    StructureSpec.from_scene(scene), tuple(tunable_parameters(scene, "flow").items()),
                    SceneSpec.from_scene(scene))
 
