@@ -12,7 +12,10 @@
   loads.py          Q (Eq. 12), lift, drag, moments, coefficients
   lattice.py        vortex-ring lattice of each body as fixed shape-function matrices (Eqs. 12, 20, 21, 24)
   biot_savart.py    velocity of straight vortex segments with a Scully core (Eq. 19)
-  biot_savart.c     the same in C, pair by pair (compiled and loaded by fmu_common.c_library)
+  biot_savart.c     the same in C, pair by pair, and the treecode's walk (compiled and loaded by
+                    fmu_common.c_library)
+  treecode.py       far field of many segments: Barnes-Hut octree, monopole and dipole, error bound; the free
+                    wake's convection
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   interface.py      the unit's FMI interface, declared once: blocks, loads, parameters
   aero_slave.py     the FMI slave over AeroSolver, registering and publishing that interface

@@ -331,13 +331,17 @@ def test_zero_flow_speed(model):
 
 def test_high_flow_speed_is_a_rescaling():
     """V = 100 m/s with the time step c/(MV) and the motion frequency scaled by 100 is the V = 1 m/s case
-    in other units: equal C_L histories (1e-9) and forces 1e4 times larger (prescribed and free wakes)."""
+    in other units: equal C_L histories (1e-9) and forces 1e4 times larger (prescribed and free wakes). The free
+    wake sums every segment: the treecode (aero.wake_far_field) gives the same numbers for the same geometry, but the
+    positions of the two runs differ by round-off, which can flip a cluster's far-or-near decision and moves C_L
+    within the treecode's error (1.6e-9 here)."""
     for model in ("uvlm-prescribed", "uvlm-free"):
         results = []
         for V in (1.0, 100.0):
             motion = {"heave_amplitude": 0.05, "pitch_amplitude_deg": 2.0, "frequency": 0.8 * V}
-            results.append(run(wing_scene(model, motion, span=5.0, M=3, N=4, speed=V, wake_length=3.0),
-                               1.0 / (3 * V), 30))
+            scene = wing_scene(model, motion, span=5.0, M=3, N=4, speed=V, wake_length=3.0)
+            scene["aero"]["wake_far_field"] = "exact"
+            results.append(run(scene, 1.0 / (3 * V), 30))
         (_, CL1, a1), (_, CL100, a100) = results
         np.testing.assert_allclose(CL100, CL1, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(a100.Q, 1e4 * a1.Q, rtol=1e-8, atol=1e-8 * np.abs(a100.Q).max())
