@@ -37,7 +37,8 @@ circulations summed without the (P, S) matrix, equal to the numpy kernel bit for
 and to 1e-15 in the sums. The numpy kernel is the reference: it works on one contiguous (P, S) array per
 component, in place, and reduces over segments block by block (BLOCK_PAIRS pairs), so memory stays at a few MB
 whatever P x S is (25-35 million pairs per second, against about 8 million for the plain (P, S, 3) expression
-of `segment_velocity`, kept for tests and small cases).
+of `segment_velocity`, kept for tests and small cases). biot_savart.c also holds the treecode's walk
+(`tree_velocity`, the far field of the free wake's convection: treecode.py).
 """
 import ctypes
 from pathlib import Path

@@ -38,7 +38,6 @@ of the sums differs). The C kernel runs on the cores the process may use (`fmu_c
 each thread a block of points through ctypes, which releases the GIL: every point is evaluated on one thread in the
 same order, so the result does not depend on the thread count.
 """
-import ctypes
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -53,7 +52,6 @@ MORTON_BITS = 21        # levels of the octree at most (3 x 21 bits of a Morton 
 NODE_FIELDS = 17        # center (3), radius, monopole (3), dipole (9), strength: biot_savart.c's NODE_FIELDS
 POINTS_PER_TASK = 256   # points per threaded task: tasks of a few ms balance the threads
 THREADED_PAIRS = 1 << 20   # below this many points x segments one thread runs (starting threads costs more)
-_ARRAY = ctypes.c_void_p
 
 
 @dataclass(frozen=True)
