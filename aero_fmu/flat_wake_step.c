@@ -28,6 +28,7 @@
 /* What one step reads and writes; every array C-contiguous double (or long), allocated by flat_wake_step.py. */
 typedef struct {
     long n_slots, n_rows, K, n_corners, n_panels, M, N, flat;
+    long lapack_lu;              /* 1: the caller factorizes A with LAPACK (large lattices), 0: factorize here */
     const long *row_index;       /* (n_rows, K) slot of each shape entry (rows: corners, collocation, application,
                                     r_x, r_y at the collocation points, then the corners' r_x, r_y if not flat) */
     const double *row_value;     /* (n_rows, K) its value (0 in the padding) */
@@ -52,8 +53,9 @@ typedef struct {
     double *nodes;               /* (n_corners + n_far, 3) */
     double *normal, *span_weight, *chord_weight, *relative;   /* (P, 3) */
     double *area;                /* (P,) */
-    double *A, *A_x, *A_y, *LU;  /* (P, P) */
-    long *pivots;                /* (P,) */
+    double *A, *A_x, *A_y;       /* (P, P) row-major */
+    double *LU;                  /* (P, P) column-major (LAPACK's layout): A, then its LU */
+    long *pivots;                /* (P,) 0-based pivot rows */
     double *distances, *reference_distances;   /* (n_corners,) */
     double *reference;           /* (n_corners + 3 P, 3): corners, collocation, r_x, r_y of the reference geometry */
     double *reference_direction; /* (3,) */
@@ -239,37 +241,13 @@ static void add_segments(FlatWakeStep *s, long count, const long *start, const l
     }
 }
 
-/* LU of A with partial pivoting (LAPACK dgetrf's pivots: the first largest magnitude), row-major, into LU; 0, or -2
- * when a pivot is below 1e-13 times the largest (factorization.BoundSystem's test; also NaN or inf pivots). */
-static int factorize(FlatWakeStep *s) {
+/* 0, or -2 when a pivot of the LU is below 1e-13 times the largest (factorization.BoundSystem's test; also NaN or
+ * inf pivots). */
+static int pivots_ok(const FlatWakeStep *s) {
     const long n = s->n_panels;
-    double *lu = s->LU;
-    memcpy(lu, s->A, sizeof(double) * (size_t)(n * n));
-    for (long k = 0; k < n; k++) {
-        long piv = k;
-        double best = fabs(lu[k * n + k]);
-        for (long i = k + 1; i < n; i++)
-            if (fabs(lu[i * n + k]) > best) best = fabs(lu[i * n + k]), piv = i;
-        s->pivots[k] = piv;
-        if (piv != k)
-            for (long j = 0; j < n; j++) {
-                double t = lu[k * n + j];
-                lu[k * n + j] = lu[piv * n + j];
-                lu[piv * n + j] = t;
-            }
-        double pivot = lu[k * n + k];
-        if (pivot == 0.0) continue;
-        const double *restrict row = lu + k * n;
-        for (long i = k + 1; i < n; i++) {
-            double *restrict target = lu + i * n;
-            double l = target[k] / pivot;
-            target[k] = l;
-            for (long j = k + 1; j < n; j++) target[j] -= l * row[j];
-        }
-    }
     double smallest = INFINITY, largest = 0.0;
     for (long k = 0; k < n; k++) {
-        double d = fabs(lu[k * n + k]);
+        double d = fabs(s->LU[k * n + k]);
         if (isnan(d) || isinf(d)) return -2;
         if (d < smallest) smallest = d;
         if (d > largest) largest = d;
@@ -277,8 +255,56 @@ static int factorize(FlatWakeStep *s) {
     return smallest > 1e-13 * largest ? 0 : -2;
 }
 
-/* The influence matrices and the LU at the current geometry; 0, -1 (a panel of zero area: s->bad) or -2 (a
- * singular matrix). The reference for reuse becomes this geometry only when the build succeeds. */
+/* A (row-major) into LU column-major, LAPACK's layout. */
+static void copy_to_columns(FlatWakeStep *s) {
+    const long n = s->n_panels;
+    for (long i = 0; i < n; i++)
+        for (long j = 0; j < n; j++) s->LU[j * n + i] = s->A[i * n + j];
+}
+
+/* LU of A in place in LU (column-major) with partial pivoting, LAPACK dgetf2's algorithm (the first largest
+ * magnitude as the pivot, 0-based pivot rows as scipy gives them); the updates run down contiguous columns. */
+static void factorize(FlatWakeStep *s) {
+    const long n = s->n_panels;
+    double *lu = s->LU;
+    for (long k = 0; k < n; k++) {
+        double *restrict column = lu + k * n;
+        long piv = k;
+        double best = fabs(column[k]);
+        for (long i = k + 1; i < n; i++)
+            if (fabs(column[i]) > best) best = fabs(column[i]), piv = i;
+        s->pivots[k] = piv;
+        if (piv != k)
+            for (long j = 0; j < n; j++) {
+                double t = lu[j * n + k];
+                lu[j * n + k] = lu[j * n + piv];
+                lu[j * n + piv] = t;
+            }
+        double pivot = column[k];
+        if (pivot == 0.0) continue;
+        for (long i = k + 1; i < n; i++) column[i] /= pivot;
+        for (long j = k + 1; j < n; j++) {
+            double *restrict target = lu + j * n;
+            double u = target[k];
+            for (long i = k + 1; i < n; i++) target[i] -= column[i] * u;
+        }
+    }
+}
+
+/* The reference for reuse becomes the current geometry. */
+static void keep_reference(FlatWakeStep *s) {
+    const long nc = s->n_corners, P = s->n_panels;
+    memcpy(s->reference, s->nodes, sizeof(double) * 3 * (size_t)nc);
+    memcpy(s->reference + 3 * nc, s->points + 3 * nc, sizeof(double) * 3 * (size_t)P);
+    memcpy(s->reference + 3 * (nc + P), s->points + 3 * (nc + 2 * P), sizeof(double) * 6 * (size_t)P);
+    memcpy(s->reference_distances, s->distances, sizeof(double) * (size_t)nc);
+    memcpy(s->reference_direction, s->scalars + 3, sizeof(double) * 3);
+    s->has_reference[0] = 1;
+}
+
+/* The influence matrices at the current geometry and, unless lapack_lu, their LU; 0, 3 (A is in LU for the caller
+ * to factorize with LAPACK), -1 (a panel of zero area: s->bad) or -2 (a singular matrix). The reference for reuse
+ * becomes this geometry only when the factorization succeeds. */
 static int build(FlatWakeStep *s) {
     const long nc = s->n_corners, P = s->n_panels;
     const double *direction = s->scalars + 3;
@@ -297,13 +323,11 @@ static int build(FlatWakeStep *s) {
     add_segments(s, s->n_segments, s->seg_start, s->seg_end, s->seg_ptr, s->seg_col, s->seg_val, NULL);
     if (s->n_legs > 0)
         add_segments(s, s->n_legs, s->leg_start, NULL, s->leg_ptr, s->leg_col, s->leg_val, direction);
-    if (factorize(s) != 0) return -2;
-    memcpy(s->reference, s->nodes, sizeof(double) * 3 * (size_t)nc);
-    memcpy(s->reference + 3 * nc, s->points + 3 * nc, sizeof(double) * 3 * (size_t)P);
-    memcpy(s->reference + 3 * (nc + P), s->points + 3 * (nc + 2 * P), sizeof(double) * 6 * (size_t)P);
-    memcpy(s->reference_distances, s->distances, sizeof(double) * (size_t)nc);
-    memcpy(s->reference_direction, direction, sizeof(double) * 3);
-    s->has_reference[0] = 1;
+    copy_to_columns(s);
+    if (s->lapack_lu) return 3;
+    factorize(s);
+    if (pivots_ok(s) != 0) return -2;
+    keep_reference(s);
     return 0;
 }
 
@@ -320,15 +344,14 @@ static void solve(FlatWakeStep *s) {
             g[k] = g[s->pivots[k]];
             g[s->pivots[k]] = t;
         }
-    for (long i = 0; i < P; i++) {
-        double sum = g[i];
-        for (long j = 0; j < i; j++) sum -= s->LU[i * P + j] * g[j];
-        g[i] = sum;
+    for (long j = 0; j < P; j++) {                  /* L y = P b, then U Gamma = y, down the columns */
+        const double *column = s->LU + j * P;
+        for (long i = j + 1; i < P; i++) g[i] -= column[i] * g[j];
     }
-    for (long i = P - 1; i >= 0; i--) {
-        double sum = g[i];
-        for (long j = i + 1; j < P; j++) sum -= s->LU[i * P + j] * g[j];
-        g[i] = sum / s->LU[i * P + i];
+    for (long j = P - 1; j >= 0; j--) {
+        const double *column = s->LU + j * P;
+        g[j] /= column[j];
+        for (long i = 0; i < j; i++) g[i] -= column[i] * g[j];
     }
     memset(s->Q, 0, sizeof(double) * 3 * (size_t)s->n_slots);
     memset(s->sums, 0, sizeof(double) * 15);
@@ -385,8 +408,9 @@ static int unmoved(const FlatWakeStep *s) {
 /* One step. mode 0: the geometry at E, then, if a reference exists and no corner distance from the first corner
  * changed by more than 2 tolerance (rigid.may_be_rigid), return 2: the caller fits the rigid motion and calls
  * again with mode 1 (reuse the reference's matrices) or 2 (rebuild), the geometry kept; a lattice exactly where
- * the reference was reuses them at once. Returns 0 (solved with
- * the reference's matrices), 1 (solved after a build), -1 (panel s->bad has zero area) or -2 (singular). */
+ * the reference was reuses them at once. A build with lapack_lu returns 3 with A in LU: the caller factorizes it
+ * in place with LAPACK, writes the pivots and calls mode 3 (test the pivots, solve). Returns 0 (solved with the
+ * reference's matrices), 1 (solved after a build), 3, -1 (panel s->bad has zero area) or -2 (singular). */
 int flat_wake_step(FlatWakeStep *s, int mode) {
     if (mode == 0) {
         geometry(s);
@@ -398,11 +422,13 @@ int flat_wake_step(FlatWakeStep *s, int mode) {
             else if (rigid) return 2;
         }
     }
-    int built = mode != 1;
-    if (built) {
+    if (mode == 0 || mode == 2) {
         int status = build(s);
         if (status != 0) return status;
+    } else if (mode == 3) {
+        if (pivots_ok(s) != 0) return -2;
+        keep_reference(s);
     }
     solve(s);
-    return built;
+    return mode != 1;
 }

@@ -17,6 +17,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse
+from scipy.linalg.lapack import dgetrf
 
 from fmu_common import c_library
 
@@ -24,10 +25,14 @@ from .factorization import frame
 from .rigid import rigid_fit
 
 C_SOURCE = Path(__file__).with_name("flat_wake_step.c")    # the compiled step (fmu_common.c_library)
+COMPILED_LU_PANELS = 64
+"""Lattices of up to this many panels factorize in the kernel (unblocked LU: below LAPACK's call overhead there);
+larger ones with LAPACK (scipy's dgetrf, blocked, in place on the kernel's buffer)."""
 _LONG = np.dtype(ctypes.c_long)                            # C long: 64 bits on Linux, 32 on Windows
 _SCALARS = 11      # U (3), direction (3), density, rate coefficients (3), rate order (0: none, 1, 2)
 
-_FIELDS = [(name, ctypes.c_long) for name in ("n_slots", "n_rows", "K", "n_corners", "n_panels", "M", "N", "flat")]
+_FIELDS = [(name, ctypes.c_long) for name in ("n_slots", "n_rows", "K", "n_corners", "n_panels", "M", "N", "flat",
+                                               "lapack_lu")]
 _FIELDS += [(name, ctypes.c_void_p) for name in (
     "row_index", "row_value", "surface", "corner_offset", "colloc_offset", "panel_span")]
 _FIELDS += [("n_segments", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in (
@@ -111,7 +116,9 @@ class FlatWakeStep:
         self.nodes = np.zeros((nc + far_head.size, 3))
         self.normal, self.span_weight, self.chord_weight, self.relative = (np.zeros((P, 3)) for _ in range(4))
         self.area, self.gamma, self.v_x, self.v_y = (np.zeros(P) for _ in range(4))
-        self.A, self.A_x, self.A_y, self.LU = (np.zeros((P, P)) for _ in range(4))
+        self.A, self.A_x, self.A_y = (np.zeros((P, P)) for _ in range(3))
+        self.LU = np.zeros((P, P), order="F")           # LAPACK's layout: dgetrf factorizes it in place
+        self.lapack_lu = P > COMPILED_LU_PANELS
         self.pivots = np.zeros(P, dtype=_LONG)
         self.distances, self.reference_distances = np.zeros(nc), np.zeros(nc)
         self.reference, self.reference_direction = np.zeros((nc + 3 * P, 3)), np.zeros(3)
@@ -126,7 +133,8 @@ class FlatWakeStep:
             "segment_table", "wash")}
         self._struct = _Struct(
             n_slots=n_slots, n_rows=n_rows, K=index.shape[1], n_corners=nc, n_panels=P, M=lattice.M, N=lattice.N,
-            flat=int(lattice.flat), row_index=hold("index", index, _LONG), row_value=hold("value", value),
+            flat=int(lattice.flat), lapack_lu=int(self.lapack_lu), row_index=hold("index", index, _LONG),
+            row_value=hold("value", value),
             surface=hold("surface", np.concatenate([lattice._surface, lattice._bound_slope])),
             corner_offset=hold("corner_offset", lattice._corner_offset),
             colloc_offset=hold("colloc_offset", lattice._collocation_offset),
@@ -183,6 +191,9 @@ class FlatWakeStep:
         status = self._function(self._pointer, 0)
         if status == 2:
             status = self._function(self._pointer, 1 if self._reuses(direction) else 2)
+        if status == 3:
+            self._lapack_factorization()
+            status = self._function(self._pointer, 3)
         if status == 1:
             self.builds += 1
             self._reference_frame = None
@@ -193,6 +204,13 @@ class FlatWakeStep:
         elif status == -2:
             raise np.linalg.LinAlgError("singular influence matrix: a panel has zero area or two collocation "
                                         "points coincide (degenerate wing geometry)")
+
+    def _lapack_factorization(self):
+        """LAPACK's LU of A (in LU, column-major) in place, its 0-based pivot rows into `pivots`."""
+        lu, pivots, _ = dgetrf(self.LU, overwrite_a=1)       # a zero pivot is refused by the kernel, with the reason
+        if not np.shares_memory(lu, self.LU):
+            self.LU[...] = lu
+        self.pivots[:] = pivots
 
     def _reuses(self, direction):
         """Whether the current geometry is the reference moved rigidly, with the wake's direction moved alike
