@@ -13,6 +13,8 @@
   lattice.py        vortex-ring lattice of each body as fixed shape-function matrices (Eqs. 12, 20, 21, 24)
   biot_savart.py    velocity of straight vortex segments with a Scully core (Eq. 19)
   biot_savart.c     the same in C, pair by pair (compiled and loaded by fmu_common.c_library)
+  flat_wake_step.py the flat-wake (uvlm-flat) step in one compiled call on buffers allocated once: lattice,
+                    influence matrices, LU, circulation, forces, Q (flat_wake_step.c; the numpy path the reference)
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   interface.py      the unit's FMI interface, declared once: blocks, loads, parameters
   aero_slave.py     the FMI slave over AeroSolver, registering and publishing that interface

@@ -68,6 +68,17 @@ class BoundSystem:
         # small lattices (Otsuka et al. 2019's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
         self._weights = stacked.toarray() if stacked.shape[0] * stacked.shape[1] <= DENSE_WEIGHTS else stacked
 
+    def segments(self):
+        """The vortex segments of a build, for a kernel that builds the same matrices (aero_fmu.flat_wake_step).
+
+        Returns:
+            (start, end, weights, legs): start, end (S,) node indices of the finite segments (the corners, then the
+            far ends of finite horseshoe legs, `vlm.leg_ends` order); weights (S, n_panels), dense or sparse, the
+            segment circulations per unit Gamma; legs, None or (start (L,) corner indices, weights (L, n_panels)) of
+            semi-infinite legs along the free stream.
+        """
+        return self._start, self._end, self._weights, self._semi_infinite_legs
+
     def matrices(self, geometry, direction):
         """The influence matrices and the factorization at `geometry`.
 

@@ -98,14 +98,15 @@ class FlatWakeStep:
             keep[name] = np.ascontiguousarray(array, dtype=dtype)
             return keep[name].ctypes.data
 
-        index, value = _gather_rows(lattice._all)
-        legs = system._semi_infinite_legs
+        rows, surface, corner_offset, collocation_offset = lattice.point_rows()
+        seg_start, seg_end, weights, legs = system.segments()
+        index, value = _gather_rows(rows)
         trailing = lattice.trailing_corners
         finite_legs = legs is None
         far_head = trailing.ravel() if finite_legs else np.zeros(0, dtype=int)
         far_length = (np.broadcast_to((system.wake_length * lattice.body_chords)[:, None], trailing.shape).ravel()
                       if finite_legs else np.zeros(0))
-        seg_ptr, seg_col, seg_val = _csr(system._weights)
+        seg_ptr, seg_col, seg_val = _csr(weights)
         leg_start, (leg_ptr, leg_col, leg_val) = ((legs[0], _csr(legs[1])) if legs is not None
                                                   else (np.zeros(0), (np.zeros(1), np.zeros(0), np.zeros(0))))
         n_rows = len(index)
@@ -124,7 +125,7 @@ class FlatWakeStep:
         self.reference, self.reference_direction = np.zeros((nc + 3 * P, 3)), np.zeros(3)
         self.has_reference, self.bad = np.zeros(1, dtype=_LONG), np.zeros(1, dtype=_LONG)
         self.forces, self.Q, self.sums = np.zeros((P, 3)), np.zeros(3 * n_slots), np.zeros(15)
-        scratch = max(len(system._start), len(leg_start), 1)
+        scratch = max(len(seg_start), len(leg_start), 1)
         self.segment_table, self.wash = np.zeros(6 * scratch), np.zeros(3 * scratch)
         buffers = {name: getattr(self, name).ctypes.data for name in (
             "E", "dE", "scalars", "history", "points", "nodes", "normal", "span_weight", "chord_weight", "relative",
@@ -135,12 +136,11 @@ class FlatWakeStep:
             n_slots=n_slots, n_rows=n_rows, K=index.shape[1], n_corners=nc, n_panels=P, M=lattice.M, N=lattice.N,
             flat=int(lattice.flat), lapack_lu=int(self.lapack_lu), row_index=hold("index", index, _LONG),
             row_value=hold("value", value),
-            surface=hold("surface", np.concatenate([lattice._surface, lattice._bound_slope])),
-            corner_offset=hold("corner_offset", lattice._corner_offset),
-            colloc_offset=hold("colloc_offset", lattice._collocation_offset),
+            surface=hold("surface", surface), corner_offset=hold("corner_offset", corner_offset),
+            colloc_offset=hold("colloc_offset", collocation_offset),
             panel_span=hold("panel_span", lattice.panel_span),
-            n_segments=len(system._start), seg_start=hold("seg_start", system._start, _LONG),
-            seg_end=hold("seg_end", system._end, _LONG), seg_ptr=hold("seg_ptr", seg_ptr, _LONG),
+            n_segments=len(seg_start), seg_start=hold("seg_start", seg_start, _LONG),
+            seg_end=hold("seg_end", seg_end, _LONG), seg_ptr=hold("seg_ptr", seg_ptr, _LONG),
             seg_col=hold("seg_col", seg_col, _LONG), seg_val=hold("seg_val", seg_val),
             n_legs=len(leg_start), leg_start=hold("leg_start", leg_start, _LONG),
             leg_ptr=hold("leg_ptr", leg_ptr, _LONG), leg_col=hold("leg_col", leg_col, _LONG),

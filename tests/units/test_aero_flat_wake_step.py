@@ -11,33 +11,14 @@ from aero_fmu.factorization import BoundSystem
 from aero_fmu.flat_wake_step import FlatWakeStep
 from aero_fmu.solver import AeroSolver
 from fmu_common.errors import SolverDiverged
-from fmu_common.scene_schema import resolve_scene
 from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
 from flat_wing import wing_scene
 from orchestrator.scene.load import load_scene
-from planform_wing import body
+from planform_wing import folded_wing_scene
 from repository import ROOT
 from structure_fmu.solver import StructureSolver
 
 TOLERANCE = 1e-12
-
-
-def folded_planform_scene(wake_length):
-    """A tapered, swept, twisted, cambered (NACA 2412) two-body wing folded 60 deg about a hinge skewed 15 deg from
-    the chord, in a 10 m/s stream off the chord plane (test_aero_planform's folded wing)."""
-    skew = np.radians(15.0)
-    bodies = [body("inner", 0.0, 1.0, 0.5, 0.4, 0.3, twist_deg=-2.0, airfoil="naca2412", sweep_deg=4.0),
-              {"name": "tip", "length": 0.4, "twist_deg": -2.0,
-               "section": dict(body("x", 0, 1, 0.4, 0.25)["section"], axis_position=0.2, airfoil="naca2412")}]
-    raw = {"time": {"stop": 1.0}, "coupling": {"step": 0.01},
-           "structure": {"fidelity": "rigid", "bodies": bodies,
-                         "joints": [{"type": "clamp", "body": "inner"},
-                                    {"type": "revolute", "name": "fold", "parent": "inner", "child": "tip",
-                                     "axis": [np.cos(skew), np.sin(skew), 0.0], "initial_angle_deg": 60.0,
-                                     "stiffness": 1.0}]},
-           "aero": {"model": "uvlm-flat", "chordwise_panels": 3, "spanwise_panels": 4, "wake_length": wake_length},
-           "flow": {"speed": 10.0, "direction": [1.0, 0.0, 0.1]}}
-    return resolve_scene(raw, "folded")
 
 
 @pytest.fixture(params=["kernel LU", "LAPACK LU"])
@@ -88,6 +69,19 @@ def assert_same_step(reference, compiled):
     assert compiled.outputs()["wake_panels"] == reference.outputs()["wake_panels"]
 
 
+def prescribed_run(scene, kernels, steps=8, dt=0.05):
+    """(reference, compiled, structure) after `steps` steps of the scene's prescribed motion, each step checked
+    equal on both paths."""
+    reference, compiled = both_paths(scene, kernels)
+    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
+    for k in range(1, steps + 1):
+        structure.advance(dt * k)
+        for aero in (reference, compiled):
+            aero.advance(dt * k, structure.e, structure.de)
+        assert_same_step(reference, compiled)
+    return reference, compiled, structure
+
+
 def deformed(E0, k):
     """E0 moved and deformed a little differently at each k: every lattice point and tangent moves, not rigidly."""
     index = np.arange(E0.size)
@@ -101,13 +95,7 @@ def test_rectangular_wing_in_heave_and_pitch_equals_the_reference(kernels, wake_
     the matrices are rebuilt) and a repeated last step with other coordinates, equal on both paths."""
     scene = wing_scene("uvlm-flat", {"heave_amplitude": 0.1, "pitch_amplitude_deg": 4.0, "frequency": 2.0},
                        span=4.0, M=3, N=4, wake_length=wake_length)
-    reference, compiled = both_paths(scene, kernels)
-    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
-    for k in range(1, 9):
-        structure.advance(0.05 * k)
-        for aero in (reference, compiled):
-            aero.advance(0.05 * k, structure.e, structure.de)
-        assert_same_step(reference, compiled)
+    reference, compiled, structure = prescribed_run(scene, kernels)
     assert np.abs(reference.state.loads.forces).max() > 0.01      # a wing that lifts
     for aero in (reference, compiled):
         aero.advance(0.4, structure.e + 1e-3, structure.de)          # the last step again, other inputs
@@ -119,13 +107,7 @@ def test_heaving_wing_reuses_its_factorization_as_the_reference_does(kernels):
     """A wing that only heaves moves rigidly with its horseshoes: both paths factorize once in eight steps (the
     compiled step's distance test, then the Kabsch fit), with the same loads."""
     scene = wing_scene("uvlm-flat", {"heave_amplitude": 0.1, "frequency": 2.0}, span=4.0, M=3, N=4)
-    reference, compiled = both_paths(scene, kernels)
-    structure = StructureSolver(StructureUnitSpec.from_scene(scene))
-    for k in range(1, 9):
-        structure.advance(0.05 * k)
-        for aero in (reference, compiled):
-            aero.advance(0.05 * k, structure.e, structure.de)
-        assert_same_step(reference, compiled)
+    reference, compiled, _ = prescribed_run(scene, kernels)
     assert compiled.model.system.builds == reference.model.system.builds == 1
 
 
@@ -155,7 +137,7 @@ def test_folded_tapered_swept_cambered_wing_equals_the_reference(kernels, wake_l
     edge form of the pressure jump on non-rectangular panels), deformed differently at each of six steps, then
     turned rigidly about an axis (the stream does not turn with it: rebuilt): equal on both paths, with either
     factorization."""
-    scene = folded_planform_scene(wake_length)
+    scene = folded_wing_scene("uvlm-flat", wake_length)
     reference, compiled = both_paths(scene, kernels)
     assert compiled.model.system.lapack_lu == (factorization == "LAPACK LU")
     E0 = StructureSolver(StructureUnitSpec.from_scene(scene)).e
