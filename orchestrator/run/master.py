@@ -28,7 +28,12 @@ FMI error or discard, with the unit's logged reason), ``monitors()`` (structure:
 ``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``, ``probe_positions``,
 ``probe_velocities``, ``probe_accelerations``, ``strains``, all outputs of the unit: the master computes no
 sensor itself; aero: ``CL``, ``lift``, ...),
-``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
+``monitor_values()`` and ``monitor_layout`` (the same outputs as one vector and where each row lies in it:
+what the master records from, ``orchestrator.run.recording``),
+``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``. ``make_unit`` also takes
+``reads`` (the rows to record, ``recorded_rows``) and ``monitors_with_outputs`` (read them in the call that reads
+the output blocks: under explicit coupling every state whose outputs are exchanged is recorded, so each unit is
+read once per step; an implicit coupling reads them apart, so that its rejected iterates compute none).
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
 as the aero unit was given them; with implicit coupling those of the accepted iterate only), so that the
