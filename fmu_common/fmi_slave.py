@@ -552,7 +552,10 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
             if not parameter.any():        # inputs only: settable until fmi2Terminate, check them once
                 self._checked_references[key] = idx
         try:
-            self._real[idx] = values
+            if len(values) != idx.size:
+                raise ValueError(f"{len(values)} values for {idx.size} value references")
+            # fromiter converts each value once; assigning the list would first discover its type and shape
+            self._real[idx] = np.fromiter(values, dtype=float, count=idx.size)
         except (TypeError, ValueError) as exc:
             self._error(f"{self.label}: fmi2SetReal refused: {type(exc).__name__}: {exc}; nothing was set")
 

@@ -19,8 +19,9 @@ from orchestrator.scene.columns import AERO_COLUMNS, MONITOR_COLUMNS, hinge_mome
 class MonitorRow(NamedTuple):
     """Where one output row of a unit's table (``fmu_common.interface.Output``) lies in the unit's vector of
     recorded outputs: its ``key`` (e.g. ``probe_positions``), its ``items`` (the scene's probes, hinges, ... in
-    the order of the vector, maybe none; None for a row of one value, not per item), the values per item ``width``, the slice ``where`` of the
-    vector, and the value ``pending`` that means "none yet" (None: every value is one)."""
+    the order of the vector, maybe none; None for a row of one value, not per item), the values per item
+    ``width``, the slice ``where`` of the vector, and the value ``pending`` that means "none yet" (None: every value
+    is one)."""
 
     key: str
     items: tuple[str, ...] | None
