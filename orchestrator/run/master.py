@@ -74,6 +74,7 @@ from fmu_common.scene_schema import PROBE_RECORDS
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error", "interrupted")
+STEPPING = "stepping"   # the phase of a communication step, named with its start time if it fails
 
 STRUCTURE_RECORD_VALUES = AERO_INPUT_RECORD_VALUES
 """The structure coordinates are recorded up to about this many numbers (8 bytes each), the bound of the aero
@@ -275,7 +276,7 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
         stepping_start = _time.perf_counter()
         for k in range(1, len(times)):
             t0, t1 = float(times[k - 1]), float(times[k])
-            phase = "the step from t = %.6g s"    # formatted with t0 only if the step fails
+            phase = STEPPING                  # named with t0 only if the step fails
             step_coupling = scheme.advance(t0, t1)
             e = structure.get_outputs()[0]
             recorder.record(t1, step_coupling)
@@ -290,8 +291,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         f"{scheme.statistics()})")
     except (Exception, KeyboardInterrupt) as err:
         log.debug("run failed during %s", phase, exc_info=True)
-        if "%" in phase:
-            phase = phase % t0
+        if phase is STEPPING:
+            phase = f"the step from t = {t0:.6g} s"
         status, message = _classify(err, units.UnitError, phase)
         if status == "diverged" and scheme is not None:
             message = scheme.explain_divergence(message, series)
