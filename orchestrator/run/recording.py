@@ -57,6 +57,7 @@ class _Gather:
         self.pending: list[tuple[int, int, float]] = []   # (source, target, pending value)
 
     def add(self, row: MonitorRow, item_index: int, columns: list[int]) -> None:
+        """The values of item `item_index` of `row` (the row's only value for a row without items) to `columns`."""
         start = row.where.start + item_index * row.width
         self.source += range(start, start + len(columns))
         self.target += columns
@@ -64,6 +65,7 @@ class _Gather:
             self.pending += [(start + k, column, row.pending) for k, column in enumerate(columns)]
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(source, target) as index arrays."""
         return np.array(self.source, dtype=np.intp), np.array(self.target, dtype=np.intp)
 
 
@@ -126,6 +128,7 @@ class Recorder:
 
     @staticmethod
     def _scalars(gather: _Gather, rows: dict, keys: tuple[str, ...], columns: dict) -> None:
+        """The columns of the rows of one value `keys`; a row the unit does not report stays NaN."""
         for key in keys:
             if key in rows:
                 gather.add(rows[key], 0, [columns[key]])

@@ -228,8 +228,9 @@ class Unit:
         self._port.do_step(float(t), float(h))
 
     def monitor_values(self) -> np.ndarray:
-        """The output rows read (`reads`), now, as one fresh vector laid out as `monitor_layout` says: one read of
-        the unit (one fmi2GetReal through an FMU)."""
+        """The output rows read (`reads`), now, as one vector laid out as `monitor_layout` says, which the caller may
+        keep (the unit never writes into it): one read of the unit (one fmi2GetReal through an FMU), or none when
+        they came with the output blocks (`monitors_with_outputs`) since the unit last changed."""
         return self._get_mon() if self._monitored is None else self._monitored
 
     def monitors(self) -> dict:

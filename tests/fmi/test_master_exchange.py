@@ -64,7 +64,7 @@ def test_the_recorded_samples_are_the_units_monitors_row_by_row():
 @pytest.mark.parametrize("name", ["deploy_rigid", "spin_up"])
 def test_both_backends_record_the_same_run_bit_for_bit(name, built_fmus):
     scene = load_scene(SCENES / f"{name}.toml", STOP)
-    folder = built_fmus(name, *STOP)
+    folder = built_fmus(name)                       # the shipped build runs a shorter time.stop
     runs = {backend: run_scene(scene, backend=backend, fmu_dir=folder) for backend in ("fmu", "direct")}
     fmu, direct = runs["fmu"], runs["direct"]
     assert fmu.status == direct.status == "ok", (fmu.message, direct.message)
@@ -106,7 +106,7 @@ def test_an_explicit_coupling_reads_each_unit_once_per_step(monkeypatch):
 
 def test_a_terminated_unit_refuses_calls_instead_of_calling_the_freed_instance(built_fmus):
     scene = load_scene(SCENES / "deploy_rigid.toml", STOP)
-    unit = real_units.make_unit("structure", scene, "fmu", built_fmus("deploy_rigid", *STOP))
+    unit = real_units.make_unit("structure", scene, "fmu", built_fmus("deploy_rigid"))
     e, de = unit.get_outputs()
     unit.terminate()
     with pytest.raises(UnitError, match="fmi2DoStep after the unit was terminated"):
