@@ -16,6 +16,8 @@
                     fmu_common.c_library)
   treecode.py       far field of many segments: Barnes-Hut octree, monopole and dipole, error bound; the free
                     wake's convection
+  flat_wake_step.py the flat-wake (uvlm-flat) step in one compiled call on buffers allocated once: lattice,
+                    influence matrices, LU, circulation, forces, Q (flat_wake_step.c; the numpy path the reference)
   vlm.py            steady VLM: influence matrix, flat horseshoe wake, pressure forces (Eqs. 22, 23, 25)
   interface.py      the unit's FMI interface, declared once: blocks, loads, parameters
   aero_slave.py     the FMI slave over AeroSolver, registering and publishing that interface

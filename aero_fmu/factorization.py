@@ -44,7 +44,7 @@ class BoundSystem:
         self.tolerance = RIGID_TOLERANCE * float(min(lattice.panel_span.min(), lattice.panel_chord.min()))
         self.builds = 0
         self._reference = None    # (geometry, corner distances from the first, direction, (A_x, A_y, lu))
-        self._reference_frame = None   # `_frame` of the reference geometry, built at the first rigid check
+        self._reference_frame = None   # `frame` of the reference geometry, built at the first rigid check
         # The finite segments as start/end indices into the nodes (the corners, then the far ends of finite
         # horseshoe legs) and their stacked weights, so that a build is two gathers and one kernel pass.
         # With the flat wake the segments are those of `vlm.horseshoe_wake` except its bound segments, which
@@ -68,6 +68,17 @@ class BoundSystem:
         # small lattices (Otsuka et al. 2019's M = 2, N = 7: 90 x 28) reduce faster dense, large ones stay sparse
         self._weights = stacked.toarray() if stacked.shape[0] * stacked.shape[1] <= DENSE_WEIGHTS else stacked
 
+    def segments(self):
+        """The vortex segments of a build, for a kernel that builds the same matrices (aero_fmu.flat_wake_step).
+
+        Returns:
+            (start, end, weights, legs): start, end (S,) node indices of the finite segments (the corners, then the
+            far ends of finite horseshoe legs, `vlm.leg_ends` order); weights (S, n_panels), dense or sparse, the
+            segment circulations per unit Gamma; legs, None or (start (L,) corner indices, weights (L, n_panels)) of
+            semi-infinite legs along the free stream.
+        """
+        return self._start, self._end, self._weights, self._semi_infinite_legs
+
     def matrices(self, geometry, direction):
         """The influence matrices and the factorization at `geometry`.
 
@@ -82,8 +93,8 @@ class BoundSystem:
         if self._reference is not None and may_be_rigid(self._reference[1], distances, self.tolerance):
             ref_geometry, _, ref_direction, result = self._reference
             if self._reference_frame is None:
-                self._reference_frame = _frame(ref_geometry)
-            R, _, residual = rigid_fit(self._reference_frame, _frame(geometry))
+                self._reference_frame = frame(ref_geometry)
+            R, _, residual = rigid_fit(self._reference_frame, frame(geometry))
             same_wake = not self.flat_wake or np.abs(R @ ref_direction - direction).max() <= 1e-12
             if residual <= self.tolerance and same_wake:
                 return result
@@ -122,8 +133,15 @@ class BoundSystem:
         return A_x, A_y, (lu, pivot_rows)
 
 
-def _frame(geometry):
+def frame(geometry):
     """Points that move rigidly iff the lattice does: corners, collocation points, and the collocation
-    points shifted by the tangents r_x, r_y (so a stretch or shear of the tangents counts)."""
+    points shifted by the tangents r_x, r_y (so a stretch or shear of the tangents counts).
+
+    Args:
+        geometry: anything with the Geometry's corners (n_corners, 3), collocation, r_x, r_y (n_panels, 3).
+
+    Returns:
+        (n_corners + 3 n_panels, 3) m, global frame.
+    """
     c = geometry.collocation
     return np.concatenate([geometry.corners, c, c + geometry.r_x, c + geometry.r_y])

@@ -162,6 +162,19 @@ class Lattice:
         self.reference_area = float(sum(p.area for p in planforms))
         self.core_radius = core_fraction * float(min(self.panel_span.min(), self.panel_chord.min()))
 
+    def point_rows(self):
+        """What `geometry` reads, for a kernel that gathers instead of multiplying (aero_fmu.flat_wake_step).
+
+        Returns:
+            (rows, surface, corner_offset, collocation_offset): rows (n_rows, n_slots), the shape rows of the
+            corners, collocation points, application points, r_x and r_y at the collocation points, then (not flat)
+            r_x and r_y at the corners; surface (6, n_panels): y_x, h_x, y_f, h_f at the collocation point and y_x,
+            h_x along the bound segment; the mean surface's normal offsets (m) at the corners (n_corners,) and at
+            the collocation points (n_panels,).
+        """
+        return (self._all, np.concatenate([self._surface, self._bound_slope]), self._corner_offset,
+                self._collocation_offset)
+
     # ------------------------------------------------------------------ per time step
     def geometry(self, E):
         """The lattice at the exchanged coordinates E: one matrix product, and the normal offsets of the mean surface.

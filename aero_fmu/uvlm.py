@@ -59,9 +59,10 @@ from scipy.linalg.lapack import dgetrs
 
 from . import wake as wakes
 from .factorization import BoundSystem
+from .flat_wake_step import FlatWakeStep, c_kernels
 from .lattice import Lattice
-from .loads import Loads, resultants, zero_loads
-from .vlm import pressure_jump_forces, ring_segments
+from .loads import Loads, resultant_outputs, resultants, zero_loads
+from .vlm import lift_direction, pressure_jump_forces, ring_segments
 
 @dataclass(frozen=True)
 class WakeModel:
@@ -121,6 +122,17 @@ def circulation_rate(gamma, history, steps):
             + g2 * (h1 / (h2 * (h1 + h2))))
 
 
+def _rate_difference(history, steps):
+    """`circulation_rate`'s difference for the compiled step (FlatWakeStep.solve's `rate`): None, or
+    (coefficients, order, history)."""
+    (h1, h2) = steps
+    if h1 <= 0:
+        return None
+    if h2 <= 0:
+        return (h1, 0.0, 0.0), 1, history
+    return ((2 * h1 + h2) / (h1 * (h1 + h2)), (h1 + h2) / (h1 * h2), h1 / (h2 * (h1 + h2))), 2, history
+
+
 class UVLM:
     """UVLM of a topology: M chordwise x N spanwise rings per body.
 
@@ -147,6 +159,11 @@ class UVLM:
         self.max_wake_rows = int(max_wake_rows)
         self.wake_opening = wake_opening if wake.free else None
         self.system = BoundSystem(self.lattice, self.rings, flat_wake=not wake.shed, wake_length=wake_length)
+        # the flat wake's step in one compiled call (flat_wake_step.py) unless $WINGSIM_KERNELS=numpy; the numpy
+        # path below is its reference
+        kernels = None if wake.shed else c_kernels()
+        if kernels is not None:
+            self.system = FlatWakeStep(self.lattice, self.system, kernels)
         lat = self.lattice
         smallest = float(min(lat.panel_span.min(), lat.panel_chord.min()))
         self.convection_core = wakes.CONVECTION_CORE_FRACTION * smallest
@@ -174,7 +191,6 @@ class UVLM:
         """
         lat = self.lattice
         dt = float(t_end) - state.time
-        geometry = lat.geometry(E)
         n = lat.n_panels
         if not state.started:
             history, steps = (np.zeros(n), np.zeros(n)), (0.0, 0.0)
@@ -182,6 +198,9 @@ class UVLM:
             history, steps = (state.gamma, state.history[0]), (dt, state.steps[0])
         else:
             history, steps = state.history, state.steps
+        if isinstance(self.system, FlatWakeStep):
+            return self._compiled_flat_step(t_end, E, dE, U, density, direction, history, steps)
+        geometry = lat.geometry(E)
         wake = None
         if self.wake_model.shed:
             head = geometry.corners[lat.trailing_corners]                        # (B, N + 1, 3)
@@ -198,6 +217,18 @@ class UVLM:
         loads = resultants(lat, geometry, forces, direction, math.sqrt(float(U @ U)), density, wake_panels)
         return UVLMState(float(t_end), True, gamma, tuple(np.array(g) for g in history),
                          tuple(float(h) for h in steps), geometry.corners, wake, loads)
+
+    def _compiled_flat_step(self, t_end, E, dE, U, density, direction, history, steps) -> UVLMState:
+        """`advance` of the flat wake in one compiled call (flat_wake_step.py): the same state as the numpy path
+        to round-off."""
+        step, lat = self.system, self.lattice
+        step.solve(E, dE, U, direction, density, _rate_difference(history, steps))
+        sums = step.sums
+        outputs = resultant_outputs(lat, sums[:3], sums[3:12].reshape(3, 3), lift_direction(sums[12:], direction),
+                                    direction, math.sqrt(float(U @ U)), density, lat.N * len(lat.body_names))
+        loads = Loads(step.forces.copy(), step.application.copy(), step.Q.copy(), outputs)
+        return UVLMState(float(t_end), True, step.gamma.copy(), tuple(np.array(g) for g in history),
+                         tuple(float(h) for h in steps), step.corners.copy(), None, loads)
 
     def vortex_geometry(self, state: UVLMState, direction) -> dict:
         """The vortex system of `state` for pictures (arrays copied; m, global frame).

@@ -17,6 +17,7 @@ circulation = weights @ Gamma); a segment shared by two rings is evaluated once.
 Sign convention: a positive Gamma, with the flow going from the leading to the trailing edge, gives a
 force along +n = r_x x r_y (Otsuka et al. 2019, Eq. 25 with Delta p > 0), see `Lattice`.
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -285,12 +286,33 @@ def lift_axis(geometry, flow_velocity) -> np.ndarray:
     Returns:
         (3,) global frame.
     """
-    n = geometry.area @ geometry.normal
-    u = _unit(flow_velocity)
+    return lift_direction(geometry.area @ geometry.normal, flow_velocity)
+
+
+def lift_direction(area_normal, flow_velocity) -> np.ndarray:
+    """Unit lift direction from the area-weighted normal sum_p area_p n_p (`lift_axis`).
+
+    Args:
+        area_normal: (3,) sum_p area_p n_p, m^2, global frame.
+        flow_velocity: (3,) free stream, m/s, global frame.
+
+    Returns:
+        (3,) global frame.
+    """
+    # on three Python floats: a dozen numpy calls on (3,) arrays would cost more than the arithmetic
+    n = [float(x) for x in area_normal]
+    u = _unit_floats([float(x) for x in flow_velocity])
     if u is not None:
-        n = n - (n @ u) * u
-    axis = _unit(n)
-    return np.zeros(3) if axis is None else axis   # zero only if the flow is normal to the whole wing
+        along = n[0] * u[0] + n[1] * u[1] + n[2] * u[2]
+        n = [n[i] - along * u[i] for i in range(3)]
+    axis = _unit_floats(n)
+    return np.zeros(3) if axis is None else np.array(axis)   # zero only if the flow is normal to the whole wing
+
+
+def _unit_floats(v):
+    """v / |v| for three floats, None if |v| is 0 or not finite (`_unit`)."""
+    norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return [x / norm for x in v] if norm > 0 and math.isfinite(norm) else None
 
 
 def _unit(v):

@@ -1,8 +1,8 @@
 """Compiled kernels: which kernels a process runs (compiled or the numpy reference) and where the compiled ones are
 cached. The compiled kernels are C files beside the Python code that calls them (the structure's element force and
 tangent, structure_fmu/element_kernels.c; the strain-based sweeps along a body, structure_fmu/strain_kernels.c; the
-aero unit's Biot-Savart sums, aero_fmu/biot_savart.c), compiled once per machine by fmu_common.c_library into the
-cache folder, or into an FMU by its build.
+aero unit's Biot-Savart sums, aero_fmu/biot_savart.c; its flat-wake step, aero_fmu/flat_wake_step.c), compiled
+once per machine by fmu_common.c_library into the cache folder, or into an FMU by its build.
 
 The cache folder is $WINGSIM_CACHE_DIR, else $XDG_CACHE_HOME/wingsim, else ~/.cache/wingsim. A compilation is
 stopped after $WINGSIM_COMPILE_SECONDS seconds (default `COMPILE_SECONDS`), so a compiler that never returns

@@ -242,6 +242,10 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         self.sl_par = self.layout.where(Parameters)
         self.input_blocks = [laid for laid in self.layout.rows
                              if isinstance(laid.row, Block) and laid.row.causality == INPUT]
+        bounds = sorted((block.where.start, block.where.stop) for block in self.input_blocks)
+        contiguous = bounds and all(a[1] == b[0] for a, b in zip(bounds, bounds[1:]))
+        # the input blocks side by side in the buffer (as the tables lay them out): one finiteness check per step
+        self._inputs_span = slice(bounds[0][0], bounds[-1][1]) if contiguous else None
         self._outputs = _output_rows(self.layout)
         self._row_of = np.full(self._real.size, -1, dtype=np.intp)     # value reference -> its output row, or -1
         for k, (where, _, _) in enumerate(self._outputs):
@@ -548,7 +552,10 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
             if not parameter.any():        # inputs only: settable until fmi2Terminate, check them once
                 self._checked_references[key] = idx
         try:
-            self._real[idx] = values
+            if len(values) != idx.size:
+                raise ValueError(f"{len(values)} values for {idx.size} value references")
+            # fromiter converts each value once; assigning the list would first discover its type and shape
+            self._real[idx] = np.fromiter(values, dtype=float, count=idx.size)
         except (TypeError, ValueError) as exc:
             self._error(f"{self.label}: fmi2SetReal refused: {type(exc).__name__}: {exc}; nothing was set")
 
@@ -646,11 +653,13 @@ class SolverSlave(Fmi2Slave, metaclass=_SlaveClass):
         """
         if self._step_refused(current_time, step_size):
             return False
-        for block in self.input_blocks:
-            reason = self._non_finite(block.row.name, block.where, current_time)
-            if reason is not None:
-                self._error(reason)
-                return False
+        span = self._inputs_span
+        if span is None or not np.isfinite(self._real[span]).all():    # then find the block, and say which
+            for block in self.input_blocks:
+                reason = self._non_finite(block.row.name, block.where, current_time)
+                if reason is not None:
+                    self._error(reason)
+                    return False
         inputs = [self._real[block.where].copy() for block in self.input_blocks]
         t_end = current_time + step_size - self._t0
         return self._advance(current_time, lambda: self._solver.advance(t_end, *inputs))

@@ -585,6 +585,11 @@ def resolve_scene(raw: dict, default_name: str) -> dict:
     return scene
 
 
+MASTER_TABLES = ("record",)
+"""Top-level tables only the master reads (what it records): no unit reads them, so no FMU's build depends on
+them (`orchestrator.build.fmus.build_digest`)."""
+
+
 def without_tunables(scene: dict) -> dict:
     """The resolved scene with the value of every tunable key blanked (`fmu_common.schema.TUNABLE`).
 

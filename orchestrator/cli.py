@@ -492,13 +492,15 @@ def _as_interrupted(result):
 
 def _write_requested(args: argparse.Namespace, result, out: Path) -> tuple[list[Path], str]:
     """The outputs asked for with ``--animate`` and ``--vtk``: (paths written, "" or why one was not written)."""
-    from orchestrator.output.animation import ANIMATION_FILE, write_animation
-    from orchestrator.output.vtk import VTK_FOLDER, write_vtk
+    from orchestrator.output.animation import ANIMATION_FILE, ANIMATION_FRAMES, write_animation
+    from orchestrator.output.geometry_history import shared_histories
+    from orchestrator.output.vtk import VTK_FOLDER, VTK_FRAMES, write_vtk
 
     written: list[Path] = []
-    asked = [(ANIMATION_FILE, lambda: [p for p in [write_animation(result, out)] if p is not None])] \
-        if args.animate else []
-    asked += [(f"{VTK_FOLDER}/", lambda: write_vtk(result, out))] if args.vtk else []
+    history = shared_histories(result, [ANIMATION_FRAMES] * args.animate + [VTK_FRAMES] * args.vtk)
+    asked = [(ANIMATION_FILE, lambda: [p for p in [write_animation(result, out, history=history(ANIMATION_FRAMES))]
+                                       if p is not None])] if args.animate else []
+    asked += [(f"{VTK_FOLDER}/", lambda: write_vtk(result, out, history=history(VTK_FRAMES)))] if args.vtk else []
     for what, write in asked:
         try:
             paths = write()

@@ -60,6 +60,7 @@ from typing import Any, Iterable, Sequence, TextIO
 from fmu_common.errors import SceneError
 from fmu_common.threads import limit_blas_threads
 from orchestrator.run import allocator
+from orchestrator.run.progress import duration
 from orchestrator.scene.overrides import INDEX_PATTERN
 
 DONE_STATUSES = ("ok", "diverged", "error")
@@ -249,6 +250,20 @@ def summary_figures(summary: dict) -> dict[str, Any]:
     return out
 
 
+def time_left(elapsed: float, finished: int, remaining: int) -> str:
+    """``"; about 3.5 min left"``: the remaining runs at the rate of those this sweep finished so far (wall s per
+    run, parallel jobs included), or "" before the first or after the last.
+
+    Args:
+        elapsed: wall time (s) since this sweep started running.
+        finished: runs it finished since (not those found done).
+        remaining: runs still to run.
+    """
+    if finished <= 0 or remaining <= 0:
+        return ""
+    return f"; about {duration(elapsed / finished * remaining)} left"
+
+
 def sweep_row(run: Run, summary: dict, run_dir: Path, out: Path) -> dict[str, Any]:
     row: dict[str, Any] = {"index": run.index, **run.values}
     row.update(status=summary.get("status"), deployment_time_s=summary.get("deployment_time_s"),
@@ -408,6 +423,7 @@ def _sweep_into(runs: list[Run], out: Path, holder: dict, backend: str, jobs: in
               file=stream)
     statuses: dict[str, int] = {}
     records: dict[int, dict] = {}   # run.json of each run folder prepared, by run index
+    started = time.perf_counter()
 
     def record(run: Run, result: Any, status: str, message: str) -> None:
         nonlocal done
@@ -417,7 +433,8 @@ def _sweep_into(runs: list[Run], out: Path, holder: dict, backend: str, jobs: in
         done += 1
         statuses[status] = statuses.get(status, 0) + 1
         print(f"sweep: {done}/{total} runs done: {run.name}: {status} "
-              f"({result.wall_time_s:.2f} s){': ' + message if message else ''}", file=stream)
+              f"({result.wall_time_s:.2f} s){': ' + message if message else ''}"
+              f"{time_left(time.perf_counter() - started, done - skipped, total - done)}", file=stream)
         stream.flush()
 
     def finish(run: Run, result: Any) -> None:

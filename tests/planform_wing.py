@@ -106,3 +106,24 @@ def lifting_line_circulation(coefficients, span, y, speed=1.0):
     theta = np.arccos(-2.0 * np.asarray(y) / span)
     odd = 2 * np.arange(len(coefficients)) + 1
     return 2 * span * speed * np.sin(np.outer(theta, odd)) @ coefficients
+
+
+def folded_wing_scene(model, wake_length=None):
+    """The resolved scene of a tapered, swept, twisted, cambered (NACA 2412) two-body wing folded 60 deg about a
+    hinge skewed 15 deg from the chord, 3 x 4 panels per body, in a 10 m/s stream off the chord plane; aero.model
+    `model`, aero.wake_length `wake_length` chords (None: the default)."""
+    skew = np.radians(15.0)
+    bodies = [body("inner", 0.0, 1.0, 0.5, 0.4, 0.3, twist_deg=-2.0, airfoil="naca2412", sweep_deg=4.0),
+              {"name": "tip", "length": 0.4, "twist_deg": -2.0,
+               "section": dict(body("x", 0, 1, 0.4, 0.25)["section"], axis_position=0.2, airfoil="naca2412")}]
+    aero = {"model": model, "chordwise_panels": 3, "spanwise_panels": 4}
+    if wake_length is not None:
+        aero["wake_length"] = wake_length
+    raw = {"time": {"stop": 1.0}, "coupling": {"step": 0.01},
+           "structure": {"fidelity": "rigid", "bodies": bodies,
+                         "joints": [{"type": "clamp", "body": "inner"},
+                                    {"type": "revolute", "name": "fold", "parent": "inner", "child": "tip",
+                                     "axis": [np.cos(skew), np.sin(skew), 0.0], "initial_angle_deg": 60.0,
+                                     "stiffness": 1.0}]},
+           "aero": aero, "flow": {"speed": 10.0, "direction": [1.0, 0.0, 0.1]}}
+    return resolve_scene(raw, "folded")

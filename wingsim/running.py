@@ -112,14 +112,17 @@ def run(scene: Scene | str | Path, overrides: Mapping[str, Any] | None = None, b
             from orchestrator.output.plots import write_plots
 
             written += write_plots(result, folder)
-        if animate:
-            from orchestrator.output.animation import write_animation
+        if animate or vtk:       # one replay of the aero unit for both
+            from orchestrator.output.animation import ANIMATION_FRAMES, write_animation
+            from orchestrator.output.geometry_history import shared_histories
+            from orchestrator.output.vtk import VTK_FRAMES, write_vtk
 
-            written += [p for p in [write_animation(result, folder)] if p is not None]
-        if vtk:
-            from orchestrator.output.vtk import write_vtk
-
-            written += write_vtk(result, folder)
+            history = shared_histories(result, [ANIMATION_FRAMES] * bool(animate) + [VTK_FRAMES] * bool(vtk))
+            if animate:
+                written += [p for p in [write_animation(result, folder, history=history(ANIMATION_FRAMES))]
+                            if p is not None]
+            if vtk:
+                written += write_vtk(result, folder, history=history(VTK_FRAMES))
         finish_record(folder, record, written)    # last: the folder is complete, as wingsim run leaves it
         return Result.load(folder, keep_folder=out is not None)
 

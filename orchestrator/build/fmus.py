@@ -36,7 +36,7 @@ from fmu_common.choices import aero_model
 from fmu_common.dependencies import REQUIREMENTS
 from fmu_common.errors import SceneError
 from fmu_common.fmi_slave import SCENE_RESOURCE
-from fmu_common.scene_schema import without_tunables
+from fmu_common.scene_schema import MASTER_TABLES, without_tunables
 from orchestrator.build import native_binary, standalone as standalone_fmu, win64 as windows
 from orchestrator.build.sources import UNITS, BuildError, requirements, slave_script, source_digest, sources
 from orchestrator.files import folder_lock, process_record, write_file
@@ -168,9 +168,11 @@ def _require(kind: str, scene: dict) -> None:
 
 def build_digest(scene: dict) -> str:
     """SHA-256 (hex) of what the FMUs of a resolved scene are built from: the scene as canonical JSON with the
-    values of its tunable keys blanked (`fmu_common.scene_schema.without_tunables`), the `scene_sha256` its
-    FMUs carry. Scenes that differ only in tunable keys have one digest and run on the same FMUs."""
-    return hashlib.sha256(json.dumps(without_tunables(scene), sort_keys=True).encode()).hexdigest()
+    values of its tunable keys blanked (`fmu_common.scene_schema.without_tunables`) and without the tables only
+    the master reads (`MASTER_TABLES`: what it records), the `scene_sha256` its FMUs carry. Scenes that differ
+    only in those keys have one digest and run on the same FMUs."""
+    built_from = {key: value for key, value in without_tunables(scene).items() if key not in MASTER_TABLES}
+    return hashlib.sha256(json.dumps(built_from, sort_keys=True).encode()).hexdigest()
 
 
 def _build_info(kind: str, scene: dict, standalone: bool, win64: bool = False) -> dict:

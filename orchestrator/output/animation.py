@@ -58,7 +58,8 @@ def draw_frame(ax, frame: Frame, points: np.ndarray, norm, title: str) -> None:
     ax.set_title(title, fontsize=FONT_SIZE)
 
 
-def write_animation(result, out_dir, frames: int = ANIMATION_FRAMES, budget_s: float | None = None) -> Path | None:
+def write_animation(result, out_dir, frames: int = ANIMATION_FRAMES, budget_s: float | None = None,
+                    history: tuple[list[Frame], str] | None = None) -> Path | None:
     """Write ``animation.gif`` into ``out_dir`` for a run with recorded structure coordinates; returns its path,
     or None (and removes a stale file) when nothing was recorded.
 
@@ -67,6 +68,7 @@ def write_animation(result, out_dir, frames: int = ANIMATION_FRAMES, budget_s: f
         out_dir: the run's output folder.
         frames: instants drawn, evenly spread over the run.
         budget_s: wall time (s) of the aero replay (``geometry_history``).
+        history: the (frames, note) of ``geometry_history`` when already computed (``shared_histories``).
     """
     from matplotlib.animation import PillowWriter
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -74,7 +76,7 @@ def write_animation(result, out_dir, frames: int = ANIMATION_FRAMES, budget_s: f
     from matplotlib.figure import Figure
 
     path = Path(out_dir) / ANIMATION_FILE
-    history, note = geometry_history(result, frames, budget_s)
+    history, note = history if history is not None else geometry_history(result, frames, budget_s)
     if not history:
         path.unlink(missing_ok=True)
         return None

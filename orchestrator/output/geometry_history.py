@@ -70,34 +70,52 @@ def geometry_history(result, frames: int, budget_s: float | None = None) -> tupl
         frames: how many instants, evenly spread from t = 0 to the last recorded time.
         budget_s: wall time (s) the aero replay may take; None: ``WINGSIM_WAKE_BUDGET_S`` or 60 s.
     """
+    return geometry_histories(result, [frames], budget_s)[0]
+
+
+def geometry_histories(result, counts: list[int], budget_s: float | None = None) -> list[tuple[list[Frame], str]]:
+    """``geometry_history`` for several frame counts (the animation's and the VTK files' of one run) from one
+    replay of the aero unit, up to the latest step any of them draws.
+
+    Args:
+        result: a RunResult with ``structure_coordinates`` (and ``aero_inputs`` for an aero scene).
+        counts: for each history, how many instants.
+        budget_s: wall time (s) the aero replay may take; None: ``WINGSIM_WAKE_BUDGET_S`` or 60 s.
+
+    Returns:
+        [(frames, note)] in the order of ``counts``.
+    """
     from fmu_common.topology import Topology
     from fmu_common.wing_spec import StructureSpec
     from orchestrator.output.wake_view import BUDGET_ENV, REPLAY_BUDGET_S, replay
 
     record = result.structure_coordinates
     if record is None or len(record) == 0:
-        return [], "nothing recorded"
+        return [([], "nothing recorded") for _ in counts]
     topology = Topology.from_spec(StructureSpec.from_scene(result.scene))
     elements, element_body, bodies = structure_layout(topology)
-    chosen = instant_indices(record.t, frames)
-    out = []
-    for i in chosen:
-        e = np.asarray(record.e[i], dtype=float)
-        out.append(Frame(record.t[i], e.reshape(-1, 9)[:, :3].copy(), elements, element_body, bodies,
-                         reference_lines(topology, e)))
+    histories = []
+    for frames in counts:
+        history = []
+        for i in instant_indices(record.t, frames):
+            e = np.asarray(record.e[i], dtype=float)
+            history.append(Frame(record.t[i], e.reshape(-1, 9)[:, :3].copy(), elements, element_body, bodies,
+                                 reference_lines(topology, e)))
+        histories.append(history)
     inputs = getattr(result, "aero_inputs", None)
     if budget_s is None:
         budget_s = float(os.environ.get(BUDGET_ENV, REPLAY_BUDGET_S))
     if inputs is None or len(inputs) == 0:
-        return out, ""
+        return [(history, "") for history in histories]
     if budget_s <= 0:
-        return out, f"no lattice: {BUDGET_ENV} = 0 switches the aero replay off"
-    steps = {k: aero_step_at(inputs, frame.time) for k, frame in enumerate(out)}
-    wanted = sorted({s for s in steps.values() if s is not None})
+        return [(history, f"no lattice: {BUDGET_ENV} = 0 switches the aero replay off") for history in histories]
+    frames_all = [frame for history in histories for frame in history]
+    steps = [aero_step_at(inputs, frame.time) for frame in frames_all]
+    wanted = sorted({s for s in steps if s is not None})
     snapshots, _, stopped = replay(result.scene, inputs, wanted, budget_s)
     by_step = dict(zip(wanted, snapshots))
-    for k, frame in enumerate(out):
-        snapshot = by_step.get(steps[k])
+    for frame, step in zip(frames_all, steps):
+        snapshot = by_step.get(step)
         if snapshot is not None and abs(snapshot.time - frame.time) <= 1e-9 * max(1.0, abs(frame.time)):
             frame.wing, frame.wake, frame.wake_gamma = (snapshot.wing, snapshot.vortex["wake"],
                                                          snapshot.vortex["wake_gamma"])
@@ -107,4 +125,22 @@ def geometry_history(result, frames: int, budget_s: float | None = None) -> tupl
                 f"s: later frames show the structure only ({BUDGET_ENV} sets the budget)")
     elif not inputs.complete:
         note = "the lattice only for the recorded part of the run (the master stopped recording the aero inputs)"
-    return out, note
+    return [(history, note) for history in histories]
+
+
+def shared_histories(result, counts: list[int]):
+    """A function ``frames -> (frames, note)`` for the frame counts in ``counts``, computing them all with one
+    replay (``geometry_histories``) when first called: what the animation and the VTK files of one run share.
+
+    Args:
+        result: a RunResult.
+        counts: the frame counts that will be asked for.
+    """
+    computed: dict[int, tuple[list[Frame], str]] = {}
+
+    def history(frames: int) -> tuple[list[Frame], str]:
+        if not computed:
+            computed.update(zip(counts, geometry_histories(result, counts)))
+        return computed[frames]
+
+    return history

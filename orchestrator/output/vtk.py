@@ -121,7 +121,8 @@ def _write(tree: ET.ElementTree, path: Path) -> Path:
     return write_file(path, lambda tmp: tree.write(tmp, encoding="utf-8", xml_declaration=True))
 
 
-def write_vtk(result, out_dir, frames: int = VTK_FRAMES, budget_s: float | None = None) -> list[Path]:
+def write_vtk(result, out_dir, frames: int = VTK_FRAMES, budget_s: float | None = None,
+              history: tuple[list[Frame], str] | None = None) -> list[Path]:
     """Write ``OUT/vtk/`` (module docstring) for a run with recorded structure coordinates; returns the files
     written (the .pvd collections last), [] when nothing was recorded. Files of an earlier run there are removed
     first.
@@ -131,9 +132,10 @@ def write_vtk(result, out_dir, frames: int = VTK_FRAMES, budget_s: float | None 
         out_dir: the run's output folder.
         frames: instants written, evenly spread over the run.
         budget_s: wall time (s) of the aero replay (``geometry_history``).
+        history: the (frames, note) of ``geometry_history`` when already computed (``shared_histories``).
     """
     folder = Path(out_dir) / VTK_FOLDER
-    history, note = geometry_history(result, frames, budget_s)
+    history, note = history if history is not None else geometry_history(result, frames, budget_s)
     folder.mkdir(parents=True, exist_ok=True)
     for stale in (*folder.glob("*.vtu"), *folder.glob("*.pvd")):
         stale.unlink()

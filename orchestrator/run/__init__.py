@@ -8,6 +8,7 @@
 - ``coupling``      the coupling schemes (Gauss-Seidel, Jacobi, implicit with rollback)
 - ``acceleration``  interface acceleration of the implicit scheme
 - ``master``        the run loop: step the units and record what the scene asks for
+- ``recording``     each sample gathered from the units' output vectors into the series' next row
 - ``timeseries``    the recorded samples (time, probe positions, fold angles, monitors)
 - ``progress``      the progress line on stderr, with the time left and a note for a long run
 - ``estimate``      the size of a run's timeseries.csv, announced before a run that writes a large one

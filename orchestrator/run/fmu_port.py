@@ -13,10 +13,14 @@ from ctypes import byref
 from pathlib import Path
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from fmu_common.scene_schema import without_tunables
 from orchestrator.run.port import (ERROR_STATUS, KINDS, LogEntry, UnitError, reported_divergence,
                                    warnings_and_errors)
+
+FMI2_WARNING = 1      # fmi2Warning: a status above it is a failed call (fmpy raises for it)
+FMI2_FALSE = 0        # fmi2False: fmi2DoStep's noSetFMUStatePriorToCurrentPoint
 
 
 class FmuState:
@@ -53,6 +57,7 @@ class FmuPort:
         self._fmu_path = fmu_path
         self.kind, spec = kind, KINDS[kind]
         self._fmu = None
+        self._do_step = None     # (fmi2DoStep, the instance), once the first step is taken
         self._dir = None
         self._live_states = weakref.WeakSet()
         self._initialized = False
@@ -161,14 +166,43 @@ class FmuPort:
     def value_references(self) -> dict[str, int]:
         return dict(self._vr)
 
+    def _stepping_call(self, name: str):
+        """The FMU's C function `name` (fmi2GetReal, fmi2SetReal, fmi2DoStep; fmpy declared its argument types) and
+        its instance, called directly by the calls a communication step repeats: fmpy's Python layer over it adds
+        nothing the status check after it (`_checked`) does not do."""
+        return getattr(self._fmu.dll, name), self._fmu.component
+
+    def _checked(self, what, function: str, status: int, mark: int) -> None:
+        """After a direct call of the C function `function` that returned `status`: UnitError if the status is
+        above fmi2Warning (as fmpy raises) or the call logged an error since the log held `mark` entries.
+        `what` (text, or a callable giving it) names the call in the message."""
+        if status <= FMI2_WARNING and len(self.log) == mark:
+            return
+        what = what() if callable(what) else what
+        entries = self.log[mark:]
+        if status > FMI2_WARNING:
+            raise UnitError(self._inside(f"{self.label}: {what} failed ({FMICallException(function, status)}): "
+                                         f"{self._reasons(mark)}"), diverged=reported_divergence(entries))
+        if any(entry.status >= ERROR_STATUS for entry in entries):
+            raise UnitError(self._inside(f"{self.label}: {what} failed: {self._reasons(mark)}"),
+                            diverged=reported_divergence(entries))
+
+    def _live(self, function: str) -> None:
+        """UnitError for a call after `close()` (the instance is freed: calling into it would crash the host)."""
+        if self._fmu is None:
+            raise UnitError(f"{self.label}: {function} after the unit was terminated")
+
     def reader(self, vrs: list[int]):
         from fmpy.fmi2 import fmi2Real, fmi2ValueReference
         n = len(vrs)
         vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
         view = np.ctypeslib.as_array(buf)
+        get, component = self._stepping_call("fmi2GetReal")
 
         def read() -> np.ndarray:
-            self._call("fmi2GetReal", self._fmu.fmi2GetReal, self._fmu.component, vr_arr, n, buf)
+            self._live("fmi2GetReal")
+            mark = len(self.log)
+            self._checked("fmi2GetReal", "fmi2GetReal", get(component, vr_arr, n, buf), mark)
             return view.copy()
         return read
 
@@ -177,10 +211,13 @@ class FmuPort:
         n = len(vrs)
         vr_arr, buf = (fmi2ValueReference * n)(*vrs), (fmi2Real * n)()
         view = np.ctypeslib.as_array(buf)
+        set_real, component = self._stepping_call("fmi2SetReal")
 
         def write(values: np.ndarray) -> None:
+            self._live("fmi2SetReal")
             view[:] = values
-            self._call("fmi2SetReal", self._fmu.fmi2SetReal, self._fmu.component, vr_arr, n, buf)
+            mark = len(self.log)
+            self._checked("fmi2SetReal", "fmi2SetReal", set_real(component, vr_arr, n, buf), mark)
         return write
 
     def get_string(self, vr: int) -> str:
@@ -195,9 +232,13 @@ class FmuPort:
         self._initialized = True
 
     def do_step(self, t: float, h: float) -> None:
-        from fmpy.fmi2 import fmi2False
-        self._call(f"fmi2DoStep(t = {t:.6g} s, h = {h:.6g} s)", self._fmu.fmi2DoStep,
-                   self._fmu.component, t, h, fmi2False)
+        self._live("fmi2DoStep")
+        if self._do_step is None:
+            self._do_step = self._stepping_call("fmi2DoStep")
+        do_step, component = self._do_step
+        mark = len(self.log)
+        self._checked(lambda: f"fmi2DoStep(t = {t:.6g} s, h = {h:.6g} s)", "fmi2DoStep",
+                      do_step(component, t, h, FMI2_FALSE), mark)
 
     def get_state(self) -> FmuState:
         return FmuState(self, self._call("fmi2GetFMUstate", self._fmu.getFMUstate))

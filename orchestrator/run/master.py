@@ -28,7 +28,12 @@ FMI error or discard, with the unit's logged reason), ``monitors()`` (structure:
 ``kinetic_energy``, ``constraint_residual``, ``fold_angles_deg``, ``latch_times``, ``probe_positions``,
 ``probe_velocities``, ``probe_accelerations``, ``strains``, all outputs of the unit: the master computes no
 sensor itself; aero: ``CL``, ``lift``, ...),
-``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``.
+``monitor_values()`` and ``monitor_layout`` (the same outputs as one vector and where each row lies in it:
+what the master records from, ``orchestrator.run.recording``),
+``get_state()`` / ``set_state(state)`` (implicit coupling only) and ``terminate()``. ``make_unit`` also takes
+``reads`` (the rows to record, ``recorded_rows``) and ``monitors_with_outputs`` (read them in the call that reads
+the output blocks: under explicit coupling every state whose outputs are exchanged is recorded, so each unit is
+read once per step; an implicit coupling reads them apart, so that its rejected iterates compute none).
 
 With an aero unit the run also keeps, in memory, the inputs of every aero step (``AeroInputs``: t, h, e, de
 as the aero unit was given them; with implicit coupling those of the accepted iterate only), so that the
@@ -57,9 +62,10 @@ import numpy as np
 
 from orchestrator.run.coupling import AeroInputs, CouplingDiverged, make_scheme
 from orchestrator.run.progress import Progress
+from orchestrator.run.recording import Recorder
 from orchestrator.scene.load import hinge_joints, joint_monitor_names
 from orchestrator.run.timeseries import PROBE_ROWS, TimeSeries
-from orchestrator.scene.columns import AERO_COLUMNS, COUPLING_COLUMNS, MONITOR_COLUMNS, hinge_moment_column
+from orchestrator.scene.columns import AERO_COLUMNS, MONITOR_COLUMNS
 from fmu_common.choices import aero_model
 from fmu_common.errors import SolverDiverged
 from fmu_common.scene_bounds import AERO_INPUT_RECORD_VALUES
@@ -68,6 +74,7 @@ from fmu_common.scene_schema import PROBE_RECORDS
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "diverged", "error", "interrupted")
+STEPPING = "stepping"   # the phase of a communication step, named with its start time if it fails
 
 STRUCTURE_RECORD_VALUES = AERO_INPUT_RECORD_VALUES
 """The structure coordinates are recorded up to about this many numbers (8 bytes each), the bound of the aero
@@ -174,39 +181,6 @@ def recorded_rows(scene: dict) -> dict[str, tuple[str, ...]]:
             "aero": (*AERO_COLUMNS, "hinge_moments")}
 
 
-def _record(series: TimeSeries, structure: Any, aero: Any, t: float,
-            coupling: tuple[int, float] | None = None) -> dict:
-    """Append one sample of the units' outputs; returns the hinges' latch times (s) the structure unit
-    reports. The probes' positions, velocities and accelerations and the gauges' strains are the structure unit's
-    own outputs; a row the units were not asked to read (`recorded_rows`) is recorded as NaN."""
-    monitors = structure.monitors()
-    loads = None
-    if aero is not None:
-        aero_monitors = aero.monitors()
-        loads = {name: aero_monitors.get(name, np.nan) for name in AERO_COLUMNS}
-        moments = aero_monitors.get("hinge_moments", {})
-        loads.update({hinge_moment_column(h): moments.get(h, np.nan) for h in series.hinge_names})
-    # the positions always, the velocities and accelerations if read
-    probes = {key: monitors.get(key, {}) for key in PROBE_ROWS if key == PROBE_ROWS[0] or key in monitors}
-    strains = monitors.get("strains", {})
-    unread = [f"{key} output for the probe {p!r}" for key in probes for p in series.probe_names
-              if p not in probes[key]]
-    unread += [f"output for the strain gauge {g!r}" for g in series.strain_names if g not in strains]
-    if unread:
-        raise RuntimeError(f"the structure unit reports no {unread[0]}: rebuild the FMUs (wingsim build)")
-    positions, velocities, accelerations = (
-        np.array([probes[key][p] for p in series.probe_names], dtype=float).reshape(-1, 3) if key in probes
-        else None for key in PROBE_ROWS)
-    series.append(t, positions, monitors.get("fold_angles_deg", {}),
-                  monitors.get("energy", np.nan), monitors.get("constraint_residual", np.nan),
-                  kinetic_energy=monitors.get("kinetic_energy", np.nan),
-                  external_work=monitors.get("external_work", np.nan), aero=loads,
-                  coupling=None if coupling is None else dict(zip(COUPLING_COLUMNS, coupling)),
-                  strains=strains, joints=monitors.get("joints", {}), velocities=velocities,
-                  accelerations=accelerations)
-    return monitors.get("latch_times", {})
-
-
 def check_connection(structure: Any, aero: Any) -> None:
     """CouplingError unless the two units carry the same structural topology (docs/architecture.md)."""
     a, b = str(structure.topology_hash), str(aero.topology_hash)
@@ -269,36 +243,43 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
     series = new_series(scene)
     stop = scene["time"]["stop"]
     status, message, reached, stepping, latch_times = "ok", "", 0.0, None, {}
-    structure = aero = scheme = None
+    structure = aero = scheme = recorder = None
     aero_inputs = AeroInputs.empty() if has_aero(scene) else None
     coordinates = None
     phase = "starting the structure unit"
     try:
         reads = recorded_rows(scene)
+        # an explicit coupling records every state whose outputs it reads: the monitors come in the same read; an
+        # implicit one reads the outputs of iterates it rejects, which must compute no monitor
+        together = not is_implicit(scene)
         structure = units.make_unit(kind="structure", scene=scene, backend=backend, fmu_dir=fmu_dir,
-                                    reads=reads["structure"])
+                                    reads=reads["structure"], monitors_with_outputs=together)
         if structure.n != topology.n_coordinates:
             raise RuntimeError(f"the unit has {structure.n} coordinates but the scene's topology has "
                                f"{topology.n_coordinates}: rebuild the FMUs (wingsim build)")
         if has_aero(scene):
             phase = "starting the aero unit"
-            aero = units.make_unit(kind="aero", scene=scene, backend=backend, fmu_dir=fmu_dir, reads=reads["aero"])
+            aero = units.make_unit(kind="aero", scene=scene, backend=backend, fmu_dir=fmu_dir, reads=reads["aero"],
+                                   monitors_with_outputs=together)
             phase = "connecting the structure and aero units"
             check_connection(structure, aero)
         times = communication_times(stop, scene["coupling"]["step"])
         coordinates = StructureCoordinates.for_run(len(times), structure.n)
         phase = "reading the initial outputs"
+        recorder = Recorder(series, structure, aero)
+        series.reserve(len(times))
         scheme = make_scheme(scene, structure, aero, aero_inputs)
         start_coupling = scheme.start()
         e = structure.get_outputs()[0]   # the structure's e after the scheme's initial exchange
-        latch_times = _record(series, structure, aero, times[0], coupling=start_coupling)
+        recorder.record(times[0], start_coupling)
         coordinates.append(times[0], e)
         stepping_start = _time.perf_counter()
-        for t0, t1 in zip(times[:-1], times[1:]):
-            phase = f"the step from t = {t0:.6g} s"
+        for k in range(1, len(times)):
+            t0, t1 = float(times[k - 1]), float(times[k])
+            phase = STEPPING                  # named with t0 only if the step fails
             step_coupling = scheme.advance(t0, t1)
             e = structure.get_outputs()[0]
-            latch_times = _record(series, structure, aero, t1, coupling=step_coupling)
+            recorder.record(t1, step_coupling)
             coordinates.append(t1, e)
             reached = t1
             if progress is not None:
@@ -310,6 +291,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                         f"{scheme.statistics()})")
     except (Exception, KeyboardInterrupt) as err:
         log.debug("run failed during %s", phase, exc_info=True)
+        if phase is STEPPING:
+            phase = f"the step from t = {t0:.6g} s"
         status, message = _classify(err, units.UnitError, phase)
         if status == "diverged" and scheme is not None:
             message = scheme.explain_divergence(message, series)
@@ -320,6 +303,8 @@ def run_scene(scene: dict, backend: str = "fmu", fmu_dir: Path | None = None,
                     unit.terminate()
                 except Exception as err:  # the samples are already recorded: report, keep the status
                     message += f" (terminating the {getattr(unit, 'kind', 'structure')} unit failed: {err})"
+    if recorder is not None:
+        latch_times = recorder.latch_times()
     if progress is not None:
         progress.finish(reached, status)
     return RunResult(status, message, _time.perf_counter() - start, float(reached), scene, series, aero_inputs,

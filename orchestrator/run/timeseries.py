@@ -28,6 +28,8 @@ PROBE_ROWS = ("probe_positions", "probe_velocities", "probe_accelerations")
 every probe's position (m), then every probe's velocity (m/s), then every probe's acceleration (m/s^2), each
 global x, y, z."""
 _ROWS = {row.key: row for row in STRUCTURE.outputs if row.key in PROBE_ROWS}
+INITIAL_ROWS = 64
+"""Rows the series holds before it first grows (``reserve`` sets the number a run needs at once)."""
 
 
 def probe_columns(probe: str, row: str) -> list[str]:
@@ -37,7 +39,8 @@ def probe_columns(probe: str, row: str) -> list[str]:
 
 
 class TimeSeries:
-    """Recorded samples; append during the run, read as numpy arrays afterwards."""
+    """Recorded samples; append during the run, read as numpy arrays afterwards. The samples lie in one preallocated
+    block of rows (NaN until written), which doubles when full: a sample costs no allocation."""
 
     def __init__(self, probe_names: Sequence[str], hinge_names: Sequence[str], aero: bool = False,
                  coupling: bool = False, strain_names: Sequence[str] = (), joint_names: Sequence[str] = ()):
@@ -48,7 +51,9 @@ class TimeSeries:
         self.hinge_moment_names = [hinge_moment_column(h) for h in self.hinge_names] if aero else []
         self.aero_names = self.hinge_moment_names + list(AERO_COLUMNS) if aero else []
         self.coupling_names = list(COUPLING_COLUMNS) if coupling else []
-        self._rows: list[np.ndarray] = []
+        self._width = len(self.columns)
+        self._block = np.full((INITIAL_ROWS, self._width), np.nan)   # the samples, in rows 0 .. _size - 1
+        self._size = 0
         # named column positions (time, probes' positions, velocities and accelerations, hinges, strains, monitors,
         # aero), from the layout of ``columns``
         k = 3 * len(self.probe_names)
@@ -112,7 +117,7 @@ class TimeSeries:
             *(np.asarray(coupling.get(name, np.full(m, np.nan)), float).reshape(m)
               for name in series.coupling_names),
         ])
-        series._rows = list(table)
+        series._block, series._size = table.reshape(m, series._width), m
         return series
 
     def append(self, time: float, positions: np.ndarray, fold_angles_deg: Mapping[str, float],
@@ -134,16 +139,32 @@ class TimeSeries:
         k = 3 * len(self.probe_names)
         rates = [np.full(k, np.nan) if x is None else np.asarray(x, float).reshape(k)
                  for x in (velocities, accelerations)]
-        self._rows.append(np.concatenate((
+        self.new_row()[:] = np.concatenate((
             [time], np.asarray(positions, float).reshape(-1), *rates, angles,
             [strains.get(n, np.nan) for n in self.strain_names],
             [joints.get(n, np.nan) for n in self.joint_names],
             [monitors[n] for n in MONITOR_COLUMNS],
             [aero.get(n, np.nan) for n in self.aero_names], [coupling.get(n, np.nan) for n in self.coupling_names],
-        )).astype(float))
+        )).astype(float)
+
+    def reserve(self, rows: int) -> None:
+        """Make room for ``rows`` samples in all, so that a run of that many points never grows the block."""
+        if rows > len(self._block):
+            grown = np.full((rows, self._width), np.nan)
+            grown[:self._size] = self._block[:self._size]
+            self._block = grown
+
+    def new_row(self) -> np.ndarray:
+        """The next sample's row, (columns,), all NaN, counted from now on; the caller writes its values in it
+        (``orchestrator.run.recording.Recorder``)."""
+        if self._size == len(self._block):
+            self.reserve(2 * max(1, self._size))
+        row = self._block[self._size]
+        self._size += 1
+        return row
 
     def __len__(self) -> int:
-        return len(self._rows)
+        return self._size
 
     @property
     def columns(self) -> list[str]:
@@ -155,7 +176,7 @@ class TimeSeries:
 
     def table(self) -> np.ndarray:
         """All samples, shape (samples, columns)."""
-        return np.array(self._rows, dtype=float).reshape(len(self._rows), len(self.columns))
+        return self._block[:self._size].copy()
 
     def column(self, name: str) -> np.ndarray:
         """The samples of the column called ``name`` (a ``timeseries.csv`` header), shape (samples,)."""

@@ -23,6 +23,9 @@
                                     global frame}, "probe_velocities", "probe_accelerations")
                                 the items of the scene (`scene_items`): its hinges, probes, strain gauges and
                                 joint monitors; the master computes none of them itself
+    unit.monitor_values()       the same rows as one fresh vector, in one read of the unit (what the master
+                                records from, `orchestrator.run.recording`), laid out as
+    unit.monitor_layout         says: a `MonitorRow` (key, items, width, slice, pending mark) per row read
     unit.get_state(), unit.set_state(s)    complete state for rollback (opaque; FMU states are freed
                                 when the object is garbage collected or the unit terminated)
     unit.terminate()            end the simulation and free the instance (idempotent, never raises)
@@ -42,6 +45,7 @@ import numpy as np
 
 from fmu_common.interface import OUTPUT, fmi_name
 from orchestrator.run.port import KINDS, Port, UnitError, UnitKind
+from orchestrator.run.recording import MonitorRow, monitor_dict
 from structure_fmu.interface import GAUGES, HINGES, JOINT_MONITORS, PROBES
 
 
@@ -66,7 +70,8 @@ def _block_size(name: str, vr: dict) -> int:
 
 
 def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | None = None,
-              instance_name: str | None = None, check_layout: bool = True, reads=None) -> "Unit":
+              instance_name: str | None = None, check_layout: bool = True, reads=None,
+              monitors_with_outputs: bool = False) -> "Unit":
     """Create, set up and initialize a unit of `kind` ("structure" or "aero") for `scene`.
 
     backend: "fmu" (fmu_dir/<kind>.fmu through fmpy) or "direct" (the slave class in-process; fmu_dir
@@ -74,7 +79,8 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     keys) is set to the scene's value before initialization; `parameters` ({name: value}) overrides some.
     check_layout=False skips the fmu backend's layout check (`orchestrator.run.layout`) for a caller that has
     just made it. `reads`: the keys of the output rows `monitors()` reads (the unit computes an output only
-    when read, fmu_common.fmi_slave); None: every row. Raises UnitError on any failure, naming what was wrong.
+    when read, fmu_common.fmi_slave); None: every row. `monitors_with_outputs`: read them with the output blocks, in
+    one call (`Unit`). Raises UnitError on any failure, naming what was wrong.
     """
     if kind not in KINDS:
         raise UnitError(f"unit kind {kind!r} is not available; available: {', '.join(KINDS)}")
@@ -97,7 +103,8 @@ def make_unit(kind: str, scene: dict, backend: str, fmu_dir, parameters: dict | 
     else:
         raise UnitError(f"backend {backend!r} is not known; use 'fmu' or 'direct'")
     try:
-        return Unit(port, scene, {**values, **(parameters or {})}, kind, reads=reads)
+        return Unit(port, scene, {**values, **(parameters or {})}, kind, reads=reads,
+                    monitors_with_outputs=monitors_with_outputs)
     except BaseException:
         port.close()
         raise
@@ -120,10 +127,13 @@ class Unit:
     """A structure or aero unit driven through a port (fmpy FMU or in-process slave); see the module
     docstring. Its variables are found by name in what the port declares (the model description): the blocks
     of its kind's table (`UnitKind.interface`; `spec` replaces KINDS[kind]'s), then the variables of the output
-    rows it reads (`reads`, their keys; None: every row) for the scene's items: the unit computes only those."""
+    rows it reads (`reads`, their keys; None: every row) for the scene's items: the unit computes only those.
+    With `monitors_with_outputs` those rows are read in the call that reads the output blocks (get_outputs), and
+    `monitor_values()` returns them until the unit steps, is set or is given inputs: for a coupling that records
+    every state whose outputs it reads (an explicit one), one read per unit and step."""
 
     def __init__(self, port, scene: dict, parameters: dict, kind: str = "structure", spec: UnitKind | None = None,
-                 reads=None):
+                 reads=None, monitors_with_outputs: bool = False):
         self._port = port
         self.kind = kind
         self._spec = spec = KINDS[kind] if spec is None else spec
@@ -142,29 +152,36 @@ class Unit:
                 raise UnitError(f"{port.label}: no output row {', '.join(unknown)} to read; the rows are "
                                 f"{', '.join(row.key for row in rows)}")
             rows = [row for row in rows if row.key in reads]
-        # (row, its items in the scene, names per item, where its values are among the monitors read)
-        self._monitor_rows, monitor_names = [], []
+        # where each row read lies in the vector of the monitors read (monitor_values)
+        layout, monitor_names = [], []
         for row in rows:
             if row.items is not None and row.items.placeholder not in items:
                 raise UnitError(f"{port.label}: the master does not know what {row.items.placeholder} stands for "
                                 f"in a scene (output {row.names[0]})")
-            row_items = () if row.items is None else tuple(items[row.items.placeholder])
+            row_items = None if row.items is None else tuple(items[row.items.placeholder])
             names = (list(row.names_of()) if row.items is None else
                      [name for item in row_items for name in row.names_of(item)])
             where = slice(len(monitor_names), len(monitor_names) + len(names))
-            self._monitor_rows.append((row, row_items, len(row.names), where))
+            layout.append(MonitorRow(row.key, row_items, len(row.names), where, row.pending))
             monitor_names += names
+        self.monitor_layout = tuple(layout)
         absent = [name for name in monitor_names if name not in vr]
         if absent:
             raise UnitError(f"{port.label}: no output {absent[0]}; the unit does not match the scene (rebuild "
                             "the FMU)")
         output_vrs = [vr[name] for block in blocks if block.causality == OUTPUT for name in block.names(n)]
         monitor_vrs = [vr[name] for name in monitor_names]
-        # get_outputs reads the output blocks alone and keeps them until the unit steps or is set (its outputs
-        # change only then), however often the coupling asks; the monitors are read apart, when recorded: the unit
-        # computes an output only when read, so an implicit coupling's rejected iterates compute no monitor
-        self._get_out = port.reader(output_vrs)
-        self._values = None
+        # get_outputs reads the output blocks and keeps them until the unit steps or is set (its outputs change only
+        # then), however often the coupling asks. The monitors are read apart, when recorded (the unit computes an
+        # output only when read, so an implicit coupling's rejected iterates compute no monitor), or, with
+        # monitors_with_outputs, in the same call as the output blocks: a coupling that records every step it
+        # takes then makes one read per unit and step
+        self._get_out = port.reader(output_vrs + monitor_vrs if monitors_with_outputs else output_vrs)
+        self._with_outputs = len(output_vrs) if monitors_with_outputs else None
+        self._monitored = None   # the monitors read with the output blocks, until the unit steps or is set
+        self._output_blocks = [slice(k * n, (k + 1) * n) for k in range(len(spec.outputs))]
+        self._input_names = spec.inputs
+        self._values = self._monitored = None
         self._set_in = port.writer([vr[name] for block in blocks if block.causality != OUTPUT
                                     for name in block.names(n)])
         self._get_mon = port.reader(monitor_vrs)
@@ -187,12 +204,15 @@ class Unit:
         """The output blocks in order (structure: e, de; aero: Q), fresh arrays."""
         if self._values is None:
             self._values = self._get_out()  # a fresh array, not the transfer buffer
+            if self._with_outputs is not None:
+                self._values, self._monitored = (self._values[:self._with_outputs],
+                                                 self._values[self._with_outputs:])
         out = self._values
-        return tuple(out[k * self.n:(k + 1) * self.n].copy() for k in range(len(self._spec.outputs)))
+        return tuple([out[where].copy() for where in self._output_blocks])
 
     def set_inputs(self, *blocks) -> None:
         """The input blocks in order (structure: Q; aero: e, de), each of shape (n,)."""
-        names = self._spec.inputs
+        names = self._input_names
         if len(blocks) != len(names):
             raise UnitError(f"{self._port.label}: set_inputs takes {', '.join(names)} "
                             f"({len(names)} arrays), got {len(blocks)}")
@@ -200,33 +220,28 @@ class Unit:
         for name, a in zip(names, arrays):
             if a.shape != (self.n,):
                 raise UnitError(f"{self._port.label}: {name} has shape {a.shape}, expected ({self.n},)")
-        self._values = None
+        self._values = self._monitored = None
         self._set_in(arrays[0] if len(arrays) == 1 else np.concatenate(arrays))
 
     def do_step(self, t: float, h: float) -> None:
-        self._values = None
+        self._values = self._monitored = None
         self._port.do_step(float(t), float(h))
 
+    def monitor_values(self) -> np.ndarray:
+        """The output rows read (`reads`), now, as one vector laid out as `monitor_layout` says, which the caller may
+        keep (the unit never writes into it): one read of the unit (one fmi2GetReal through an FMU), or none when
+        they came with the output blocks (`monitors_with_outputs`) since the unit last changed."""
+        return self._get_mon() if self._monitored is None else self._monitored
+
     def monitors(self) -> dict:
-        """The unit's outputs now, row by row of its table (module docstring)."""
-        m = self._get_mon()
-        out = {}
-        for row, items, width, where in self._monitor_rows:
-            values = m[where]
-            if row.items is None:
-                out[row.key] = float(values[0])
-            elif width == 1:
-                out[row.key] = {item: float(v) for item, v in zip(items, values)
-                                if row.pending is None or v != row.pending}
-            else:
-                out[row.key] = dict(zip(items, values.reshape(-1, width).copy()))
-        return out
+        """The unit's outputs now, row by row of its table (module docstring; `recording.monitor_dict`)."""
+        return monitor_dict(self.monitor_layout, self.monitor_values())
 
     def get_state(self):
         return self._port.get_state()
 
     def set_state(self, state) -> None:
-        self._values = None
+        self._values = self._monitored = None
         self._port.set_state(state)
 
     def serialize_state(self, state) -> bytes:

@@ -19,6 +19,7 @@ from orchestrator.scene.load import read_scene_file, resolve_scene
 from orchestrator.run.timeseries import TimeSeries
 from subprocesses import wingsim
 from repository import ROOT, SCENES
+from stand_in_units import DictMonitors
 
 EXAMPLE = SCENES / "deploy_rigid.toml"
 CONTRACT_SUMMARY_FIELDS = {"status", "message", "wall_time_s", "simulated_time_s", "scene", "deployment_time_s",
@@ -205,7 +206,7 @@ class FakeUnitError(RuntimeError):
         self.diverged = diverged
 
 
-class FakeUnit:
+class FakeUnit(DictMonitors):
     """Moves every coordinate (e_k = t + k) and every probe of the example scene (along x, y and z at 1 m/s each,
     from (0, 1, 2) m, without acceleration); fails at ``fail_at`` (s) with ``reason``, reporting a divergence if
     ``diverged``."""

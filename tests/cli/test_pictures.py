@@ -237,3 +237,30 @@ def test_an_animation_asked_for_and_not_written_fails_the_command(tmp_path, caps
     err = capsys.readouterr().err
     assert code == 1 and "error: animation.gif not written: RuntimeError: no frames" in err
     assert (tmp_path / "summary.json").is_file() and (tmp_path / "timeseries.csv").is_file()   # the data stay
+
+
+def test_the_animation_and_the_vtk_files_of_one_run_replay_the_aero_unit_once(tmp_path, monkeypatch):
+    """`--animate --vtk` draw 60 and 101 instants of the same run: one replay of the aero unit serves both (the
+    run's other replay is the wake picture's, wake_3d.png), and the lattice files are those `write_vtk` alone
+    writes from its own replay."""
+    alone = tmp_path / "alone"
+    scene = ["time.stop=0.3", "aero.wake_length=0.5"]
+    result = run_scene(load_scene(SCENES / "heaving_wing.toml", scene), backend="direct")
+    vtk.write_vtk(result, alone)
+    replays = []
+    original = wake_view.replay
+
+    def counted(*args, **kwargs):
+        replays.append(args[2])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(wake_view, "replay", counted)
+    out = tmp_path / "both"
+    code = cli.main(["run", str(SCENES / "heaving_wing.toml"), "--backend", "direct", "--out", str(out),
+                     "--set", scene[0], "--set", scene[1], "--animate", "--vtk"])
+    assert code == 0 and len(replays) == 2
+    assert (out / animation.ANIMATION_FILE).is_file()
+    frames = collection(out / "vtk" / "lattice.pvd")
+    assert frames == collection(alone / "vtk" / "lattice.pvd") and len(frames) == 3
+    for _, name in frames:
+        assert (out / "vtk" / name).read_bytes() == (alone / "vtk" / name).read_bytes()

@@ -23,8 +23,9 @@ from repository import SCENES
 from subprocesses import CODE_ROOT
 
 STILL = ["--set", "aero.model=none", "--set", "time.stop=0.02", "--backend", "direct"]
-C_SOURCES = ["aero_fmu/biot_savart.c", "structure_fmu/element_kernels.c", "structure_fmu/shear_element_kernels.c",
-             "structure_fmu/strain_kernels.c", "orchestrator/build/fmi_shim.c", "orchestrator/export/container.c"]
+C_SOURCES = ["aero_fmu/biot_savart.c", "aero_fmu/flat_wake_step.c", "structure_fmu/element_kernels.c",
+             "structure_fmu/shear_element_kernels.c", "structure_fmu/strain_kernels.c", "orchestrator/build/fmi_shim.c",
+             "orchestrator/export/container.c"]
 
 
 def first_comment(path: Path) -> str:

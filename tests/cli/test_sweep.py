@@ -8,7 +8,7 @@ import pytest
 from orchestrator.run.master import run_scene
 from orchestrator.output.results import summarize
 from orchestrator.scene.load import load_scene
-from orchestrator.sweep import combinations, parse_grid, split_values, summary_figures
+from orchestrator.sweep import combinations, parse_grid, split_values, summary_figures, time_left
 from fmu_common.errors import SceneError
 from subprocesses import wingsim
 from repository import SCENES
@@ -75,6 +75,8 @@ def test_local_sweep_rows_match_independent_runs(local_sweep):
     assert [(row[KEYS[0]], row[KEYS[1]]) for row in rows] == [
         ("0.02", "0.3"), ("0.02", "0.4"), ("0.026", "0.3"), ("0.026", "0.4")]
     assert "4/4 runs done" in done.stderr
+    lines = [line for line in done.stderr.splitlines() if "runs done" in line]
+    assert len(lines) == 4 and all("left" in line for line in lines[:3]) and "left" not in lines[3]
     deployments = set()
     for row in rows:
         assert row["status"] == "ok", row
@@ -95,6 +97,13 @@ def test_local_sweep_rows_match_independent_runs(local_sweep):
             assert number(row[f"probes.tip.max_displacement_{axis}"]) == pytest.approx(value, rel=1e-12, abs=1e-15)
         assert number(row["wall_time_s"]) == pytest.approx(own["wall_time_s"])
     assert len(deployments) == 4   # every combination is a different run
+
+
+def test_the_time_left_is_the_remaining_runs_at_the_rate_so_far():
+    # 2 runs in 10 s (parallel jobs included): 3 more take 15 s; a resumed sweep counts only what it ran
+    assert time_left(10.0, 2, 3) == "; about 15 s left"
+    assert time_left(600.0, 4, 2) == "; about 5.0 min left"
+    assert time_left(1.0, 0, 3) == "" and time_left(10.0, 2, 0) == ""
 
 
 def test_sweep_row_equals_wingsim_run(local_sweep, tmp_path):

@@ -22,6 +22,7 @@ from orchestrator.run.units import make_unit
 from fmu_common.topology import Topology
 from fmu_common.wing_spec import StructureSpec
 from repository import SCENES
+from stand_in_units import DictMonitors
 from subprocesses import simulate_in_fresh_python, wingsim
 
 # Otsuka et al. 2019, Sec. VI.D, shortened: 5 communication steps of 0.1 s, a short wake
@@ -413,7 +414,7 @@ def test_parameters_of_the_aero_unit_are_applied_in_both_backends(scene, units):
 
 # --- the exchange order of the master, with stand-in units -----------------------------------------
 
-class _Structure:
+class _Structure(DictMonitors):
     n, topology_hash, kind = 9, "h", "structure"
 
     def __init__(self, log):

@@ -31,6 +31,7 @@ VARIANTS = [["flow.speed=14"], ["flow.density=0.9"], ["flow.direction=[2, 0, 0.2
              "structure.joints.fold.torque=0.05"]]
 # a body's damping acts on deformation only: a flexible wing shows it
 FLEXIBLE, FLEXIBLE_SHORT = SCENES / "deploy_flexible.toml", ["time.stop=0.01"]
+RECORD_VARIANTS = [["record.probes=position"], ["record.monitors=constraints"]]
 FLEXIBLE_VARIANTS = [["structure.bodies.inner.damping=40"], ["structure.step=1e-4"]]
 
 
@@ -62,6 +63,20 @@ def test_the_build_digest_ignores_exactly_the_tunable_keys():
         assert build_digest(load_scene(SCENE, overrides)) == build_digest(scene), overrides
     for overrides in (["aero.spanwise_panels=5"], ["structure.joints.fold.latch_factor=100"], ["time.stop=0.1"]):
         assert build_digest(load_scene(SCENE, overrides)) != build_digest(scene), overrides
+    # what the master records no unit reads
+    for overrides in RECORD_VARIANTS:
+        assert build_digest(load_scene(SCENE, overrides)) == build_digest(scene), overrides
+
+
+def test_a_variant_recording_less_runs_on_the_fmus_of_the_scene_as_on_its_own(built_fmus):
+    overrides = [*SHORT, *RECORD_VARIANTS[0], *RECORD_VARIANTS[1]]
+    variant = load_scene(SCENE, overrides)
+    on_shared = run_scene(variant, backend="fmu", fmu_dir=built_fmus("deploy_rigid", *SHORT))
+    on_own = run_scene(variant, backend="direct")
+    assert on_shared.status == on_own.status == "ok", (on_shared.message, on_own.message)
+    table = on_shared.series.table()
+    assert np.array_equal(table, on_own.series.table(), equal_nan=True)      # bit for bit
+    assert np.isnan(table).any() and not np.isnan(table).all()                # it recorded less, not nothing
 
 
 @pytest.mark.parametrize("name, path, short, overrides",

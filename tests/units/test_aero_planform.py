@@ -10,10 +10,9 @@ from aero_fmu.solver import AeroSolver
 from aero_fmu.strip import StripTheory
 from aero_fmu.vlm import SteadyVLM
 from fmu_common.airfoil import naca_camber
-from fmu_common.scene_schema import resolve_scene
 from fmu_common.specs import AeroUnitSpec, StructureUnitSpec
-from planform_wing import (RHO, body, elliptic_wing, lift_direction, lifting_line, lifting_line_circulation, stream,
-                           tapered_wing, topology_of, wing_scene)
+from planform_wing import (RHO, body, elliptic_wing, folded_wing_scene, lift_direction, lifting_line,
+                           lifting_line_circulation, stream, tapered_wing, topology_of, wing_scene)
 from structure_fmu.solver import StructureSolver
 
 
@@ -152,19 +151,7 @@ def test_every_aero_model_on_a_folded_planform_wing(model):
     in a 10 m/s stream: every model runs 5 steps with finite loads, and Q carries the panel forces' resultant:
     the sum of Q's position entries equals the sum of the panel forces (r = S e with the shape functions summing
     to one), to 1e-10."""
-    skew = np.radians(15.0)
-    bodies = [body("inner", 0.0, 1.0, 0.5, 0.4, 0.3, twist_deg=-2.0, airfoil="naca2412", sweep_deg=4.0),
-              {"name": "tip", "length": 0.4, "twist_deg": -2.0,
-               "section": dict(body("x", 0, 1, 0.4, 0.25)["section"], axis_position=0.2, airfoil="naca2412")}]
-    raw = {"time": {"stop": 1.0}, "coupling": {"step": 0.01},
-           "structure": {"fidelity": "rigid", "bodies": bodies,
-                         "joints": [{"type": "clamp", "body": "inner"},
-                                    {"type": "revolute", "name": "fold", "parent": "inner", "child": "tip",
-                                     "axis": [np.cos(skew), np.sin(skew), 0.0], "initial_angle_deg": 60.0,
-                                     "stiffness": 1.0}]},
-           "aero": {"model": model, "chordwise_panels": 3, "spanwise_panels": 4},
-           "flow": {"speed": 10.0, "direction": [1.0, 0.0, 0.1]}}
-    scene = resolve_scene(raw, "folded")
+    scene = folded_wing_scene(model)
     structure = StructureSolver(StructureUnitSpec.from_scene(scene))
     aero = AeroSolver(AeroUnitSpec.from_scene(scene))
     for k in range(1, 6):
