@@ -50,7 +50,7 @@ class StructureModel:
         self.top = topology
         self.n = topology.n_coordinates
         self.T, self.P = topology.maps()
-        self.dofs = topology.element_dofs()
+        self.dofs = np.ascontiguousarray(topology.element_dofs(), dtype=np.int64)     # (elements, 18) into E
         self.lengths = topology.element_lengths()
         # the sections per element (n,), or at the Gauss points of each element (n, g) where a section varies along
         # its body: every property table below then has that extra axis (structure_fmu.element)
@@ -107,6 +107,7 @@ class StructureModel:
         # flat positions of the element blocks in an (n, n) matrix, to assemble tangents in one bincount
         self._element_entries = (self.dofs[:, :, None] * self.n + self.dofs[:, None, :]).ravel()
         self._dofs_flat = self.dofs.ravel()
+        self._force_scratch = np.empty(36 * len(self.dofs))       # element.add_elastic_force's work space
         self.map = CoordinateMap(self.T)
         self._tangent_assembly = self._assemble_tangent()
         self.loads = topology.loads
@@ -212,9 +213,11 @@ class StructureModel:
         """
         F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
         if self.flexible:
-            e_el = E[self.dofs]
             law, table = self._law
-            F += np.bincount(self._dofs_flat, law.elastic_force(e_el, self.lengths, table).ravel(), self.n)
+            if law is element:          # one compiled call: gathered from E, added into F
+                element.add_elastic_force(E, self.dofs, self.lengths, table, F, self._force_scratch)
+            else:
+                F += np.bincount(self._dofs_flat, law.elastic_force(E[self.dofs], self.lengths, table).ravel(), self.n)
         for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
         if self.mass_damping is not None:
