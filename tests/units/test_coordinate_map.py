@@ -10,6 +10,7 @@ import pytest
 
 from fmu_common.specs import StructureUnitSpec
 from orchestrator.scene.load import load_scene
+from structure_fmu import coordinate_map
 from structure_fmu.coordinate_map import CoordinateMap
 from structure_fmu.solver import StructureSolver
 
@@ -25,6 +26,14 @@ CASES = {
     "shear_deformable": ["structure.fidelity=shear-deformable"],    # Peng et al. 2019's element
 }
 SCENE_OF = {"shear_deformable": "deploy_flexible"}
+
+
+@pytest.fixture(params=["as chosen", "gathers"])
+def route(request, monkeypatch):
+    """Each map applied as its size chooses (dense products below DENSE_ENTRIES), then by gathers at every size."""
+    if request.param == "gathers":
+        monkeypatch.setattr(coordinate_map, "DENSE_ENTRIES", 0)
+    return request.param
 
 
 def _model(case):
@@ -44,7 +53,7 @@ def _relative(value, reference):
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_gathered_coordinates_and_forces_are_the_dense_products(case):
+def test_gathered_coordinates_and_forces_are_the_dense_products(case, route):
     """E, dE, p'', the reduced force and the accelerations of E against T q + P p and T^T F - T^T M_E P p''."""
     model = _model(case)
     q, dq, _, rng = _state(model, 1)
@@ -102,7 +111,7 @@ def test_constraint_jacobian_is_the_complex_step_derivative(case):
     assert _relative(model.constraints.jacobian(E), reference) <= 1e-12
 
 
-def test_map_of_a_general_T():
+def test_map_of_a_general_T(route):
     """A T with several entries per row, repeated columns and prescribed (zero) rows: every operation against
     the dense products."""
     rng = np.random.default_rng(4)
