@@ -2,9 +2,10 @@
 
 E = T q + P p(t) (topology.py). Since T is constant, the reduced mass matrix M_q = T^T M_E T is constant
 (Otsuka et al. 2019, Eq. 5) and is factorized once. Forces are computed on E and mapped by T^T; a prescribed motion
-p(t) adds -T^T M_E P p''(t). T is applied by index gathers (coordinate_map.py); generalized-alpha's tangent is
-assembled from the element blocks, the constraint Hessian's entries, the hinges' and the damped bodies' blocks
-straight into the reduced (n_q, n_q) matrix, never as the dense (n, n) one (`tangent_E`, kept as the reference).
+p(t) adds -T^T M_E P p''(t). T is applied through its nonzero entries (coordinate_map.py): generalized-alpha's
+tangent is assembled from the element blocks, the constraint Hessian's entries, the hinges' and the damped bodies'
+blocks straight into the reduced (n_q, n_q) matrix, never as the dense (n, n) one (`tangent_E` forms that one: the
+reference the tests compare with).
 """
 from dataclasses import replace
 
