@@ -19,6 +19,7 @@ import numpy as np
 
 from fmu_common.vectors import cross, skew
 
+from .coordinate_map import CoordinateMap
 from .joint_rows import GatheredRows, SlidingRows, frame_vector
 
 
@@ -225,14 +226,14 @@ class Constraints:
         self._coefficient = np.repeat([0.5, 1.0], [nu, no])
         self._velocity_coefficient = 2.0 * self._coefficient
         self._constant = np.repeat([-0.5, 0.0], [nu, no])
-        # G_q row of a product: c (X_b^T T_a + X_a^T T_b), T_s the three rows of T of slot s. With the pair
-        # [X_a, X_b] gathered as one 6-vector it is one small product with the stacked c [T_b; T_a] (6, n_q).
         self._n_free = T.shape[1]
         self._pair = np.concatenate([self._ia.reshape(-1, 3), self._ib.reshape(-1, 3)], axis=1).ravel()
-        slot_rows = lambda flat_index: T[flat_index].reshape(len(flat_index) // 3, 3, self._n_free)
-        self._pair_rows = self._coefficient[:, None, None] * np.concatenate([slot_rows(self._ib), slot_rows(self._ia)],
-                                                                            axis=1)
         self._swapped = np.concatenate([self._ib.reshape(-1, 3), self._ia.reshape(-1, 3)], axis=1).ravel()
+        # G_q row of a product: c (X_b^T T_a + X_a^T T_b), T_s the three rows of T of slot s: each gathered pair
+        # value [X_a, X_b][k] times T's entries in row [T_b; T_a][k] (coordinate_map), summed by one bincount
+        source, columns, weights = CoordinateMap(T).row_entries(self._swapped)
+        row = source // 6
+        self._jacobian_entries = (source, row * self._n_free + columns, self._coefficient[row] * weights)
         # H_i entries: (slot row, slot column, constraint) pairs, each on the three components
         rows, cols, which = (np.concatenate(v) for v in zip((a, b, np.arange(nu + no)),
                                                              (self.ortho[:, 1], self.ortho[:, 0], nu + np.arange(no))))
@@ -274,8 +275,9 @@ class Constraints:
         Returns:
             (count, n_q).
         """
-        pairs = E[self._pair].reshape(-1, 1, 6) @ self._pair_rows
-        products = pairs.reshape(len(self._pair_rows), self._n_free)
+        source, target, weight = self._jacobian_entries
+        size = len(self._coefficient) * self._n_free
+        products = np.bincount(target, E[self._pair][source] * weight, size).reshape(-1, self._n_free)
         if self._products_only:
             return products
         return self._parts(products, lambda: self._linear_jacobian, lambda: self.axes.jacobian(E),
@@ -331,10 +333,28 @@ class Constraints:
         values = multipliers[self._hessian_multiplier]
         out = np.bincount(self._hessian_entries, values, self.n * self.n).reshape(self.n, self.n)
         out = out.astype(float, copy=False)   # without quadratic rows (shear-deformable) bincount gives integers
+        beyond = self.nonquadratic_hessian_sum(multipliers, E)
+        return out if beyond is None else out + beyond
+
+    @property
+    def quadratic_hessian(self):
+        """(positions (k,) flat indices i n + j into (n, n), rows (k,)): the unit and orthogonality rows' part of
+        `hessian_sum` holds lambda[rows] at positions, summed where positions repeat (constant H_i)."""
+        return self._hessian_entries, self._hessian_multiplier
+
+    def nonquadratic_hessian_sum(self, multipliers, E):
+        """The axis and sliding rows' part of `hessian_sum`, (n, n) dense; None without such rows.
+
+        Args:
+            multipliers: (count,) lambda.
+            E: (n,) exchanged coordinates, global frame.
+        """
+        out = None
         if self.axes.count:
-            out += self.axes.hessian_sum(multipliers[self.blocks["axis"]], E)
+            out = self.axes.hessian_sum(multipliers[self.blocks["axis"]], E)
         if self.sliding.count:
-            out += self.sliding.hessian_sum(multipliers[self.blocks["sliding"]], E)
+            sliding = self.sliding.hessian_sum(multipliers[self.blocks["sliding"]], E)
+            out = sliding if out is None else out + sliding
         return out
 
 

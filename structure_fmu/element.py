@@ -465,11 +465,46 @@ def elastic_jacobian(e, length, stiffness):
     return hessian[:, _NODE_COMPONENTS][:, :, _NODE_COMPONENTS] * (_NODE_SIGNS[:, None] * _NODE_SIGNS[None, :])
 
 
+def add_elastic_force(E, dofs, length, stiffness, F, scratch):
+    """F[dofs] += elastic_force(E[dofs]): every element's elastic force on the whole structure's coordinates, in one
+    C call (element_kernels.c's add_elastic_force: gathered, computed and added element by element) unless
+    $WINGSIM_KERNELS = numpy, whose reference is `elastic_force` summed by np.bincount (equal to 1e-12).
+
+    Args:
+        E: (n_E,) the structure's coordinates, m and 1, global frame.
+        dofs: (n, 18) C-contiguous int64 indices of each element's coordinates in E.
+        length: (n,) l, m.
+        stiffness: (n, 4) or (n, g, 4), as `elastic_force` takes it.
+        F: (n_E,) C-contiguous float64, added to in place, N and N m.
+        scratch: (36 n,) C-contiguous float64 the C kernel works in (overwritten).
+
+    Returns:
+        F.
+    """
+    kernels = c_kernels()
+    if kernels is None:
+        F += np.bincount(dofs.ravel(), elastic_force(E[dofs], length, stiffness).ravel(), len(F))
+        return F
+    E = np.ascontiguousarray(E, dtype=float)
+    if not E.flags.writeable:
+        E = E.copy()                                # `_address` reads writable arrays only
+    if dofs.shape != (len(length), 18) or dofs.dtype != np.int64 or scratch.size < 36 * len(length):
+        raise ValueError(f"element kernels: dofs {dofs.shape} {dofs.dtype}, scratch {scratch.size} for "
+                         f"{len(length)} elements; expected (n, 18) int64 and 36 n")
+    if len(length):
+        table, address, g = _table(length, stiffness)  # the table is held until the C call returns
+        _check(kernels.add_elastic_force(len(length), g, address, _address(E), _address(dofs), _address(scratch),
+                                         _address(F)), g)
+    return F
+
+
 def c_kernels():
     """The C library of element_kernels.c (fmu_common.c_library), its functions typed; None when $WINGSIM_KERNELS
     selects the numpy kernels."""
     signature = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY])
-    return c_library.kernels(C_SOURCE, {"elastic_force": signature, "elastic_jacobian": signature})
+    gathered = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY, _ARRAY, _ARRAY])
+    return c_library.kernels(C_SOURCE, {"elastic_force": signature, "elastic_jacobian": signature,
+                                        "add_elastic_force": gathered})
 
 
 def _compiled(kernel, e, length, stiffness, shape):

@@ -9,6 +9,8 @@
  *                     Eq. 4, U the elastic energy of Eq. 7
  *   elastic_jacobian  out (n, 18, 18): d^2U/de^2 per element, N/m, N and N m, the exact Hessian of that energy
  *                     (Eqs. 7-11), symmetric
+ *   add_elastic_force F[dofs[m, k]] += elastic_force's out[m, k]: every element's force gathered from and added
+ *                     into the vectors of the whole structure, E and F (element.add_elastic_force), in one call
  *
  * Inputs of both, as element.py prepares them, C-contiguous doubles: n elements, g Gauss points; e (n, 18)
  * [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B] (m and 1); table, the arguments that are constant in a run, one after
@@ -336,5 +338,17 @@ int elastic_jacobian(long n, long g, const double *table, const double *e, doubl
                     for (int d = 0; d < 3; d++) o[(3 * u + c) * 18 + 3 * v + d] = sign * hs[3 * su + c][3 * sv + d];
             }
     }
+    return 0;
+}
+
+/* F[dofs[i]] += elastic_force(E[dofs])[i], i over the n x 18 element coordinates: dofs (n, 18) int64 indices into E
+ * and F, scratch 36 n doubles (the gathered e and the forces). Returns elastic_force's status (F untouched on -1). */
+int add_elastic_force(long n, long g, const double *table, const double *E, const long long *dofs, double *scratch,
+                      double *F) {
+    double *e = scratch, *f = scratch + 18 * n;
+    for (long i = 0; i < 18 * n; i++) e[i] = E[dofs[i]];
+    const int status = elastic_force(n, g, table, e, f);
+    if (status != 0) return status;
+    for (long i = 0; i < 18 * n; i++) F[dofs[i]] += f[i];
     return 0;
 }

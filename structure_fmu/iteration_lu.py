@@ -11,7 +11,8 @@ the pattern of A (the model's `iteration_pattern`: every entry that can be nonze
 
 * banded: the unknowns reordered, the band gathered from S and G into LAPACK's band storage (dgbtrf/dgbtrs,
   partial pivoting within the band: exact, like the dense LU), when the band's work is well below the dense
-  LU's (BANDED_WORK_FRACTION);
+  LU's (BANDED_WORK_FRACTION). dgbtrf blocks only bands wider than 64 (LAPACK's ilaenv); a beam's band, set by
+  a node's coupling whatever the number of elements (19-30), runs its unblocked rank-one updates (dgbtf2);
 * dense: dgetrf/dgetrs on the whole matrix otherwise (or when the model gives no pattern).
 
 Both are exact LU factorizations of the same matrix: the choice changes the time a factorization takes

@@ -2,12 +2,14 @@
 
 E = T q + P p(t) (topology.py). Since T is constant, the reduced mass matrix M_q = T^T M_E T is constant
 (Otsuka et al. 2019, Eq. 5) and is factorized once. Forces are computed on E and mapped by T^T; a prescribed motion
-p(t) adds -T^T M_E P p''(t).
+p(t) adds -T^T M_E P p''(t). T is applied through its nonzero entries (coordinate_map.py): generalized-alpha's
+tangent is assembled from the element blocks, the constraint Hessian's entries, the hinges' and the damped bodies'
+blocks straight into the reduced (n_q, n_q) matrix, never as the dense (n, n) one (`tangent_E` forms that one: the
+reference the tests compare with).
 """
 from dataclasses import replace
 
 import numpy as np
-import scipy.sparse
 from scipy.linalg import cho_factor, cho_solve
 
 from fmu_common.errors import SceneError
@@ -15,10 +17,11 @@ from fmu_common.shape_functions import shape_row
 
 from . import element, shear_element
 from .constraints import Constraints
+from .coordinate_map import Assembly, CoordinateMap
 from .motion import Fixed
 from .section import element_points, varies
 from .damping import deformation_damping_force, deformation_damping_matrix
-from .joints import actuator_energy, actuator_terms
+from .joints import actuator_energy, actuator_terms, hinge_coordinates
 
 
 class StructureModel:
@@ -48,7 +51,7 @@ class StructureModel:
         self.top = topology
         self.n = topology.n_coordinates
         self.T, self.P = topology.maps()
-        self.dofs = topology.element_dofs()
+        self.dofs = np.ascontiguousarray(topology.element_dofs(), dtype=np.int64)     # (elements, 18) into E
         self.lengths = topology.element_lengths()
         # the sections per element (n,), or at the Gauss points of each element (n, g) where a section varies along
         # its body: every property table below then has that extra axis (structure_fmu.element)
@@ -105,8 +108,9 @@ class StructureModel:
         # flat positions of the element blocks in an (n, n) matrix, to assemble tangents in one bincount
         self._element_entries = (self.dofs[:, :, None] * self.n + self.dofs[:, None, :]).ravel()
         self._dofs_flat = self.dofs.ravel()
-        self._reduction = _Reduction(self.T)
-        self._rate_dependent = bool(self.hinges or self.damped_bodies)      # C_E is not zero (`tangent_E`)
+        self._force_scratch = np.empty(36 * len(self.dofs))       # element.add_elastic_force's work space
+        self.map = CoordinateMap(self.T)
+        self._tangent_assembly = self._assemble_tangent()
         self.loads = topology.loads
         self._group_prescribed()
 
@@ -153,14 +157,13 @@ class StructureModel:
             dq: (n_q,) their rates, per s.
             t: time, s.
         """
-        # np.dot rather than @ in the per-stage paths: a third of the operator's overhead on these small arrays
         if self._fixed_offset is not None:
-            return np.dot(self.T, q) + self._fixed_offset, np.dot(self.T, dq), None
+            return self.map.apply(q, self._fixed_offset), self.map.apply(dq), None
         if self._motion_at[0] != t:     # a step's Newton iterations and RK4 stages ask for the same t
             p, dp, ddp = self.prescribed(t)
             self._motion_at = (t, (self.P @ p, self.P @ dp, ddp))
         Pp, Pdp, ddp = self._motion_at[1]
-        return self.T @ q + Pp, self.T @ dq + Pdp, ddp
+        return self.map.apply(q, Pp), self.map.apply(dq, Pdp), ddp
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
@@ -211,9 +214,11 @@ class StructureModel:
         """
         F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
         if self.flexible:
-            e_el = E[self.dofs]
             law, table = self._law
-            F += np.bincount(self._dofs_flat, law.elastic_force(e_el, self.lengths, table).ravel(), self.n)
+            if law is element:          # one compiled call: gathered from E, added into F
+                element.add_elastic_force(E, self.dofs, self.lengths, table, F, self._force_scratch)
+            else:
+                F += np.bincount(self._dofs_flat, law.elastic_force(E[self.dofs], self.lengths, table).ravel(), self.n)
         for idx, torque, _, _, grad in actuator_terms(self.hinges, E, dE, latched):
             F[idx] -= torque * grad
         if self.mass_damping is not None:
@@ -268,7 +273,7 @@ class StructureModel:
             (force (n_q,), E (n,), dE (n,), p'' or None).
         """
         E, dE, ddp = self.coordinates(q, dq, t)
-        F = np.dot(self.T.T, self.force_E(E, dE, t, Q, latched))
+        F = self.map.transpose_apply(self.force_E(E, dE, t, Q, latched))
         if ddp is not None:
             F -= self.mass_prescribed @ ddp
         return F, E, dE, ddp
@@ -409,18 +414,47 @@ class StructureModel:
             (beta' M_q + gamma' C_t + K_t (n_q, n_q), E (n,)).
         """
         E, dE, _ = self.coordinates(q, dq, t)
-        K, C = self.tangent_E(E, dE, latched)
+        assembly, reduced_damping = self._tangent_assembly
+        values = []
+        if self.flexible:
+            law, table = self._law
+            values.append(law.elastic_jacobian(E[self.dofs], self.lengths, table).ravel())
+        multipliers = lam
         if self.constraints.count:
-            multipliers = lam
             if self._rows is not None:      # zero on the rows left out
                 multipliers = np.zeros(self.constraints.count)
                 multipliers[self._rows] = lam
-            K += self.constraints.hessian_sum(multipliers, E)
-        if self._rate_dependent:
-            K += gamma_p * C
-        S = self._reduction.congruence(K)
+            values.append(multipliers[self.constraints.quadratic_hessian[1]])
+        for _, _, stiffness, damping, grad in actuator_terms(self.hinges, E, dE, latched):
+            values.append(((stiffness + gamma_p * damping) * np.outer(grad, grad)).ravel())
+        if self.mass_damping is None:
+            for alpha, idx, mass in self.damped_bodies:
+                values.append(gamma_p * deformation_damping_matrix(E[idx], mass, alpha).ravel())
+        S = self.map.reduce(assembly, np.concatenate(values)) if values else np.zeros_like(self.mass_q)
+        if self.constraints.count:
+            beyond = self.constraints.nonquadratic_hessian_sum(multipliers, E)
+            if beyond is not None:
+                S += self.map.congruence(beyond)
+        if reduced_damping is not None:
+            S += gamma_p * reduced_damping
         S += beta_p * self.mass_q
         return S, E
+
+    def _assemble_tangent(self):
+        """(Assembly, T^T C_mass T or None): where `iteration_matrix`'s values go in the reduced matrix, in its
+        order (the element blocks, the quadratic constraint rows' Hessian entries, each hinge's block, each
+        damped body's block, those present), and the reduced constant mass-proportional damping matrix."""
+        parts = []
+        if self.flexible:
+            parts.append(self._element_entries)
+        if self.constraints.count:
+            parts.append(self.constraints.quadratic_hessian[0])
+        parts += [_block(hinge_coordinates(h), self.n) for h in self.hinges]
+        if self.mass_damping is None:
+            parts += [_block(idx, self.n) for _, idx, _ in self.damped_bodies]
+        assembly = Assembly.joined([self.map.assembly(p) for p in parts], [len(p) for p in parts]) if parts else None
+        reduced_damping = None if self.mass_damping is None else self.map.congruence(self.mass_damping)
+        return assembly, reduced_damping
 
     def iteration_pattern(self):
         """(n_q + m, n_q + m) bool: the entries of generalized-alpha's iteration matrix [[S, G^T], [G, 0]]
@@ -453,9 +487,9 @@ class StructureModel:
             (n,) per s^2, global frame.
         """
         if self._fixed_offset is not None:          # p'' = 0
-            return np.dot(self.T, ddq)
+            return self.map.apply(ddq)
         _, _, ddp = self.coordinates(q, dq, t)
-        return self.T @ ddq + (self.P @ ddp if ddp is not None else 0.0)
+        return self.map.apply(ddq, self.P @ ddp if ddp is not None else None)
 
     def velocity_map(self, q, t):
         """dE/dq: T, constant here.
@@ -593,37 +627,15 @@ def _check_finite_masses(topology, element_mass, gravity_E, gravity) -> None:
                                                                 "masses are finite numbers (they overflow)")
 
 
-class _Reduction:
-    """T^T X T (n_q, n_q) for X (n, n) on E, by the cheapest exact route for the coordinate map T (n, n_q): where
-    each row of T holds at most one coefficient (a slot of E is one free coordinate, or prescribed; a shared slot
-    repeats a column), a gather of X's entries, summed by bincount where columns repeat or weights are not 1;
-    a sparse product otherwise (a rigid body's slots combine its point's coordinates)."""
+def _block(idx, n):
+    """(k, k) flat positions i n + j of the block idx x idx of an (n, n) matrix.
 
-    def __init__(self, T):
-        n, n_q = T.shape
-        self.n_q = n_q
-        nonzero = T != 0
-        self._sparse = None
-        if nonzero.sum(axis=1).max(initial=0) > 1:
-            self._sparse = scipy.sparse.csr_array(T)
-            return
-        rows = np.flatnonzero(nonzero.any(axis=1))
-        cols = np.argmax(nonzero[rows], axis=1) if len(rows) else np.zeros(0, dtype=int)
-        weights = T[rows, cols]
-        self._source = (rows[:, None] * n + rows[None, :]).ravel()
-        self._gather_only = bool(np.array_equal(cols, np.arange(n_q)) and np.all(weights == 1.0))
-        self._target = (cols[:, None] * n_q + cols[None, :]).ravel()
-        self._weights = np.outer(weights, weights).ravel()
-
-    def congruence(self, X):
-        """T^T X T (n_q, n_q)."""
-        if self._sparse is not None:
-            T = self._sparse
-            return T.T @ (T.T @ X.T).T
-        values = X.take(self._source)
-        if self._gather_only:
-            return values.reshape(self.n_q, self.n_q)
-        return np.bincount(self._target, values * self._weights, self.n_q * self.n_q).reshape(self.n_q, self.n_q)
+    Args:
+        idx: (k,) indices into E.
+        n: the number of coordinates of E.
+    """
+    idx = np.asarray(idx, dtype=np.intp)
+    return (idx[:, None] * n + idx[None, :]).ravel()
 
 
 REDUNDANCY_TOLERANCE = 1e-8

@@ -230,6 +230,28 @@ def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch, section):
 
 
 @pytest.mark.parametrize("section", ["constant", "varying"])
+def test_the_gathered_c_force_equals_the_numpy_assembly(monkeypatch, section):
+    """add_elastic_force (one C call: gathered from E, added into F) on a chain of elements sharing nodes, against
+    F + the numpy forces summed by np.bincount (its $WINGSIM_KERNELS=numpy reference): equal to 1e-12 of the
+    largest component; the scratch space's earlier contents do not matter."""
+    rng = np.random.default_rng(23)
+    length = rng.uniform(0.05, 0.5, 6)
+    stiffness = rng.uniform(0.5, 2.0, (6, 4)) * np.array([1e6, 2.0, 50.0, 3.0])
+    if section == "varying":
+        stiffness = varying(stiffness, rng)
+    dofs = np.ascontiguousarray((9 * np.arange(6)[:, None] + np.arange(18)).astype(np.int64))   # node k: 9k..9k+8
+    E = np.concatenate([straight(x)[:9] for x in length] + [straight(length[-1])[9:]]) + 0.1 * rng.standard_normal(63)
+    base = rng.standard_normal(63)
+    reference = base + np.bincount(dofs.ravel(), element.elastic_force(E[dofs], length, stiffness).ravel(), 63)
+    forces = {}
+    for kind in ("numpy", "compiled"):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+        forces[kind] = element.add_elastic_force(E, dofs, length, stiffness, base.copy(), np.full(36 * 6, np.nan))
+    for kind in forces:
+        assert np.abs(forces[kind] - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("section", ["constant", "varying"])
 @pytest.mark.parametrize("term", ["all", "axial", "flap", "chordwise", "torsion"])
 def test_the_c_elastic_jacobian_equals_the_numpy_reference(monkeypatch, term, section):
     """element_kernels.c's tangent against element.elastic_jacobian's numpy form on random stretched, bent and

@@ -70,13 +70,13 @@ def test_the_pattern_holds_every_entry_and_the_banded_solve_is_the_dense_one(sce
 
 @pytest.mark.parametrize("scene", ["spin_up", "deploy_flexible", "scissor_wing"])
 def test_the_reduced_tangent_is_the_product_with_T(scene):
-    """The three routes of T^T X T (a gather; a gather summed where slots share a coordinate; the sparse product
-    of a rigid body's combined slots) against the dense product."""
+    """T^T X T by the coordinate map's gathers (summed where slots share a coordinate or a slider's direction
+    combines them) against the dense product."""
     resolved = load_scene(SCENES / f"{scene}.toml", ["time.stop=0.001"])
     model = StructureSolver(StructureUnitSpec.from_scene(resolved)).model
     X = np.random.default_rng(1).standard_normal((model.n, model.n))
     exact = model.T.T @ X @ model.T
-    assert np.abs(model._reduction.congruence(X) - exact).max() <= 1e-13 * np.abs(exact).max()
+    assert np.abs(model.map.congruence(X) - exact).max() <= 1e-13 * np.abs(exact).max()
 
 
 def test_ending_newton_on_the_estimated_error_keeps_the_solution_within_the_tolerance(monkeypatch):
