@@ -174,6 +174,46 @@ Measured: a damped spinning plate then decays as exp(-alpha t) to 1e-4 over 1000
 1e-9: 6e-4, tests/units/test_damping.py), for about a third more iterations on deploy_flexible."""
 
 
+START_DISPLACEMENT = 1.0
+"""Bound on h_s^2 max|q''_0| / 2 in the model's coordinates (m and 1: the ANCF gradients, of unit length) for the
+short steps h_s of generalized-alpha's start-up (`start_up`). Measured on deploy_flexible in still air (energy of
+the first ten steps against the start's, docs/structure.md, "Fine meshes"): at 0.3-0.4 no step creates energy; at
+1.6-3.2 the start creates 0.9-1.4% of it, at 6-7 7-11%, at 25 65%."""
+
+START_DECAY = 0.01
+"""The start-up lasts the short steps over which generalized-alpha damps a high-frequency component to this
+fraction: rho_inf^k <= START_DECAY (`start_up`)."""
+
+
+def start_up(h, acceleration, rho_inf):
+    """Generalized-alpha's start-up: (d, k), the first k steps are taken as d steps h / d each (d a power of two) so
+    that (h / d)^2 max|q''_0| / 2 <= START_DISPLACEMENT, for the rho_inf^k' <= START_DECAY short steps k' that damp
+    the start's transient, rounded up to whole steps h (at least one; rho_inf = 1 damps nothing: one step h).
+    (1, 0) when h meets the bound.
+
+    A load applied suddenly to a structure at rest gives its element-scale modes, far above 1 / h, initial
+    accelerations q''_0 that grow as the elements shorten (a point torque: as elements^3, 1.6e7 to 1.3e9 per s^2
+    from 7 to 30 elements per body in deploy_flexible). Generalized-alpha starts its auxiliary acceleration at
+    a_0 = q''_0 (Peng et al. 2019, Eq. 24) and carries it with the spectral radius rho_inf per step, so the
+    displacement h^2 a_0 of Eq. 23 puts energy growing with it into those modes; over a shorter step it stays
+    bounded.
+
+    Args:
+        h: the structure step, s.
+        acceleration: max |q''_0| at the start, in the model's coordinates per s^2.
+        rho_inf: generalized-alpha's spectral radius at infinite frequency.
+
+    Returns:
+        (d, k): the divisor of the step and how many steps h the start-up lasts.
+    """
+    ratio = h * math.sqrt(0.5 * acceleration / START_DISPLACEMENT)
+    if not ratio > 1.0:
+        return 1, 0
+    d = 2 ** math.ceil(math.log2(ratio))
+    short = math.ceil(math.log(START_DECAY) / math.log(rho_inf)) if 0.0 < rho_inf < 1.0 else 1
+    return d, max(1, math.ceil(short / d))
+
+
 class _NewtonDiverging(Exception):
     """The Newton iteration of one generalized-alpha step failed (internal: step() retries, then raises
     SolverDiverged)."""
@@ -199,7 +239,9 @@ class GeneralizedAlpha:
         self.alpha_f = r / (r + 1)
         self.gamma = 0.5 - self.alpha_m + self.alpha_f
         self.beta = 0.25 * (1 - self.alpha_m + self.alpha_f) ** 2
-        self.tol, self.max_iterations = tol, max_iterations
+        self.rho_inf, self.tol, self.max_iterations = r, tol, max_iterations
+        self._start_acceleration = 0.0   # max |q''_0| of the state initialized last, per s^2 (`start_up`)
+        self._start = None               # (d, steps h left) of the start-up; None: not planned yet
         self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
         self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
@@ -211,14 +253,15 @@ class GeneralizedAlpha:
 
     @property
     def memory(self):
-        """What a step starts from besides the State: the factorized iteration matrix and the first correction's
-        error estimate factor (`_newton`). Saved with the solver's state, so that a repeated step repeats bit for
-        bit; the factorization is replaced, never modified, so it is kept by reference."""
-        return self._matrix, self._eta
+        """What a step starts from besides the State: the factorized iteration matrix, the first correction's
+        error estimate factor (`_newton`) and the start-up left (`start_up`). Saved with the solver's state, so that
+        a repeated step repeats bit for bit; the factorization is replaced, never modified, so it is kept by
+        reference."""
+        return self._matrix, self._eta, self._start_acceleration, self._start
 
     @memory.setter
     def memory(self, saved):
-        self._matrix, self._eta = saved
+        self._matrix, self._eta, self._start_acceleration, self._start = saved
 
     def initialize(self, model, state, Q):
         """The state's accelerations and multipliers at its start, from the index-1 equations.
@@ -230,6 +273,8 @@ class GeneralizedAlpha:
         """
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
         state.accel = state.ddq.copy()
+        self._start_acceleration = float(np.max(np.abs(state.ddq))) if state.ddq.size else 0.0
+        self._start = None
         return state
 
     def _factor(self, model, t, q, dq, latched, lam, h):
@@ -247,7 +292,8 @@ class GeneralizedAlpha:
         Newton starts from the constant-acceleration predictor; if that iteration diverges it restarts from the
         displacement predictor with a fresh iteration matrix: a point torque on short elements gives the gradient
         coordinates huge initial accelerations (1e8 m/s^2 with 15 elements per body in deploy_flexible), and h^2 q''_n
-        then predicts a far-off state.
+        then predicts a far-off state. The first steps after `initialize` are each taken as d shorter ones where
+        those accelerations ask for it (`start_up`).
 
         Args:
             model: the StructuralModel.
@@ -255,6 +301,19 @@ class GeneralizedAlpha:
             h: step, s.
             Q: (n,) generalized external force on E over the step, N and N m, global frame.
         """
+        if self._start is None:
+            self._start = start_up(h, self._start_acceleration, self.rho_inf)
+        d, left = self._start
+        if left == 0:
+            return self._step(model, state, h, Q)
+        self._start = (d, left - 1)
+        t_end = state.t + h
+        for _ in range(d - 1):
+            state = self._step(model, state, h / d, Q)
+        return self._step(model, state, t_end - state.t, Q)     # ends at t + h exactly
+
+    def _step(self, model, state, h, Q):
+        """One step h: Newton from the acceleration predictor, else from the displacement predictor (`step`)."""
         try:
             return self._newton(model, state, h, Q, "acceleration")
         except _NewtonDiverging:
