@@ -5,7 +5,7 @@
 Each mesh runs in still air (aero.model = none: the structure's cost and stiffness are what the mesh changes),
 through the solver API, from the start to time.stop. Printed per mesh: the highest natural frequency omega_max at
 rest and h omega_max, the start's largest acceleration max|q''_0| and generalized-alpha's start-up (d, k: the
-first k steps taken as d shorter ones, structure_fmu.integrators.start_up), the most energy any step adds (a
+first k steps taken as d shorter ones, structure_fmu.integrators.start_up), the most energy any millisecond adds (a
 damped structure in still air may only lose energy), the latch time and the tip at 0.2 s against the same mesh
 at a quarter of the step, Newton iterations and CPU seconds per simulated second. With --instructions, the
 instructions per simulated second that valgrind's callgrind counts between t = 0.01 and 0.03 s (a process run

@@ -241,7 +241,7 @@ class GeneralizedAlpha:
         self.beta = 0.25 * (1 - self.alpha_m + self.alpha_f) ** 2
         self.rho_inf, self.tol, self.max_iterations = r, tol, max_iterations
         self._start_acceleration = 0.0   # max |q''_0| of the state initialized last, per s^2 (`start_up`)
-        self._start = None               # (d, steps h left) of the start-up; None: not planned yet
+        self._start = None               # steps h of the start-up left; None: not planned yet
         self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
         self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
@@ -302,11 +302,11 @@ class GeneralizedAlpha:
             Q: (n,) generalized external force on E over the step, N and N m, global frame.
         """
         if self._start is None:
-            self._start = start_up(h, self._start_acceleration, self.rho_inf)
-        d, left = self._start
-        if left == 0:
+            self._start = start_up(h, self._start_acceleration, self.rho_inf)[1]
+        if self._start == 0:
             return self._step(model, state, h, Q)
-        self._start = (d, left - 1)
+        self._start -= 1
+        d = start_up(h, self._start_acceleration, self.rho_inf)[0]     # of this step (a shorter last one needs less)
         t_end = state.t + h
         for _ in range(d - 1):
             state = self._step(model, state, h / d, Q)
