@@ -177,8 +177,9 @@ Measured: a damped spinning plate then decays as exp(-alpha t) to 1e-4 over 1000
 START_DISPLACEMENT = 1.0
 """Bound on h_s^2 max|q''_0| / 2 in the model's coordinates (m and 1: the ANCF gradients, of unit length) for the
 short steps h_s of generalized-alpha's start-up (`start_up`). Measured on deploy_flexible in still air (energy of
-the first ten steps against the start's, docs/structure.md, "Fine meshes"): at 0.3-0.4 no step creates energy; at
-1.6-3.2 the start creates 0.9-1.4% of it, at 6-7 7-11%, at 25 65%."""
+the first ten steps against the start's, docs/structure.md, "Fine meshes"): at 0.3-0.4 no step creates energy; on
+15-30 elements per body at 1.6-3.2 the start creates 0.9-1.4% of it, at 6-7 7-11%, at 25 65% (7 elements: none at
+2.0, 0.9% at 8)."""
 
 START_DECAY = 0.01
 """The start-up lasts the short steps over which generalized-alpha damps a high-frequency component to this
