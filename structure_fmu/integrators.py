@@ -175,7 +175,8 @@ Measured: a damped spinning plate then decays as exp(-alpha t) to 1e-4 over 1000
 
 
 START_DISPLACEMENT = 1.0
-"""Bound on h_s^2 max|q''_0| / 2 in the model's coordinates (m and 1: the ANCF gradients, of unit length) for the
+"""Bound on h_s^2 max|q''_0| / 2 in the units of the Newton tolerance (m and 1: the ANCF positions and gradients, of
+unit length; the strain-based model's coordinates times its newton_weights) for the
 short steps h_s of generalized-alpha's start-up (`start_up`). Measured on deploy_flexible in still air (energy of
 the first ten steps against the start's, docs/structure.md, "Fine meshes"): at 0.3-0.4 no step creates energy; on
 15-30 elements per body at 1.6-3.2 the start creates 0.9-1.4% of it, at 6-7 7-11%, at 25 65% (7 elements: none at
@@ -201,7 +202,8 @@ def start_up(h, acceleration, rho_inf):
 
     Args:
         h: the structure step, s.
-        acceleration: max |q''_0| at the start, in the model's coordinates per s^2.
+        acceleration: max |q''_0| at the start, in the units of the Newton tolerance per s^2 (m and 1: the
+            model's coordinates times its newton_weights, where it has them).
         rho_inf: generalized-alpha's spectral radius at infinite frequency.
 
     Returns:
@@ -274,7 +276,9 @@ class GeneralizedAlpha:
         """
         state.ddq, state.multipliers = constrained_accelerations(model, state.t, state.q, state.dq, Q, state.latched)
         state.accel = state.ddq.copy()
-        self._start_acceleration = float(np.max(np.abs(state.ddq))) if state.ddq.size else 0.0
+        weights = model.newton_weights      # to metres and radians where the coordinates are strains
+        start = state.ddq if weights is None else weights * state.ddq
+        self._start_acceleration = float(np.max(np.abs(start))) if start.size else 0.0
         self._start = None
         return state
 
