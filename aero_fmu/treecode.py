@@ -217,7 +217,17 @@ def velocity(points, tree: SegmentTree, core, theta):
 
 def velocity_numpy(points, tree: SegmentTree, core, theta):
     """`velocity` in numpy (the reference of the C kernel): the (point, node) pairs walked level by level; far pairs
-    add their expansion, near leaves their segments exactly (`segment_velocity`), other near nodes open."""
+    add their expansion, near leaves their segments exactly (`segment_velocity`), other near nodes open.
+
+    Args:
+        points: (P, 3) m, global frame.
+        tree: the SegmentTree.
+        core: Scully core radius delta of the exact near-field sum, m.
+        theta: opening parameter, 0 < theta < 1 (`velocity`).
+
+    Returns:
+        (v (P, 3) m/s, bound (P,) m/s), as `velocity`.
+    """
     points = np.asarray(points, dtype=float)
     P = len(points)
     out, bound = np.zeros((P, 3)), np.zeros(P)

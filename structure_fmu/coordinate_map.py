@@ -40,7 +40,12 @@ class Assembly:
 
     @staticmethod
     def joined(parts, sizes):
-        """One Assembly for the values of `parts` concatenated in order; sizes: the number of values of each."""
+        """One Assembly for the values of `parts` concatenated in order.
+
+        Args:
+            parts: the Assemblies, each of its own values.
+            sizes: the number of values of each part.
+        """
         offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         return Assembly(np.concatenate([p.source + o for p, o in zip(parts, offsets)]).astype(np.intp),
                         np.concatenate([p.target for p in parts]).astype(np.intp),
