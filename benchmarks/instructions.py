@@ -5,7 +5,7 @@
 
 Why instructions: wall time on a shared machine moves with whatever else runs there; an instruction count of the
 same run is repeatable whatever the load (perf's counters are not available everywhere, valgrind is). Needs
-valgrind: without it the script says so and exits with status 2.
+valgrind (and setarch, util-linux): without them the script says so and exits with status 2.
 
 How, per scene (as shipped, with the --set overrides, stopped at its stop time: STOP, or --stop):
 1. outside valgrind: build the scene's FMUs with the project's build (`orchestrator.build.fmus.build_fmus`, as
@@ -14,7 +14,8 @@ How, per scene (as shipped, with the --set overrides, stopped at its stop time: 
 2. in a fresh process under `valgrind --tool=callgrind`, the run as `wingsim run SCENE` runs it: one BLAS thread
    and the allocator's thresholds (`report.process_setup`), `orchestrator.run.master.run_scene` with the FMU
    backend on the built FMUs (the units loaded through fmpy as a user's run loads them), or in-process with
-   `--backend direct`;
+   `--backend direct`; with BLAS pools of one thread from the start, a fixed hash seed (REPEATABLE) and the
+   addresses not randomized (`setarch -R`), so that a count repeats to a few thousand instructions;
 3. the same in another fresh process with time.stop = coupling.step: the run stopped after its first
    communication step.
 Each total is the Ir of the callgrind output file's `summary:` (or `totals:`) line. Their difference is the
@@ -29,6 +30,7 @@ after the first into each unit's fmi2DoStep, both units' fmi2GetReal and fmi2Set
 the units also compute the outputs read) and the rest (the master: coupling, checks, recording, ctypes).
 """
 import argparse
+import os
 import pickle
 import re
 import shutil
@@ -40,6 +42,13 @@ from pathlib import Path
 from report import ROOT, table
 
 STOP = {"deploy_rigid": 0.3, "deploy_flexible": 0.03, "spin_up": 1.0}   # s, per scene (--stop overrides)
+# The counted processes' environment: without these, two counts of one run differ by millions of instructions
+# (a BLAS thread pool started at import, before the one-thread limit, whose threads callgrind counts too; the
+# hash seed); with them by about 1e5, and by a few thousand with the addresses not randomized (setarch -R).
+# The runs' own BLAS calls are on one thread either way.
+REPEATABLE = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
+SPLIT_UNITS = {"structure fmi2DoStep": "structure", "aero fmi2DoStep": "aero"}   # --split's columns: their unit
+SPLIT_EXCHANGE = "fmi2GetReal, fmi2SetReal (both units)"
 
 # The child under valgrind: the run as `wingsim run` runs it, nothing else (argv: scene pickle, backend, FMU folder).
 CHILD = """
@@ -90,8 +99,8 @@ def inclusive_counts(text: str, functions: set[str]) -> dict[tuple[str, str], in
     file's text: the sum of the costs of every call to them (callgrind's `calls=` lines, each followed by the
     call's inclusive cost). Kept apart per object file, since both FMUs export the same fmi2 functions
     (callgrind_annotate would merge them into one line)."""
-    positions = len(re.search(r"^positions:\s*(.+)$", text, re.MULTILINE).group(1).split()) \
-        if re.search(r"^positions:", text, re.MULTILINE) else 1
+    declared = re.search(r"^positions:\s*(.+)$", text, re.MULTILINE)
+    positions = len(declared.group(1).split()) if declared else 1      # callgrind's default: line
     events = re.search(r"^events:\s*(.+)$", text, re.MULTILINE)
     column = positions + (events.group(1).split().index("Ir") if events else 0)
     objects, function_names = {}, {}
@@ -148,11 +157,11 @@ def split_by_unit(counts: dict[tuple[str, str], int], function: str, unit_names:
 def counted(scene_file: Path, backend: str, fmu_dir: Path | None, out_file: Path) -> int:
     """Ir of one run of the pickled scene in a fresh process under callgrind, which writes `out_file`."""
     code = CHILD.format(benchmarks=str(Path(__file__).resolve().parent))
-    command = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out_file}", sys.executable, "-c", code,
-               str(scene_file), backend, str(fmu_dir) if fmu_dir else "-"]
-    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
+    command = ["setarch", "-R", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out_file}",
+               sys.executable, "-c", code, str(scene_file), backend, str(fmu_dir) if fmu_dir else "-"]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env={**os.environ, **REPEATABLE})
     if done.returncode != 0:
-        raise CountError(f"{' '.join(command[:3])} ... exited with {done.returncode}:\n{done.stderr[-3000:]}")
+        raise CountError(f"{' '.join(command[:5])} ... exited with {done.returncode}:\n{done.stderr[-3000:]}")
     return total_instructions(out_file.read_text())
 
 
@@ -184,16 +193,16 @@ def count_scene(scene: dict, backend: str, split: bool, work: Path) -> dict:
         for label, file in files.items():
             counts = inclusive_counts(file.read_text(), {"fmi2DoStep", "fmi2GetReal", "fmi2SetReal"})
             steps = split_by_unit(counts, "fmi2DoStep", units)
-            parts[label] = {**{f"{unit} fmi2DoStep": steps[unit] for unit in units},
-                            "fmi2GetReal, fmi2SetReal": sum(count for (name, _), count in counts.items()
-                                                            if name != "fmi2DoStep")}
-        out["split"] = {part: parts["whole"][part] - parts["first"][part] for part in parts["whole"]}
+            parts[label] = {**{part: steps.get(unit) for part, unit in SPLIT_UNITS.items()},
+                            SPLIT_EXCHANGE: sum(count for (name, _), count in counts.items() if name != "fmi2DoStep")}
+        out["split"] = {part: None if parts["whole"][part] is None else parts["whole"][part] - parts["first"][part]
+                        for part in parts["whole"]}
     return out
 
 
-def valgrind_missing() -> bool:
-    """Whether valgrind is not on PATH."""
-    return shutil.which("valgrind") is None
+def missing_tools() -> list[str]:
+    """The programs the counts need that are not on PATH."""
+    return [tool for tool in ("valgrind", "setarch") if shutil.which(tool) is None]
 
 
 def parse_stops(items, parser) -> dict[str, float]:
@@ -222,9 +231,10 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.split and args.backend != "fmu":
         parser.error("--split reads the units' fmi2DoStep: it needs --backend fmu")
-    if valgrind_missing():
-        print("error: valgrind not found: this script counts instructions with valgrind's callgrind "
-              "(e.g. apt-get install valgrind)", file=sys.stderr)
+    missing = missing_tools()
+    if missing:
+        print(f"error: {' and '.join(missing)} not found: this script counts instructions with valgrind's callgrind "
+              "(e.g. apt-get install valgrind util-linux)", file=sys.stderr)
         return 2
     stops = {**STOP, **parse_stops(args.stop, parser)}
     unknown = [name for name in args.scenes if name not in stops]
@@ -253,10 +263,9 @@ def main(argv=None):
             rows.append([name, f"{step:g} .. {scene['time']['stop']:g} s ({c['steps']} steps)", f"{steps:,}",
                          f"{steps / c['steps']:,.0f}", f"{c['whole']:,}", f"{c['first']:,}"])
             if args.split:
-                units = sum(c["split"].values())
-                split_rows.append([name] + [f"{count:,} ({count / c['steps']:,.0f})" for count in c["split"].values()]
-                                  + [f"{steps - units:,} ({(steps - units) / c['steps']:,.0f})"])
-                split_header = list(c["split"])
+                rest = steps - sum(count or 0 for count in c["split"].values())
+                split_rows.append([name] + ["-" if count is None else f"{count:,} ({count / c['steps']:,.0f})"
+                                            for count in [*c["split"].values(), rest]])
     sets = f", --set {' '.join(args.overrides)}" if args.overrides else ""
     print(f"\nInstructions (callgrind Ir), backend {args.backend}{sets}: the whole run less the run stopped after "
           f"its first communication step\n")
@@ -264,7 +273,7 @@ def main(argv=None):
                  "whole run", "run stopped after the first step"], rows))
     if split_rows:
         print("\nOf the steps after the first, inclusive of the FMI calls, and the rest; per step in brackets\n")
-        print(table(["scene"] + split_header + ["rest"], split_rows))
+        print(table(["scene", *SPLIT_UNITS, SPLIT_EXCHANGE, "rest"], split_rows))
     return 0
 
 

@@ -93,7 +93,7 @@ def test_a_real_callgrind_file_reads_to_its_own_sum_of_exclusive_costs(tmp_path)
 def test_without_valgrind_it_says_so_and_exits_2(monkeypatch, capsys):
     monkeypatch.setenv("PATH", "")
     assert instructions.main(["--scenes", "deploy_rigid"]) == 2
-    assert "valgrind not found" in capsys.readouterr().err
+    assert "valgrind and setarch not found" in capsys.readouterr().err
 
 
 def test_split_needs_the_fmu_backend_and_a_scene_needs_a_stop_time(capsys):
