@@ -131,17 +131,21 @@ def test_a_killed_worker_gives_fmi2Fatal_with_the_reason_and_the_host_lives(rigi
 
 def test_a_kernel_that_crashes_kills_the_worker_not_the_host(rigid, tmp_path):
     folder = Path(extract(str(rigid / "aero.fmu"), str(tmp_path / "a")))
-    library = next((folder / "resources" / "aero_fmu").glob("biot_savart-*.so"))
-    offset, size = _text_section(library)
-    data = bytearray(library.read_bytes())
-    data[offset:offset + size] = b"\x0f\x0b" * (size // 2) + b"\x0f" * (size % 2)    # ud2: an illegal instruction
-    library.write_bytes(bytes(data))
-    # a kernel that crashes, not a damaged file: its digest record says these are the bytes compiled
-    record_file(library).write_text(hashlib.sha256(bytes(data)).hexdigest() + "\n")
-    out = host(folder, "instantiate", "step:1", "free")
-    failed = [entry for entry in out if entry["status"] == FATAL]
-    assert failed, out
-    assert any("killed by signal 4" in text for _, _, text in failed[0]["log"]), failed[0]["log"]
+    # the kernel of deploy_rigid's uvlm-flat step
+    for library in (folder / "resources" / "aero_fmu").glob("flat_wake_step-*.so"):
+        offset, size = _text_section(library)
+        data = bytearray(library.read_bytes())
+        data[offset:offset + size] = b"\x0f\x0b" * (size // 2) + b"\x0f" * (size % 2)   # ud2: an illegal instruction
+        library.write_bytes(bytes(data))
+        # a kernel that crashes, not a damaged file: its digest record says these are the bytes compiled
+        record_file(library).write_text(hashlib.sha256(bytes(data)).hexdigest() + "\n")
+    out = host(folder, "instantiate", "step:1", "free")        # the host lives on: it exits 0 (`host`)
+    # the uvlm-flat unit loads its kernel's library while it is instantiated (its constructors run code of the
+    # library's .text): the worker dies there, fmi2Instantiate returns no instance (the host's status 3) with the
+    # fatal message, and the step is refused as well
+    crashed = [entry for entry in out if any("killed by signal 4" in text for _, _, text in entry["log"])]
+    assert crashed and crashed[0]["action"] == "instantiate" and crashed[0]["status"] == 3, out
+    assert [entry["action"] for entry in out] == ["instantiate", "step:1", "free"] and out[1]["status"] >= 3, out
     assert not workers_of(folder)
 
 
