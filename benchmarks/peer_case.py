@@ -29,7 +29,8 @@ class Measurement:
 class PeerCase:
     """name: the case (a row of the table); peer: the peer code and version; what: how the two are made to do
     the same (lattice, step, tolerance); ours, peer: run once, return a Measurement; reference: the refined
-    values; errors: {name: error} of a run's values against the reference."""
+    values; errors: {name: error} of a run's values against the reference; target: the product's target for the
+    CPU-time ratio wingsim / peer (None: none set)."""
 
     name: str
     peer: str
@@ -38,6 +39,7 @@ class PeerCase:
     peer_run: Callable[[], Measurement]
     reference: Callable[[], dict]
     errors: Callable[[dict, dict], dict]
+    target: float | None = None
 
 
 class Timer:

@@ -93,6 +93,18 @@ def summary(values):
     return f"{min(values):.2f} / {statistics.median(values):.2f}" if values else "-"
 
 
+def target_met(cpu_ratios, target):
+    """"<= 0.5: met" or "<= 0.5: missed" for the median CPU-time ratio against the product's target; "-" without one.
+
+    Args:
+        cpu_ratios: the CPU-time ratios wingsim / peer of the pairs.
+        target: the target (PeerCase.target), or None.
+    """
+    if target is None or not cpu_ratios:
+        return "-"
+    return f"<= {target:g}: {'met' if statistics.median(cpu_ratios) <= target else 'missed'}"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--pairs", type=int, default=5, help="interleaved pairs per case (default 5)")
@@ -122,8 +134,9 @@ def main(argv=None):
             print(f"{case.name} against {case.peer} ...", file=sys.stderr)
             ours, theirs = run_case(case, args.pairs)
             walls, cpus = whole_processes(module, index, args.quick, args.processes) if args.processes else ([], [])
-            rows.append([case.name, case.peer, summary(ratios(ours, theirs, "wall_s")),
-                         summary(ratios(ours, theirs, "cpu_s")), summary(ratios(ours, theirs, "last_steps")),
+            cpu = ratios(ours, theirs, "cpu_s")
+            rows.append([case.name, case.peer, summary(ratios(ours, theirs, "wall_s")), summary(cpu),
+                         target_met(cpu, case.target), summary(ratios(ours, theirs, "last_steps")),
                          summary(walls), summary(cpus)])
             reference = case.reference()
             for side, runs in (("wingsim", ours), (case.peer, theirs)):
@@ -131,8 +144,8 @@ def main(argv=None):
                     accuracy.append([case.name, side, name, f"{error:.3g}"])
             print(f"  {case.what}", file=sys.stderr)
     print(table(["case", "peer", "wall wingsim/peer (min / median)", "CPU wingsim/peer (min / median)",
-                 f"last {LAST_STEPS} steps, wall (min / median)", "whole processes, wall (min / median)",
-                 "whole processes, CPU (min / median)"], rows))
+                 "target (CPU, median)", f"last {LAST_STEPS} steps, wall (min / median)",
+                 "whole processes, wall (min / median)", "whole processes, CPU (min / median)"], rows))
     print()
     print(table(["case", "code", "error against the refined reference", "value"], accuracy))
 
