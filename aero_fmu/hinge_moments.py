@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmu_common.vectors import cross
+
 
 @dataclass(frozen=True)
 class HingeLine:
@@ -102,7 +104,7 @@ def hinge_axis(e, line: HingeLine) -> tuple[np.ndarray, np.ndarray]:
     k = 9 * line.parent_node
     r, r_x, r_y = e[k:k + 3], e[k + 3:k + 6], e[k + 6:k + 9]
     x = r_x / np.linalg.norm(r_x)
-    axis = line.axis[0] * x + line.axis[1] * r_y + line.axis[2] * np.cross(x, r_y)
+    axis = line.axis[0] * x + line.axis[1] * r_y + line.axis[2] * cross(x, r_y)
     return r.copy(), axis / np.linalg.norm(axis)
 
 
@@ -119,7 +121,7 @@ def hinge_moment(points, forces, point, axis) -> float:
         the moment about the axis, N m, positive right-handed about `axis`.
     """
     points, forces = np.asarray(points, dtype=float).reshape(-1, 3), np.asarray(forces, dtype=float).reshape(-1, 3)
-    moment = np.cross(points - np.asarray(point, dtype=float), forces).sum(axis=0)
+    moment = cross(points - np.asarray(point, dtype=float), forces).sum(axis=0)
     return float(moment @ np.asarray(axis, dtype=float))
 
 
