@@ -113,24 +113,31 @@ def circulation_rate(gamma, history, steps):
     Returns:
         (n_panels,) m^2/s^2, or None if h1 = 0 (no previous step).
     """
-    (g1, g2), (h1, h2) = history, steps
-    if h1 <= 0:
+    (g1, g2), (order, c) = history, rate_coefficients(steps)
+    if order == 0:
         return None
-    if h2 <= 0:
-        return (gamma - g1) / h1
-    return (gamma * ((2 * h1 + h2) / (h1 * (h1 + h2))) - g1 * ((h1 + h2) / (h1 * h2))
-            + g2 * (h1 / (h2 * (h1 + h2))))
+    if order == 1:
+        return (gamma - g1) / c[0]
+    return gamma * c[0] - g1 * c[1] + g2 * c[2]
 
 
-def _rate_difference(history, steps):
-    """`circulation_rate`'s difference for the compiled step (FlatWakeStep.solve's `rate`): None, or
-    (coefficients, order, history)."""
-    (h1, h2) = steps
+def rate_coefficients(steps):
+    """The order and coefficients of `circulation_rate`'s difference, shared with the compiled step
+    (FlatWakeStep.solve's `rate`).
+
+    Args:
+        steps: (h1, h2) = (t_n - t_{n-1}, t_{n-1} - t_{n-2}), s.
+
+    Returns:
+        (0, None) if h1 = 0; (1, (h1, 0, 0)): (Gamma_n - Gamma_{n-1}) / h1; (2, (c0, c1, c2)) in 1/s:
+        c0 Gamma_n - c1 Gamma_{n-1} + c2 Gamma_{n-2}.
+    """
+    h1, h2 = steps
     if h1 <= 0:
-        return None
+        return 0, None
     if h2 <= 0:
-        return (h1, 0.0, 0.0), 1, history
-    return ((2 * h1 + h2) / (h1 * (h1 + h2)), (h1 + h2) / (h1 * h2), h1 / (h2 * (h1 + h2))), 2, history
+        return 1, (h1, 0.0, 0.0)
+    return 2, ((2 * h1 + h2) / (h1 * (h1 + h2)), (h1 + h2) / (h1 * h2), h1 / (h2 * (h1 + h2)))
 
 
 class UVLM:
@@ -222,7 +229,8 @@ class UVLM:
         """`advance` of the flat wake in one compiled call (flat_wake_step.py): the same state as the numpy path
         to round-off."""
         step, lat = self.system, self.lattice
-        step.solve(E, dE, U, direction, density, _rate_difference(history, steps))
+        order, coefficients = rate_coefficients(steps)
+        step.solve(E, dE, U, direction, density, None if order == 0 else (coefficients, order, history))
         sums = step.sums
         outputs = resultant_outputs(lat, sums[:3], sums[3:12].reshape(3, 3), lift_direction(sums[12:], direction),
                                     direction, math.sqrt(float(U @ U)), density, lat.N * len(lat.body_names))
