@@ -193,6 +193,12 @@ def kernels(source: str | Path, signatures: dict) -> ctypes.CDLL | None:
     return library
 
 
+def address(array) -> int:
+    """The address of the data of a writable, C-contiguous, non-empty numpy array: array.ctypes.data at a fraction
+    of its cost (the kernels are called thousands of times per simulated second)."""
+    return ctypes.addressof(ctypes.c_char.from_buffer(array))
+
+
 def library_file(source: str | Path, platform: str | None = None, compiler: list[str] | None = None) -> Path:
     """The verified library of the C file `source`: beside it, else in the cache folder, where it is compiled if
     absent or damaged (module docstring); where the cache folder cannot be written, the library compiled for this

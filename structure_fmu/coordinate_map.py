@@ -104,6 +104,10 @@ class CoordinateMap:
             return out
         return np.bincount(self._cols, self._weights * F[self._rows], self.n_q)
 
+    def csr(self):
+        """T by rows: (start (n + 1,), columns (k,), weights (k,)), row i's entries at start[i]:start[i + 1]."""
+        return np.concatenate([self._start, [len(self._cols)]]).astype(np.intp), self._cols, self._weights
+
     def row_entries(self, rows):
         """T's entries in the given rows of E, in the order of `rows`: (source (k,) the position in `rows`,
         column (k,), weight (k,)).

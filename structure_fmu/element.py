@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from fmu_common import c_library
+from fmu_common.c_library import address as _address
 from fmu_common.shape_functions import hermite
 from fmu_common.vectors import cross
 
@@ -545,12 +546,6 @@ def _table(length, stiffness):
                                 _slot_basis(length, g).ravel()])
         found = _TABLES[key] = (table, _address(table), g)
     return found
-
-
-def _address(array):
-    """The address of the data of a writable, C-contiguous, non-empty array: array.ctypes.data at a fraction of its
-    cost (the kernels are called thousands of times per simulated second)."""
-    return ctypes.addressof(ctypes.c_char.from_buffer(array))
 
 
 def _check(status, g):

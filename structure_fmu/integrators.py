@@ -25,6 +25,7 @@ from scipy.linalg.lapack import dposv
 from fmu_common.errors import SceneError, SolverDiverged
 
 from .iteration_lu import IterationLU
+from .newton_kernel import NewtonKernel
 
 
 @dataclass
@@ -246,7 +247,8 @@ class GeneralizedAlpha:
         self._start_acceleration = 0.0   # max |q''_0| of the state initialized last, per s^2 (`start_up`)
         self._start = None               # steps h of the start-up left; None: not planned yet
         self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
-        self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized
+        self._lu = None              # (model, IterationLU, NewtonKernel or None): how that model's iteration matrix
+                                     # is factorized, and its compiled iteration (newton_kernel.py)
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
         self.newton_iterations = 0   # total, for monitoring
 
@@ -282,12 +284,22 @@ class GeneralizedAlpha:
         self._start = None
         return state
 
+    def _kernel(self, model, n_q):
+        """The compiled Newton iteration (newton_kernel.NewtonKernel) of the model of n_q coordinates, or None: the
+        numpy path."""
+        if self._lu is None or self._lu[0] is not model:
+            lu = IterationLU(n_q, model.constraint_count, model.iteration_pattern())
+            self._lu = (model, lu, NewtonKernel.for_model(model, lu))
+        return self._lu[2]
+
     def _factor(self, model, t, q, dq, latched, lam, h):
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
+        kernel = self._kernel(model, len(q))
+        if kernel is not None:
+            self._matrix = (h, kernel.factor(q, dq, lam, beta_p, gamma_p))
+            return
         S, E = model.iteration_matrix(t, q, dq, latched, lam, beta_p, gamma_p)
-        if self._lu is None or self._lu[0] is not model:
-            self._lu = (model, IterationLU(len(q), model.constraint_count, model.iteration_pattern()))
         G = model.constraint_jacobian(q, E) if model.constraint_count else None
         self._matrix = (h, self._lu[1].factor(S, G, beta_p))
 
@@ -365,6 +377,9 @@ class GeneralizedAlpha:
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
         # saves; refreshing only every second step gains at short steps and loses at long ones.
         factorized_here = self._matrix is None or self._matrix[0] != h or predictor == "displacement"
+        kernel = self._kernel(model, n)
+        if kernel is not None:
+            kernel.prepare(t, Q, state.latched)
         if factorized_here:
             self._factor(model, t, q, dq, state.latched, lam, h)
         # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
@@ -376,27 +391,15 @@ class GeneralizedAlpha:
         if factorized_here:
             self._eta = max(self._eta, np.finfo(float).eps) ** 0.8
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
-        m = model.constraint_count
-        rhs = np.empty(n + m)                     # [residual of the equations of motion, beta' Phi]
-        residual, scaled_phi = rhs[:n], rhs[n:]
+        rhs = None if kernel is not None else np.empty(n + model.constraint_count)    # `_correct`'s
         for iteration in range(self.max_iterations):
-            F, E, _, _ = model.force_q(q, dq, t, Q, state.latched)
-            residual[:] = model.mass_product(q, t, ddq)   # M_q q'' without forming M_q where it varies
-            residual -= F
-            if m:
-                residual += lam @ model.constraint_jacobian(q, E)
-                np.multiply(model.constraint_residual(q, E), beta_p, out=scaled_phi)
-            if not math.isfinite(rhs.sum()):      # any NaN or inf entry makes the sum NaN or inf
-                raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
-            delta = self._matrix[1].solve(rhs)    # the Newton correction is -delta
-            dq_step = delta[:n]
-            q -= dq_step
-            dq -= gamma_p * dq_step
-            ddq -= beta_p * dq_step
-            if m:
-                lam -= beta_p * delta[n:]
+            if kernel is not None:                # the same correction in one compiled call (newton_kernel.py)
+                size = kernel.correct(q, dq, ddq, lam, beta_p, gamma_p, self._matrix[1]) if n else 0.0
+                if size is None:
+                    raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
+            else:
+                size = self._correct(model, t, Q, state.latched, q, dq, ddq, lam, rhs, beta_p, gamma_p, predictor)
             self.newton_iterations += 1
-            size = float(np.max(np.abs(dq_step if weights is None else weights * dq_step))) if n else 0.0
             first = size if first is None else first
             # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
             # observed contraction rate), is below the tolerance
@@ -423,6 +426,30 @@ class GeneralizedAlpha:
                                    f"({predictor} predictor, last correction {size:.3g})")
         accel = a_known + (1 - af) / (1 - am) * ddq
         return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)
+
+    def _correct(self, model, t, Q, latched, q, dq, ddq, lam, rhs, beta_p, gamma_p, predictor):
+        """One Newton correction on the numpy path, in place on q, q', q'' and lambda: the residual
+        rhs = [M_q q'' - F + G_q^T lambda, beta' Phi] solved with the factorized iteration matrix; returns the largest
+        correction of q (times the model's newton_weights)."""
+        n, m = len(q), len(lam)
+        residual, scaled_phi = rhs[:n], rhs[n:]
+        F, E, _, _ = model.force_q(q, dq, t, Q, latched)
+        residual[:] = model.mass_product(q, t, ddq)   # M_q q'' without forming M_q where it varies
+        residual -= F
+        if m:
+            residual += lam @ model.constraint_jacobian(q, E)
+            np.multiply(model.constraint_residual(q, E), beta_p, out=scaled_phi)
+        if not math.isfinite(rhs.sum()):      # any NaN or inf entry makes the sum NaN or inf
+            raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
+        delta = self._matrix[1].solve(rhs)    # the Newton correction is -delta
+        dq_step = delta[:n]
+        q -= dq_step
+        dq -= gamma_p * dq_step
+        ddq -= beta_p * dq_step
+        if m:
+            lam -= beta_p * delta[n:]
+        weights = model.newton_weights
+        return float(np.max(np.abs(dq_step if weights is None else weights * dq_step))) if n else 0.0
 
 
 class Integrator(Protocol):

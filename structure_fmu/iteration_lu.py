@@ -105,6 +105,18 @@ class IterationLU:
         self._g = (band_flat[in_g], (i[in_g] - n_q) * n_q + j[in_g])
         self._gt = (band_flat[in_gt], (j[in_gt] - n_q) * n_q + i[in_gt])
 
+    def storage(self):
+        """Where `factor` puts S and b' G in LAPACK's storage (Fortran order, flat), for a caller that fills it
+        itself (the compiled Newton iteration, newton_kernel.py): (rows of the storage, then (target, source) of the
+        S entries (source flat into (n_q, n_q)), of b' G's and of b' G^T's (source flat into (m, n_q))). Band storage
+        ((2 kl + ku + 1) rows) when `banded`, else the dense (n_q + m) rows."""
+        if self.banded:
+            return self._band_shape[0], self._s, self._g, self._gt
+        n, size = self.n_q, self.n_q + self.m
+        i, j = np.divmod(np.arange(n * n), n)
+        r, c = np.divmod(np.arange(self.m * n), n)
+        return size, (j * size + i, i * n + j), (c * size + n + r, r * n + c), ((n + r) * size + c, r * n + c)
+
     def factor(self, S, G, row_scale):
         """The LU of A; numpy.linalg.LinAlgError if A is singular.
 

@@ -199,12 +199,21 @@ def actuator_torque(hinge, theta, dtheta, latched):
         dtheta: its rate, rad/s.
         latched: {hinge: latched}.
     """
+    stiffness, neutral = actuator_spring(hinge, latched)
+    return stiffness * (theta - neutral) + hinge.damping * dtheta + hinge.torque, stiffness
+
+
+def actuator_spring(hinge, latched):
+    """The actuator spring's stiffness k (N m/rad) and neutral angle theta_0 (rad), torque k (theta - theta_0):
+    (K, 0), latched (latch_factor K, stop angle) (Otsuka et al. 2022, Sec. 5).
+
+    Args:
+        hinge: the Hinge with its actuator parameters.
+        latched: whether it has latched.
+    """
     if latched:
-        spring = hinge.latch_factor * hinge.stiffness * (theta - hinge.stop_angle)
-        stiffness = hinge.latch_factor * hinge.stiffness
-    else:
-        spring, stiffness = hinge.stiffness * theta, hinge.stiffness
-    return spring + hinge.damping * dtheta + hinge.torque, stiffness
+        return hinge.latch_factor * hinge.stiffness, hinge.stop_angle
+    return hinge.stiffness, 0.0
 
 
 def actuator_energy(hinge, theta, latched):

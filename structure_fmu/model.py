@@ -110,7 +110,8 @@ class StructureModel:
         self._dofs_flat = self.dofs.ravel()
         self._force_scratch = np.empty(36 * len(self.dofs))       # element.add_elastic_force's work space
         self.map = CoordinateMap(self.T)
-        self._tangent_assembly = self._assemble_tangent()
+        # where iteration_matrix's values go in the reduced matrix, and the reduced mass-proportional damping T^T C T
+        self.tangent_assembly, self.reduced_damping = self._assemble_tangent()
         self.loads = topology.loads
         self._group_prescribed()
 
@@ -159,11 +160,22 @@ class StructureModel:
         """
         if self._fixed_offset is not None:
             return self.map.apply(q, self._fixed_offset), self.map.apply(dq), None
+        Pp, Pdp, ddp = self.motion_offsets(t)
+        return self.map.apply(q, Pp), self.map.apply(dq, Pdp), ddp
+
+    def motion_offsets(self, t):
+        """The prescribed parts of E and dE/dt at time t, P p and P p' (n,), and p'' (3 n_prescribed,); (P p, None,
+        None) when nothing prescribed moves.
+
+        Args:
+            t: time, s.
+        """
+        if self._fixed_offset is not None:
+            return self._fixed_offset, None, None
         if self._motion_at[0] != t:     # a step's Newton iterations and RK4 stages ask for the same t
             p, dp, ddp = self.prescribed(t)
             self._motion_at = (t, (self.P @ p, self.P @ dp, ddp))
-        Pp, Pdp, ddp = self._motion_at[1]
-        return self.map.apply(q, Pp), self.map.apply(dq, Pdp), ddp
+        return self._motion_at[1]
 
     # ---------------------------------------------------------------- forces
     def load_factor(self, load, t):
@@ -199,6 +211,18 @@ class StructureModel:
             F[self.dofs[k]] += np.kron(s, load.force * self.load_factor(load, t))
         return F
 
+    def constant_force_E(self, t, Q):
+        """The part of `force_E` that does not depend on E or dE: gravity, point loads and Q.
+
+        Args:
+            t: time, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+
+        Returns:
+            (n,) N and N m, global frame.
+        """
+        return self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
+
     def force_E(self, E, dE, t, Q, latched):
         """Generalized force on E: elastic, gravity, point loads, actuators, damping and external Q.
 
@@ -212,7 +236,7 @@ class StructureModel:
         Returns:
             (n,) N and N m, global frame.
         """
-        F = self.gravity_E + (self.external_force_E(t, Q) if self.loads else Q)
+        F = self.constant_force_E(t, Q)
         if self.flexible:
             law, table = self._law
             if law is element:          # one compiled call: gathered from E, added into F
@@ -414,7 +438,7 @@ class StructureModel:
             (beta' M_q + gamma' C_t + K_t (n_q, n_q), E (n,)).
         """
         E, dE, _ = self.coordinates(q, dq, t)
-        assembly, reduced_damping = self._tangent_assembly
+        assembly, reduced_damping = self.tangent_assembly, self.reduced_damping
         values = []
         if self.flexible:
             law, table = self._law

@@ -1,0 +1,291 @@
+"""Generalized-alpha's Newton iteration on the ANCF structure in compiled calls: newton_kernels.c on buffers allocated
+once per model.
+
+`NewtonKernel.correct` takes one Newton correction (the residual of the equations of motion and of the scaled
+constraints, its solve with the factorized iteration matrix, the update of q, q', q'' and lambda) and
+`NewtonKernel.factor` forms and factorizes the iteration matrix, each in one C call; integrators.GeneralizedAlpha
+keeps the iteration's control (predictor, convergence test, refactorization) in Python for both paths. The numpy
+path of model.StructureModel with iteration_lu.IterationLU stays the reference ($WINGSIM_KERNELS=numpy): the
+iteration matrix is the same bit for bit, the residual equal to round-off (tests/units/test_newton_kernel.py).
+
+The kernel covers the rigid and flexible ANCF bodies with prescribed motions, unit-length, orthogonality and linear
+constraint rows, chord-axis hinges, and no or mass-proportional damping (`unsupported` names what else a model has);
+any other model takes the numpy path.
+"""
+import ctypes
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse
+from scipy.linalg import cython_lapack
+
+from fmu_common import c_library
+from fmu_common.c_library import address
+
+from . import element
+from .joints import actuator_spring, hinge_coordinates
+from .model import StructureModel
+
+C_SOURCE = Path(__file__).with_name("newton_kernels.c")    # the compiled iteration (fmu_common.c_library)
+_LONG = np.dtype(ctypes.c_long)                            # C long: 64 bits on Linux, 32 on Windows
+_POINTERS = ("t_ptr", "t_col", "t_val", "offset", "rate_offset", "f_constant", "r_constant", "m_ptr", "m_col", "m_val",
+             "mass")
+_FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")] + [(name, ctypes.c_void_p) for name in _POINTERS]
+           + [("damped", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in ("c_ptr", "c_col", "c_val", "damping")]
+           + [("n_elements", ctypes.c_long), ("gauss", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("table", "dofs", "add_elastic_force", "elastic_jacobian",
+                                                    "element_scratch")]
+           + [("n_hinges", ctypes.c_long), ("hinge_index", ctypes.c_void_p), ("hinge_parameters", ctypes.c_void_p)]
+           + [("n_products", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("row_a", "row_b", "row_coefficient", "row_constant")]
+           + [("n_jacobian", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("pair", "jacobian_source", "jacobian_target", "jacobian_weight")]
+           + [(name, ctypes.c_void_p) for name in ("l_ptr", "l_col", "lt_ptr", "lt_col", "l_val", "l_offset",
+                                                    "lt_val")]
+           + [("n_values", ctypes.c_long), ("n_assembly", ctypes.c_long), ("hessian_row", ctypes.c_void_p),
+              ("n_hessian", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("assembly_source", "assembly_target", "assembly_weight")]
+           + [(name, ctypes.c_long) for name in ("banded", "lower", "upper", "rows", "n_s", "n_g")]
+           + [(name, ctypes.c_void_p) for name in ("s_target", "s_source", "g_target", "g_source", "gt_target",
+                                                    "gt_source", "order", "gbtrf", "gbtrs", "getrf", "getrs")]
+           + [(name, ctypes.c_void_p) for name in ("E", "dE", "F", "values", "S", "G", "rhs", "ordered")])
+
+
+class _Struct(ctypes.Structure):
+    _fields_ = _FIELDS       # newton_kernels.c's NewtonKernel, field for field
+
+
+_DOUBLES = ctypes.POINTER(ctypes.c_double)
+
+
+def c_kernels():
+    """The C library of newton_kernels.c (fmu_common.c_library), typed; None when $WINGSIM_KERNELS selects the
+    numpy path (or the library can be neither found nor compiled: then one warning says why)."""
+    pointer = ctypes.c_void_p
+    return c_library.kernels(C_SOURCE, {
+        "newton_correction": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer,
+                                             ctypes.c_double, ctypes.c_double, pointer, pointer, _DOUBLES]),
+        "newton_factor": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, ctypes.c_double,
+                                         ctypes.c_double, pointer, pointer])})
+
+
+def _lapack(name):
+    """The address of scipy's LAPACK routine `name` (scipy.linalg.cython_lapack: the Fortran calling convention,
+    every argument by pointer)."""
+    capsule = cython_lapack.__pyx_capi__[name]
+    get_name, get_pointer = ctypes.pythonapi.PyCapsule_GetName, ctypes.pythonapi.PyCapsule_GetPointer
+    get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+    get_pointer.restype, get_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    return get_pointer(capsule, get_name(capsule))
+
+
+def unsupported(model):
+    """Why the compiled iteration cannot take this model (a sentence), or None when it can.
+
+    Args:
+        model: the StructuralModel (structure_fmu.fidelities).
+    """
+    if type(model) is not StructureModel:
+        return "a strain-based model"
+    if model.flexible and model._law[0] is not element:
+        return "a shear-deformable element"
+    if not len(model.initial_coordinates()):
+        return "no free coordinates"
+    blocks = model.constraints.blocks
+    if blocks["axis"].stop > blocks["axis"].start or blocks["sliding"].stop > blocks["sliding"].start:
+        return "axis or sliding constraint rows"
+    if model.constraint_count != model.constraints.count:
+        return "redundant constraint rows"
+    if any(h.axis_slot is None for h in model.hinges):
+        return "a revolute joint whose axis is not a shared chord"
+    if model.mass_damping is None and model.damped_bodies:
+        return "deformation damping"
+    return None
+
+
+@dataclass(frozen=True)
+class Factorization:
+    """One factorized iteration matrix in LAPACK's storage (band or dense, iteration_lu.IterationLU's choice) with
+    LAPACK's pivots (1-based). Never modified after it is made, so that a saved solver state may hold it."""
+
+    lu: np.ndarray
+    pivots: np.ndarray
+
+
+class NewtonKernel:
+    """The compiled Newton iteration of one model (module docstring). Build it with `for_model`.
+
+    Args:
+        model: a StructureModel that `unsupported` accepts.
+        lu: the model's iteration_lu.IterationLU (its storage: banded or dense).
+        kernels: the library of newton_kernels.c (`c_kernels`).
+        elements: the library of element_kernels.c (element.c_kernels).
+    """
+
+    def __init__(self, model, lu, kernels, elements):
+        self._correct, self._factor = kernels.newton_correction, kernels.newton_factor
+        n, n_q, m = model.n, model.T.shape[1], model.constraint_count
+        keep = self._keep = {}     # every array the struct points at, held for the object's life
+
+        def hold(name, array, dtype=float):
+            keep[name] = np.ascontiguousarray(array, dtype=dtype)
+            return keep[name].ctypes.data if keep[name].size else None
+
+        t_ptr, t_col, t_val = model.map.csr()
+        mass = scipy.sparse.csr_array(model.mass_q)
+        damping = model.reduced_damping
+        sparse_damping = scipy.sparse.csr_array(damping if damping is not None else np.zeros((n_q, n_q)))
+        # set per step (`prepare`): P p, P p', the constant force on E and the constant residual terms on q
+        self.offset, self.rate_offset, self.f_constant, self.r_constant = (np.zeros(k) for k in (n, n, n, n_q))
+        struct = dict(n=n, n_q=n_q, m=m, t_ptr=hold("t_ptr", t_ptr, _LONG), t_col=hold("t_col", t_col, _LONG),
+                      t_val=hold("t_val", t_val), offset=self.offset.ctypes.data,
+                      rate_offset=self.rate_offset.ctypes.data, f_constant=self.f_constant.ctypes.data,
+                      r_constant=self.r_constant.ctypes.data, m_ptr=hold("m_ptr", mass.indptr, _LONG),
+                      m_col=hold("m_col", mass.indices, _LONG), m_val=hold("m_val", mass.data),
+                      mass=hold("mass", model.mass_q), damped=int(damping is not None),
+                      c_ptr=hold("c_ptr", sparse_damping.indptr, _LONG),
+                      c_col=hold("c_col", sparse_damping.indices, _LONG), c_val=hold("c_val", sparse_damping.data),
+                      damping=hold("damping", damping if damping is not None else np.zeros((n_q, n_q))))
+        n_values = 0
+        if model.flexible:
+            table, _, g = element._table(model.lengths, model._law[1])
+            keep["table"] = table
+            struct.update(n_elements=len(model.lengths), gauss=g, table=table.ctypes.data,
+                          dofs=hold("dofs", model.dofs, np.int64),
+                          add_elastic_force=ctypes.cast(elements.add_elastic_force, ctypes.c_void_p).value,
+                          elastic_jacobian=ctypes.cast(elements.elastic_jacobian, ctypes.c_void_p).value,
+                          element_scratch=hold("element_scratch", np.zeros(36 * len(model.lengths))))
+            n_values += 324 * len(model.lengths)
+        self._hinges = model.hinges
+        self.hinge_parameters = np.zeros((len(self._hinges), 4))
+        struct.update(n_hinges=len(self._hinges),
+                      hinge_index=hold("hinge_index", [hinge_coordinates(h) for h in self._hinges] or
+                                       np.zeros((0, 9)), _LONG),
+                      hinge_parameters=self.hinge_parameters.ctypes.data if self._hinges else None)
+        if m:
+            ia, ib, coefficient, constant, pair, (source, target, weight) = model.constraints.product_rows()
+            hessian_rows = model.constraints.quadratic_hessian[1]
+            L, offset, LT = (scipy.sparse.csr_array(a) if a.ndim == 2 else a for a in model.constraints.linear_rows())
+            struct.update(l_ptr=hold("l_ptr", L.indptr, _LONG), l_col=hold("l_col", L.indices, _LONG),
+                          l_val=hold("l_val", L.data), l_offset=hold("l_offset", offset),
+                          lt_ptr=hold("lt_ptr", LT.indptr, _LONG), lt_col=hold("lt_col", LT.indices, _LONG),
+                          lt_val=hold("lt_val", LT.data))
+            struct.update(n_products=len(ia), row_a=hold("row_a", ia, _LONG), row_b=hold("row_b", ib, _LONG),
+                          row_coefficient=hold("row_coefficient", coefficient),
+                          row_constant=hold("row_constant", constant), n_jacobian=len(source),
+                          pair=hold("pair", pair, _LONG), jacobian_source=hold("jacobian_source", source, _LONG),
+                          jacobian_target=hold("jacobian_target", target, _LONG),
+                          jacobian_weight=hold("jacobian_weight", weight),
+                          hessian_row=hold("hessian_row", hessian_rows, _LONG), n_hessian=len(hessian_rows))
+            n_values += len(hessian_rows)
+        n_values += 81 * len(self._hinges)
+        assembly = model.tangent_assembly
+        if assembly is not None:
+            struct.update(n_assembly=len(assembly.source),
+                          assembly_source=hold("assembly_source", assembly.source, _LONG),
+                          assembly_target=hold("assembly_target", assembly.target, _LONG),
+                          assembly_weight=hold("assembly_weight", assembly.weight))
+        rows, (s_target, s_source), (g_target, g_source), (gt_target, gt_source) = lu.storage()
+        size = n_q + m
+        self._storage = (rows * size, size)
+        struct.update(n_values=n_values, banded=int(lu.banded), lower=lu.lower if lu.banded else 0,
+                      upper=lu.upper if lu.banded else 0, rows=rows, n_s=len(s_target), n_g=len(g_target),
+                      s_target=hold("s_target", s_target, _LONG), s_source=hold("s_source", s_source, _LONG),
+                      g_target=hold("g_target", g_target, _LONG), g_source=hold("g_source", g_source, _LONG),
+                      gt_target=hold("gt_target", gt_target, _LONG), gt_source=hold("gt_source", gt_source, _LONG),
+                      order=hold("order", lu.order if lu.banded else np.zeros(0), _LONG),
+                      **{name: _lapack("d" + name) for name in ("gbtrf", "gbtrs", "getrf", "getrs")})
+        struct.update({name: hold(name, np.zeros(length)) for name, length in (
+            ("E", n), ("dE", n), ("F", n), ("values", max(n_values, 1)), ("S", n_q * n_q), ("G", max(m * n_q, 1)),
+            ("rhs", size), ("ordered", size))})
+        self._struct = _Struct(**struct)
+        self._pointer = ctypes.pointer(self._struct)
+        self._size = ctypes.c_double()
+        self._size_pointer = ctypes.pointer(self._size)
+        self._model = model
+
+    @classmethod
+    def for_model(cls, model, lu):
+        """The NewtonKernel of `model` with its IterationLU `lu`, or None: the model is `unsupported`, or
+        $WINGSIM_KERNELS selects the numpy path (or a library is unavailable: one warning has said why).
+
+        Args:
+            model: the StructuralModel.
+            lu: its iteration_lu.IterationLU.
+        """
+        if unsupported(model) is not None:
+            return None
+        kernels = c_kernels()
+        elements = element.c_kernels() if model.flexible else kernels
+        if kernels is None or elements is None:
+            return None
+        return cls(model, lu, kernels, elements)
+
+    def prepare(self, t, Q, latched):
+        """Set what is constant over the step's iteration: the prescribed motion, the force that does not depend on E,
+        the hinges' springs.
+
+        Args:
+            t: the time of the step's end, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched}.
+        """
+        model = self._model
+        Pp, Pdp, ddp = model.motion_offsets(t)
+        self.offset[:] = Pp
+        self.f_constant[:] = model.constant_force_E(t, Q)
+        if Pdp is not None:       # model.force_q's -T^T M_E P p'' and force_E's damping -C_E P p'
+            self.rate_offset[:] = Pdp
+            self.r_constant[:] = model.mass_prescribed @ ddp
+            if model.mass_damping is not None:
+                self.f_constant -= model.mass_damping @ Pdp
+        for k, h in enumerate(self._hinges):
+            stiffness, neutral = actuator_spring(h, latched.get(h.name, False))
+            self.hinge_parameters[k] = stiffness, neutral, h.damping, h.torque
+
+    def factor(self, q, dq, lam, beta_p, gamma_p):
+        """The factorized iteration matrix at (q, q', lambda) (model.StructureModel.iteration_matrix with
+        iteration_lu.IterationLU.factor); numpy.linalg.LinAlgError if it is singular.
+
+        Args:
+            q: (n_q,) generalized coordinates (float64, C-contiguous, as all arrays here).
+            dq: (n_q,) their rates, per s.
+            lam: (m,) the constraint multipliers.
+            beta_p: beta', 1/s^2.
+            gamma_p: gamma', 1/s.
+
+        Returns:
+            the Factorization.
+        """
+        lu, pivots = np.empty(self._storage[0]), np.empty(self._storage[1], dtype=np.intc)
+        status = self._factor(self._pointer, address(q), address(dq), address(lam) if lam.size else None,
+                              beta_p, gamma_p, address(lu), address(pivots))
+        if status == -2:
+            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
+        if status != 0:      # -1: a hinge without an angle (vanished vectors): no tangent either
+            raise np.linalg.LinAlgError(f"singular iteration matrix (compiled Newton iteration, status {status})")
+        return Factorization(lu, pivots)
+
+    def correct(self, q, dq, ddq, lam, beta_p, gamma_p, factorization):
+        """One Newton correction in place on q, q', q'' and lambda; the largest correction of q (NaN if any is), or
+        None when the residual is not finite (nothing updated).
+
+        Args:
+            q: (n_q,) generalized coordinates, updated.
+            dq: (n_q,) their rates, per s, updated.
+            ddq: (n_q,) their accelerations, per s^2, updated.
+            lam: (m,) the constraint multipliers, updated.
+            beta_p: beta', 1/s^2.
+            gamma_p: gamma', 1/s.
+            factorization: the Factorization of the iteration matrix (`factor`).
+        """
+        status = self._correct(self._pointer, address(q), address(dq), address(ddq),
+                               address(lam) if lam.size else None, beta_p, gamma_p,
+                               address(factorization.lu), address(factorization.pivots), self._size_pointer)
+        if status == 1:
+            return None
+        if status != 0:
+            raise ValueError(f"compiled Newton correction failed (status {status}: 2 the element kernel's Gauss "
+                             "points, 3 LAPACK's solve)")
+        return self._size.value

@@ -1,0 +1,111 @@
+"""The compiled Newton iteration of generalized-alpha (structure_fmu/newton_kernel.py, newton_kernels.c) against
+the numpy path it replaces (model.StructureModel's residual and iteration matrix).
+
+A correction solves A d = r, A = [[S, b' G^T], [b' G, 0]] the iteration matrix and r = [M_q q'' - F + G_q^T lambda,
+b' Phi] the residual (Peng et al. 2019, Fig. 3). The compiled correction d, read back from the updated q and
+lambda, is checked by its backward error against the reference's A and r: |A d - r| must be round-off of the terms
+(independent of A's condition number, 1e7 and more here). Whole runs on both paths take the same Newton iterations
+to the same states.
+"""
+import numpy as np
+import pytest
+
+import structure_fmu.integrators as integrators
+from fmu_common.specs import StructureUnitSpec
+from orchestrator.scene.load import load_scene
+from structure_fmu.integrators import GeneralizedAlpha
+from structure_fmu.iteration_lu import IterationLU
+from structure_fmu.newton_kernel import NewtonKernel, unsupported
+from structure_fmu.solver import StructureSolver
+from repository import SCENES
+
+EPS = np.finfo(float).eps
+
+CASES = [("deploy_flexible", [], False), ("deploy_flexible", [], True),     # the hinge free, and latched
+         ("scissor_array", [], False),                                       # a chord-axis hinge per scissor
+         ("rotating_beam", [], False),                                       # linear constraint rows
+         ("spin_up", [], False),                                             # a prescribed root motion
+         ("deploy_rigid", ["structure.integrator=generalized-alpha"], False)]   # rigid bodies: no elastic force
+
+
+def model_of(scene, overrides=()):
+    return StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", overrides))).model
+
+
+def generic_state(model, rng):
+    """A state off the solution: q about the initial coordinates, random rates, accelerations and multipliers."""
+    q = model.initial_coordinates() + 0.01 * rng.standard_normal(len(model.initial_coordinates()))
+    n_q, m = len(q), model.constraint_count
+    return q, rng.standard_normal(n_q), 10.0 * rng.standard_normal(n_q), rng.standard_normal(m)
+
+
+@pytest.mark.parametrize("scene, overrides, latched", CASES)
+def test_a_correction_solves_the_reference_equations(scene, overrides, latched):
+    model = model_of(scene, overrides)
+    assert unsupported(model) is None
+    rng = np.random.default_rng(1)
+    q, dq, ddq, lam = generic_state(model, rng)
+    t, beta_p, gamma_p = 0.0123, 3.1e7, 9.7e3          # generalized-alpha's at h = 2e-4 s, rho_inf = 0.8
+    Q = rng.standard_normal(model.n)
+    latches = {h.name: latched for h in model.hinges}
+    # the reference: A and r from the numpy path
+    S, E = model.iteration_matrix(t, q, dq, latches, lam, beta_p, gamma_p)
+    G = model.constraint_jacobian(q, E)
+    n_q, m = len(q), len(lam)
+    A = np.block([[S, beta_p * G.T], [beta_p * G, np.zeros((m, m))]])
+    F = model.force_q(q, dq, t, Q, latches)[0]
+    inertia, coupling = model.mass_product(q, t, ddq), lam @ G
+    r = np.concatenate([inertia - F + coupling, beta_p * model.constraint_residual(q, E)])
+    # the compiled correction
+    kernel = NewtonKernel.for_model(model, IterationLU(n_q, m, model.iteration_pattern()))
+    kernel.prepare(t, Q, latches)
+    factorization = kernel.factor(q, dq, lam, beta_p, gamma_p)
+    q1, dq1, ddq1, lam1 = q.copy(), dq.copy(), ddq.copy(), lam.copy()
+    size = kernel.correct(q1, dq1, ddq1, lam1, beta_p, gamma_p, factorization)
+    d = np.concatenate([q - q1, (lam - lam1) / beta_p])
+    scale = np.abs(A).max() * np.abs(d).max() + max(np.abs(v).max() for v in (inertia, F, coupling, r))
+    assert np.abs(A @ d - r).max() <= 1e3 * EPS * scale
+    assert size == pytest.approx(np.abs(q - q1).max(), rel=1e-12)
+    np.testing.assert_allclose(dq - dq1, gamma_p * (q - q1), rtol=1e-9, atol=1e-12 * np.abs(dq).max())
+    np.testing.assert_allclose(ddq - ddq1, beta_p * (q - q1), rtol=1e-9, atol=1e-12 * np.abs(ddq).max())
+
+
+def run(scene, compiled, steps, monkeypatch, overrides=()):
+    """A StructureSolver of the scene stepped `steps` times 1 ms in still air on the compiled or the numpy path:
+    (E, Newton iterations)."""
+    with monkeypatch.context() as patch:
+        if not compiled:
+            patch.setattr(integrators.NewtonKernel, "for_model", classmethod(lambda cls, model, lu: None))
+        solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", overrides)))
+        assert isinstance(solver.integrator, GeneralizedAlpha)
+        Q = np.zeros(len(solver.e))
+        for k in range(1, steps + 1):
+            solver.advance(k * 1e-3, Q)
+        return solver.e.copy(), solver.integrator.newton_iterations
+
+
+@pytest.mark.parametrize("scene, steps", [("deploy_flexible", 40), ("rotating_beam", 40), ("spin_up", 40)])
+def test_runs_match_the_numpy_path(scene, steps, monkeypatch):
+    E, iterations = run(scene, True, steps, monkeypatch)
+    E_reference, iterations_reference = run(scene, False, steps, monkeypatch)
+    assert iterations == iterations_reference
+    np.testing.assert_allclose(E, E_reference, rtol=0, atol=1e-11 * np.abs(E_reference).max())
+
+
+@pytest.mark.parametrize("scene, reason", [("two_body_003", "a strain-based model"),
+                                           ("hale_wing", "deformation damping"),
+                                           ("scissor_wing_flexible", "a revolute joint whose axis is not a shared "
+                                                                     "chord"),
+                                           ("flared_wingtip", "axis or sliding constraint rows"),
+                                           ("heaving_wing", "no free coordinates")])
+def test_other_models_take_the_numpy_path(scene, reason):
+    model = model_of(scene)
+    assert unsupported(model) == reason
+    assert NewtonKernel.for_model(model, None) is None
+
+
+def test_numpy_kernels_select_the_numpy_path(monkeypatch):
+    monkeypatch.setenv("WINGSIM_KERNELS", "numpy")
+    model = model_of("deploy_flexible")
+    assert NewtonKernel.for_model(model, IterationLU(len(model.initial_coordinates()), model.constraint_count,
+                                                     model.iteration_pattern())) is None
