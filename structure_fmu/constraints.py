@@ -338,7 +338,7 @@ class Constraints:
 
     def product_rows(self):
         """The tables of the unit and orthogonality rows Phi_i = c_i X_a . X_b + c0_i, as `residual` and `jacobian`
-        use them (the compiled Newton iteration, newton_kernel.py): ia (k, 3), ib (k, 3) the E indices of X_a and X_b,
+        use them (the compiled step, step_kernel.py): ia (k, 3), ib (k, 3) the E indices of X_a and X_b,
         c (k,), c0 (k,), pair (6 k,) the E indices of each row's gathered [X_a, X_b], and G_q's entries (source into
         pair, target row * n_q + column, weight)."""
         return (self._ia.reshape(-1, 3), self._ib.reshape(-1, 3), self._coefficient, self._constant, self._pair,

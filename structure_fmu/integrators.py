@@ -25,7 +25,7 @@ from scipy.linalg.lapack import dposv
 from fmu_common.errors import SceneError, SolverDiverged
 
 from .iteration_lu import IterationLU
-from .newton_kernel import NewtonKernel
+from .step_kernel import StepKernel
 
 
 @dataclass
@@ -119,12 +119,15 @@ def project(model, t, q, dq, iterations=4, tol=1e-13):
 
 class RK4:
     """Explicit RK4 with post-step constraint projection (Otsuka et al. 2019, Sec. VI). It keeps nothing between
-    steps (`memory` None, `reset` does nothing)."""
+    steps (`memory` None, `reset` does nothing) but the model's compiled step (step_kernel.py), where it has one."""
 
     name = "rk4"
     divergence_hint = ("reduce structure.step below the explicit stability limit, or use structure.integrator = "
                        "\"generalized-alpha\"")
     memory = None
+
+    def __init__(self):
+        self._kernel = None          # (model, StepKernel or None)
 
     def reset(self):
         """Nothing to forget: every step starts from the state alone."""
@@ -151,8 +154,15 @@ class RK4:
             Q: (n,) generalized external force on E over the step, N and N m, global frame.
         """
         t, q, v = state.t, state.q, state.dq
-        f = lambda tt, qq, vv: constrained_accelerations(model, tt, qq, vv, Q, state.latched)
         half = 0.5 * h
+        if self._kernel is None or self._kernel[0] is not model:
+            self._kernel = (model, StepKernel.for_model(model, None))
+        kernel = self._kernel[1]
+        if kernel is not None:      # the same step in one compiled call
+            kernel.prepare((t, t + half, t + h), Q, state.latched)
+            q_new, v_new, a1, lam = kernel.rk4_step(q, v, h)
+            return State(t + h, q_new, v_new, a1, a1, lam, state.latched, state.latch_times)
+        f = lambda tt, qq, vv: constrained_accelerations(model, tt, qq, vv, Q, state.latched)
         a1, lam = f(t, q, v)
         v2 = v + half * a1
         a2 = f(t + half, q + half * v, v2)[0]
@@ -247,8 +257,8 @@ class GeneralizedAlpha:
         self._start_acceleration = 0.0   # max |q''_0| of the state initialized last, per s^2 (`start_up`)
         self._start = None               # steps h of the start-up left; None: not planned yet
         self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
-        self._lu = None              # (model, IterationLU, NewtonKernel or None): how that model's iteration matrix
-                                     # is factorized, and its compiled iteration (newton_kernel.py)
+        self._lu = None              # (model, IterationLU, StepKernel or None): how that model's iteration matrix
+                                     # is factorized, and its compiled iteration (step_kernel.py)
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
         self.newton_iterations = 0   # total, for monitoring
 
@@ -285,11 +295,11 @@ class GeneralizedAlpha:
         return state
 
     def _kernel(self, model, n_q):
-        """The compiled Newton iteration (newton_kernel.NewtonKernel) of the model of n_q coordinates, or None: the
+        """The compiled Newton iteration (step_kernel.StepKernel) of the model of n_q coordinates, or None: the
         numpy path."""
         if self._lu is None or self._lu[0] is not model:
             lu = IterationLU(n_q, model.constraint_count, model.iteration_pattern())
-            self._lu = (model, lu, NewtonKernel.for_model(model, lu))
+            self._lu = (model, lu, StepKernel.for_model(model, lu))
         return self._lu[2]
 
     def _factor(self, model, t, q, dq, latched, lam, h):
@@ -379,7 +389,7 @@ class GeneralizedAlpha:
         factorized_here = self._matrix is None or self._matrix[0] != h or predictor == "displacement"
         kernel = self._kernel(model, n)
         if kernel is not None:
-            kernel.prepare(t, Q, state.latched)
+            kernel.prepare((t,), Q, state.latched)
         if factorized_here:
             self._factor(model, t, q, dq, state.latched, lam, h)
         # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
@@ -393,7 +403,7 @@ class GeneralizedAlpha:
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
         rhs = None if kernel is not None else np.empty(n + model.constraint_count)    # `_correct`'s
         for iteration in range(self.max_iterations):
-            if kernel is not None:                # the same correction in one compiled call (newton_kernel.py)
+            if kernel is not None:                # the same correction in one compiled call (step_kernel.py)
                 size = kernel.correct(q, dq, ddq, lam, beta_p, gamma_p, self._matrix[1]) if n else 0.0
                 if size is None:
                     raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")

@@ -107,7 +107,7 @@ class IterationLU:
 
     def storage(self):
         """Where `factor` puts S and b' G in LAPACK's storage (Fortran order, flat), for a caller that fills it
-        itself (the compiled Newton iteration, newton_kernel.py): (rows of the storage, then (target, source) of the
+        itself (the compiled step, step_kernel.py): (rows of the storage, then (target, source) of the
         S entries (source flat into (n_q, n_q)), of b' G's and of b' G^T's (source flat into (m, n_q))). Band storage
         ((2 kl + ku + 1) rows) when `banded`, else the dense (n_q + m) rows."""
         if self.banded:

@@ -1,12 +1,14 @@
-"""Generalized-alpha's Newton iteration on the ANCF structure in compiled calls: newton_kernels.c on buffers allocated
-once per model.
+"""The structure unit's step on the ANCF models in compiled calls: step_kernels.c on buffers allocated once per model.
 
-`NewtonKernel.correct` takes one Newton correction (the residual of the equations of motion and of the scaled
-constraints, its solve with the factorized iteration matrix, the update of q, q', q'' and lambda) and
-`NewtonKernel.factor` forms and factorizes the iteration matrix, each in one C call; integrators.GeneralizedAlpha
-keeps the iteration's control (predictor, convergence test, refactorization) in Python for both paths. The numpy
-path of model.StructureModel with iteration_lu.IterationLU stays the reference ($WINGSIM_KERNELS=numpy): the
-iteration matrix is the same bit for bit, the residual equal to round-off (tests/units/test_newton_kernel.py).
+For generalized-alpha, `StepKernel.correct` takes one Newton correction (the residual of the equations of motion and
+of the scaled constraints, its solve with the factorized iteration matrix, the update of q, q', q'' and lambda) and
+`StepKernel.factor` forms and factorizes the iteration matrix, each in one C call; integrators.GeneralizedAlpha keeps
+the iteration's control (predictor, convergence test, refactorization) in Python for both paths. For RK4,
+`StepKernel.rk4_step` takes the whole step (four stages of the index-1 accelerations and the projection onto the
+constraints) in one call. The numpy path of model.StructureModel, iteration_lu.IterationLU and integrators.RK4 stays
+the reference ($WINGSIM_KERNELS=numpy): the iteration matrix is the same bit for bit, the residual, the
+accelerations and the states equal to round-off, and the Newton iterations the same
+(tests/units/test_step_kernel.py).
 
 The kernel covers the rigid and flexible ANCF bodies with prescribed motions, unit-length, orthogonality and linear
 constraint rows, chord-axis hinges, and no or mass-proportional damping (`unsupported` names what else a model has);
@@ -27,11 +29,15 @@ from . import element
 from .joints import actuator_spring, hinge_coordinates
 from .model import StructureModel
 
-C_SOURCE = Path(__file__).with_name("newton_kernels.c")    # the compiled iteration (fmu_common.c_library)
+C_SOURCE = Path(__file__).with_name("step_kernels.c")    # the compiled step (fmu_common.c_library)
 _LONG = np.dtype(ctypes.c_long)                            # C long: 64 bits on Linux, 32 on Windows
-_POINTERS = ("t_ptr", "t_col", "t_val", "offset", "rate_offset", "f_constant", "r_constant", "m_ptr", "m_col", "m_val",
-             "mass")
-_FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")] + [(name, ctypes.c_void_p) for name in _POINTERS]
+WORK = ("E", "dE", "F", "Fq", "values", "S", "G", "rhs", "ordered", "MinvGt", "schur", "stage_q", "stage_v",
+        "accelerations", "multipliers", "vector")      # step_kernels.c's work arrays
+_FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")]
+           + [(name, ctypes.c_void_p) for name in ("t_ptr", "t_col", "t_val", "offset", "rate_offset", "accel_offset")]
+           + [("moving", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("f_constant", "r_constant", "m_ptr", "m_col", "m_val", "mass",
+                                                    "mass_inverse")]
            + [("damped", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in ("c_ptr", "c_col", "c_val", "damping")]
            + [("n_elements", ctypes.c_long), ("gauss", ctypes.c_long)]
            + [(name, ctypes.c_void_p) for name in ("table", "dofs", "add_elastic_force", "elastic_jacobian",
@@ -48,26 +54,29 @@ _FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")] + [(name, ctype
            + [(name, ctypes.c_void_p) for name in ("assembly_source", "assembly_target", "assembly_weight")]
            + [(name, ctypes.c_long) for name in ("banded", "lower", "upper", "rows", "n_s", "n_g")]
            + [(name, ctypes.c_void_p) for name in ("s_target", "s_source", "g_target", "g_source", "gt_target",
-                                                    "gt_source", "order", "gbtrf", "gbtrs", "getrf", "getrs")]
-           + [(name, ctypes.c_void_p) for name in ("E", "dE", "F", "values", "S", "G", "rhs", "ordered")])
+                                                    "gt_source", "order", "getrf", "getrs")]
+           + [(name, ctypes.c_void_p) for name in WORK])
+STAGES = 3      # step_kernels.c: the times a step evaluates (generalized-alpha: its end; RK4: t, t + h/2, t + h)
 
 
 class _Struct(ctypes.Structure):
-    _fields_ = _FIELDS       # newton_kernels.c's NewtonKernel, field for field
+    _fields_ = _FIELDS       # step_kernels.c's StepKernel, field for field
 
 
 _DOUBLES = ctypes.POINTER(ctypes.c_double)
 
 
 def c_kernels():
-    """The C library of newton_kernels.c (fmu_common.c_library), typed; None when $WINGSIM_KERNELS selects the
+    """The C library of step_kernels.c (fmu_common.c_library), typed; None when $WINGSIM_KERNELS selects the
     numpy path (or the library can be neither found nor compiled: then one warning says why)."""
     pointer = ctypes.c_void_p
     return c_library.kernels(C_SOURCE, {
         "newton_correction": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer,
                                              ctypes.c_double, ctypes.c_double, pointer, pointer, _DOUBLES]),
         "newton_factor": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, ctypes.c_double,
-                                         ctypes.c_double, pointer, pointer])})
+                                         ctypes.c_double, pointer, pointer]),
+        "rk4_step": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, ctypes.c_double, pointer, pointer,
+                                    pointer, pointer])})
 
 
 def _lapack(name):
@@ -113,19 +122,22 @@ class Factorization:
     pivots: np.ndarray
 
 
-class NewtonKernel:
-    """The compiled Newton iteration of one model (module docstring). Build it with `for_model`.
+class StepKernel:
+    """The compiled step of one model (module docstring). Build it with `for_model`.
 
     Args:
         model: a StructureModel that `unsupported` accepts.
-        lu: the model's iteration_lu.IterationLU (its storage: banded or dense).
-        kernels: the library of newton_kernels.c (`c_kernels`).
+        lu: the model's iteration_lu.IterationLU (its storage: banded or dense), or None: no Newton iteration
+            (`factor` and `correct` refuse; RK4 needs none).
+        kernels: the library of step_kernels.c (`c_kernels`).
         elements: the library of element_kernels.c (element.c_kernels).
     """
 
     def __init__(self, model, lu, kernels, elements):
-        self._correct, self._factor = kernels.newton_correction, kernels.newton_factor
+        self._correct, self._factor, self._rk4 = kernels.newton_correction, kernels.newton_factor, kernels.rk4_step
+        self._model = model
         n, n_q, m = model.n, model.T.shape[1], model.constraint_count
+        self.n_q, self.m = n_q, m
         keep = self._keep = {}     # every array the struct points at, held for the object's life
 
         def hold(name, array, dtype=float):
@@ -135,18 +147,23 @@ class NewtonKernel:
         t_ptr, t_col, t_val = model.map.csr()
         mass = scipy.sparse.csr_array(model.mass_q)
         damping = model.reduced_damping
-        sparse_damping = scipy.sparse.csr_array(damping if damping is not None else np.zeros((n_q, n_q)))
-        # set per step (`prepare`): P p, P p', the constant force on E and the constant residual terms on q
-        self.offset, self.rate_offset, self.f_constant, self.r_constant = (np.zeros(k) for k in (n, n, n, n_q))
+        no_damping = np.zeros((n_q, n_q))
+        sparse_damping = scipy.sparse.csr_array(damping if damping is not None else no_damping)
+        # set per step (`prepare`), per stage: P p, P p', P p'', the force on E that does not depend on E and the
+        # reduced force's terms that depend on time only
+        self.offset, self.rate_offset, self.accel_offset, self.f_constant = (np.zeros((STAGES, n)) for _ in range(4))
+        self.r_constant = np.zeros((STAGES, n_q))
+        self._moving = model.motion_offsets(0.0)[1] is not None
         struct = dict(n=n, n_q=n_q, m=m, t_ptr=hold("t_ptr", t_ptr, _LONG), t_col=hold("t_col", t_col, _LONG),
                       t_val=hold("t_val", t_val), offset=self.offset.ctypes.data,
-                      rate_offset=self.rate_offset.ctypes.data, f_constant=self.f_constant.ctypes.data,
+                      rate_offset=self.rate_offset.ctypes.data, accel_offset=self.accel_offset.ctypes.data,
+                      moving=int(self._moving), f_constant=self.f_constant.ctypes.data,
                       r_constant=self.r_constant.ctypes.data, m_ptr=hold("m_ptr", mass.indptr, _LONG),
                       m_col=hold("m_col", mass.indices, _LONG), m_val=hold("m_val", mass.data),
-                      mass=hold("mass", model.mass_q), damped=int(damping is not None),
-                      c_ptr=hold("c_ptr", sparse_damping.indptr, _LONG),
+                      mass=hold("mass", model.mass_q), mass_inverse=hold("mass_inverse", model.mass_inverse),
+                      damped=int(damping is not None), c_ptr=hold("c_ptr", sparse_damping.indptr, _LONG),
                       c_col=hold("c_col", sparse_damping.indices, _LONG), c_val=hold("c_val", sparse_damping.data),
-                      damping=hold("damping", damping if damping is not None else np.zeros((n_q, n_q))))
+                      damping=hold("damping", damping if damping is not None else no_damping))
         n_values = 0
         if model.flexible:
             table, _, g = element._table(model.lengths, model._law[1])
@@ -186,33 +203,37 @@ class NewtonKernel:
                           assembly_source=hold("assembly_source", assembly.source, _LONG),
                           assembly_target=hold("assembly_target", assembly.target, _LONG),
                           assembly_weight=hold("assembly_weight", assembly.weight))
-        rows, (s_target, s_source), (g_target, g_source), (gt_target, gt_source) = lu.storage()
         size = n_q + m
-        self._storage = (rows * size, size)
-        struct.update(n_values=n_values, banded=int(lu.banded), lower=lu.lower if lu.banded else 0,
-                      upper=lu.upper if lu.banded else 0, rows=rows, n_s=len(s_target), n_g=len(g_target),
-                      s_target=hold("s_target", s_target, _LONG), s_source=hold("s_source", s_source, _LONG),
-                      g_target=hold("g_target", g_target, _LONG), g_source=hold("g_source", g_source, _LONG),
-                      gt_target=hold("gt_target", gt_target, _LONG), gt_source=hold("gt_source", gt_source, _LONG),
-                      order=hold("order", lu.order if lu.banded else np.zeros(0), _LONG),
-                      **{name: _lapack("d" + name) for name in ("gbtrf", "gbtrs", "getrf", "getrs")})
-        struct.update({name: hold(name, np.zeros(length)) for name, length in (
-            ("E", n), ("dE", n), ("F", n), ("values", max(n_values, 1)), ("S", n_q * n_q), ("G", max(m * n_q, 1)),
-            ("rhs", size), ("ordered", size))})
-        self._struct = _Struct(**struct)
+        self._storage = None
+        if lu is not None:
+            rows, (s_target, s_source), (g_target, g_source), (gt_target, gt_source) = lu.storage()
+            self._storage = (rows * size, size)
+            struct.update(banded=int(lu.banded), lower=lu.lower if lu.banded else 0,
+                          upper=lu.upper if lu.banded else 0, rows=rows, n_s=len(s_target), n_g=len(g_target),
+                          s_target=hold("s_target", s_target, _LONG), s_source=hold("s_source", s_source, _LONG),
+                          g_target=hold("g_target", g_target, _LONG), g_source=hold("g_source", g_source, _LONG),
+                          gt_target=hold("gt_target", gt_target, _LONG),
+                          gt_source=hold("gt_source", gt_source, _LONG),
+                          order=hold("order", lu.order if lu.banded else np.zeros(0), _LONG),
+                          getrf=_lapack("dgetrf"), getrs=_lapack("dgetrs"))
+        lengths = {"E": n, "dE": n, "F": n, "Fq": n_q, "values": n_values, "S": n_q * n_q, "G": m * n_q, "rhs": size,
+                   "ordered": size, "MinvGt": n_q * m, "schur": m * m, "stage_q": n_q, "stage_v": n_q,
+                   "accelerations": 3 * n_q, "multipliers": m, "vector": max(n_q, m)}
+        struct.update({name: hold(name, np.zeros(max(lengths[name], 1))) for name in WORK})
+        self._struct = _Struct(n_values=n_values, **struct)
         self._pointer = ctypes.pointer(self._struct)
         self._size = ctypes.c_double()
         self._size_pointer = ctypes.pointer(self._size)
-        self._model = model
 
     @classmethod
     def for_model(cls, model, lu):
-        """The NewtonKernel of `model` with its IterationLU `lu`, or None: the model is `unsupported`, or
-        $WINGSIM_KERNELS selects the numpy path (or a library is unavailable: one warning has said why).
+        """The StepKernel of `model` (with its IterationLU `lu`, or None for RK4), or None: the model is
+        `unsupported`, or $WINGSIM_KERNELS selects the numpy path (or a library is unavailable: one warning has said
+        why).
 
         Args:
             model: the StructuralModel.
-            lu: its iteration_lu.IterationLU.
+            lu: its iteration_lu.IterationLU, or None.
         """
         if unsupported(model) is not None:
             return None
@@ -222,34 +243,36 @@ class NewtonKernel:
             return None
         return cls(model, lu, kernels, elements)
 
-    def prepare(self, t, Q, latched):
-        """Set what is constant over the step's iteration: the prescribed motion, the force that does not depend on E,
-        the hinges' springs.
+    def prepare(self, times, Q, latched):
+        """Set what depends on time only, at each stage's time: the prescribed motion, the force that does not depend
+        on E, the inertia of the prescribed motion; and the hinges' springs.
 
         Args:
-            t: the time of the step's end, s.
+            times: the stages' times, s: (t,) for generalized-alpha (the step's end), (t, t + h/2, t + h) for RK4.
             Q: (n,) generalized external force on E, N and N m, global frame.
             latched: {hinge: latched}.
         """
         model = self._model
-        Pp, Pdp, ddp = model.motion_offsets(t)
-        self.offset[:] = Pp
-        self.f_constant[:] = model.constant_force_E(t, Q)
-        if Pdp is not None:       # model.force_q's -T^T M_E P p'' and force_E's damping -C_E P p'
-            self.rate_offset[:] = Pdp
-            self.r_constant[:] = model.mass_prescribed @ ddp
-            if model.mass_damping is not None:
-                self.f_constant -= model.mass_damping @ Pdp
+        for stage, t in enumerate(times):
+            Pp, Pdp, ddp = model.motion_offsets(t)
+            self.offset[stage] = Pp
+            self.f_constant[stage] = model.constant_force_E(t, Q)
+            if self._moving:      # model.force_q's -T^T M_E P p'' and force_E's damping -C_E P p'
+                self.rate_offset[stage] = Pdp
+                self.accel_offset[stage] = model.P @ ddp
+                self.r_constant[stage] = model.mass_prescribed @ ddp
+                if model.mass_damping is not None:
+                    self.f_constant[stage] -= model.mass_damping @ Pdp
         for k, h in enumerate(self._hinges):
             stiffness, neutral = actuator_spring(h, latched.get(h.name, False))
             self.hinge_parameters[k] = stiffness, neutral, h.damping, h.torque
 
     def factor(self, q, dq, lam, beta_p, gamma_p):
-        """The factorized iteration matrix at (q, q', lambda) (model.StructureModel.iteration_matrix with
-        iteration_lu.IterationLU.factor); numpy.linalg.LinAlgError if it is singular.
+        """The factorized iteration matrix at (q, q', lambda) and the first stage's time (model.StructureModel.
+        iteration_matrix with iteration_lu.IterationLU.factor); numpy.linalg.LinAlgError if it is singular.
 
         Args:
-            q: (n_q,) generalized coordinates (float64, C-contiguous, as all arrays here).
+            q: (n_q,) generalized coordinates (float64, C-contiguous, writable, as all arrays here).
             dq: (n_q,) their rates, per s.
             lam: (m,) the constraint multipliers.
             beta_p: beta', 1/s^2.
@@ -258,6 +281,8 @@ class NewtonKernel:
         Returns:
             the Factorization.
         """
+        if self._storage is None:
+            raise ValueError("this StepKernel was built without an IterationLU: it has no iteration matrix")
         lu, pivots = np.empty(self._storage[0]), np.empty(self._storage[1], dtype=np.intc)
         status = self._factor(self._pointer, address(q), address(dq), address(lam) if lam.size else None,
                               beta_p, gamma_p, address(lu), address(pivots))
@@ -268,8 +293,8 @@ class NewtonKernel:
         return Factorization(lu, pivots)
 
     def correct(self, q, dq, ddq, lam, beta_p, gamma_p, factorization):
-        """One Newton correction in place on q, q', q'' and lambda; the largest correction of q (NaN if any is), or
-        None when the residual is not finite (nothing updated).
+        """One Newton correction at the first stage's time, in place on q, q', q'' and lambda; the largest correction
+        of q (NaN if any is), or None when the residual is not finite (nothing updated).
 
         Args:
             q: (n_q,) generalized coordinates, updated.
@@ -289,3 +314,28 @@ class NewtonKernel:
             raise ValueError(f"compiled Newton correction failed (status {status}: 2 the element kernel's Gauss "
                              "points, 3 LAPACK's solve)")
         return self._size.value
+
+    def rk4_step(self, q, v, h):
+        """One RK4 step of h with the projection onto the constraints, at the stages' times set by `prepare`
+        (integrators.RK4.step); numpy.linalg.LinAlgError when a Schur complement G M_q^-1 G^T is not positive
+        definite.
+
+        Args:
+            q: (n_q,) generalized coordinates at t.
+            v: (n_q,) their rates, per s.
+            h: the step, s.
+
+        Returns:
+            (q (n_q,), q' (n_q,)) at t + h, the accelerations q'' (n_q,) and multipliers lambda (m,) at t; a state with
+            a hinge whose angle vanished is NaN (the solver's finite check reports it).
+        """
+        q_new, v_new, a1, lam = np.empty(self.n_q), np.empty(self.n_q), np.empty(self.n_q), np.empty(self.m)
+        status = self._rk4(self._pointer, address(q), address(v), h, address(q_new), address(v_new), address(a1),
+                           address(lam) if self.m else None)
+        if status == 1:
+            q_new.fill(np.nan)
+        elif status == 2:
+            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
+        elif status == 3:
+            raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled RK4 step)")
+        return q_new, v_new, a1, lam

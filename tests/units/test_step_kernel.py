@@ -1,11 +1,12 @@
-"""The compiled Newton iteration of generalized-alpha (structure_fmu/newton_kernel.py, newton_kernels.c) against
-the numpy path it replaces (model.StructureModel's residual and iteration matrix).
+"""The compiled structure step (structure_fmu/step_kernel.py, step_kernels.c) against the numpy path it replaces
+(model.StructureModel's residual and iteration matrix, integrators.RK4).
 
 A correction solves A d = r, A = [[S, b' G^T], [b' G, 0]] the iteration matrix and r = [M_q q'' - F + G_q^T lambda,
 b' Phi] the residual (Peng et al. 2019, Fig. 3). The compiled correction d, read back from the updated q and
 lambda, is checked by its backward error against the reference's A and r: |A d - r| must be round-off of the terms
-(independent of A's condition number, 1e7 and more here). Whole runs on both paths take the same Newton iterations
-to the same states.
+(independent of A's condition number, 1e7 and more here). A compiled RK4 step gives the reference's state,
+accelerations and multipliers to round-off. Whole runs on both paths take the same Newton iterations to the same
+states.
 """
 import numpy as np
 import pytest
@@ -13,9 +14,9 @@ import pytest
 import structure_fmu.integrators as integrators
 from fmu_common.specs import StructureUnitSpec
 from orchestrator.scene.load import load_scene
-from structure_fmu.integrators import GeneralizedAlpha
+from structure_fmu.integrators import RK4, GeneralizedAlpha, State
 from structure_fmu.iteration_lu import IterationLU
-from structure_fmu.newton_kernel import NewtonKernel, unsupported
+from structure_fmu.step_kernel import StepKernel, unsupported
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 
@@ -57,8 +58,8 @@ def test_a_correction_solves_the_reference_equations(scene, overrides, latched):
     inertia, coupling = model.mass_product(q, t, ddq), lam @ G
     r = np.concatenate([inertia - F + coupling, beta_p * model.constraint_residual(q, E)])
     # the compiled correction
-    kernel = NewtonKernel.for_model(model, IterationLU(n_q, m, model.iteration_pattern()))
-    kernel.prepare(t, Q, latches)
+    kernel = StepKernel.for_model(model, IterationLU(n_q, m, model.iteration_pattern()))
+    kernel.prepare((t,), Q, latches)
     factorization = kernel.factor(q, dq, lam, beta_p, gamma_p)
     q1, dq1, ddq1, lam1 = q.copy(), dq.copy(), ddq.copy(), lam.copy()
     size = kernel.correct(q1, dq1, ddq1, lam1, beta_p, gamma_p, factorization)
@@ -70,21 +71,42 @@ def test_a_correction_solves_the_reference_equations(scene, overrides, latched):
     np.testing.assert_allclose(ddq - ddq1, beta_p * (q - q1), rtol=1e-9, atol=1e-12 * np.abs(ddq).max())
 
 
+@pytest.mark.parametrize("scene, overrides, latched", CASES)
+def test_an_rk4_step_is_the_reference_step(scene, overrides, latched, monkeypatch):
+    model = model_of(scene, overrides)
+    rng = np.random.default_rng(2)
+    q, v, _, _ = generic_state(model, rng)
+    Q = rng.standard_normal(model.n)
+    h = 1e-5
+    state = State(0.0123, q, v, np.zeros_like(q), np.zeros_like(q), np.zeros(model.constraint_count),
+                  {hinge.name: latched for hinge in model.hinges}, {})
+    rk4 = RK4()
+    compiled = rk4.step(model, state, h, Q)
+    assert rk4._kernel[1] is not None          # the compiled step ran
+    monkeypatch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
+    reference = RK4().step(model, state, h, Q)
+    for name in ("q", "dq", "ddq", "multipliers"):
+        value, expected = getattr(compiled, name), getattr(reference, name)
+        np.testing.assert_allclose(value, expected, rtol=0, atol=1e-12 * max(np.abs(expected).max(initial=0), 1.0),
+                                   err_msg=name)
+
+
 def run(scene, compiled, steps, monkeypatch, overrides=()):
     """A StructureSolver of the scene stepped `steps` times 1 ms in still air on the compiled or the numpy path:
     (E, Newton iterations)."""
     with monkeypatch.context() as patch:
         if not compiled:
-            patch.setattr(integrators.NewtonKernel, "for_model", classmethod(lambda cls, model, lu: None))
+            patch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
         solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", overrides)))
-        assert isinstance(solver.integrator, GeneralizedAlpha)
         Q = np.zeros(len(solver.e))
         for k in range(1, steps + 1):
             solver.advance(k * 1e-3, Q)
-        return solver.e.copy(), solver.integrator.newton_iterations
+        integrator = solver.integrator
+        return solver.e.copy(), integrator.newton_iterations if isinstance(integrator, GeneralizedAlpha) else None
 
 
-@pytest.mark.parametrize("scene, steps", [("deploy_flexible", 40), ("rotating_beam", 40), ("spin_up", 40)])
+@pytest.mark.parametrize("scene, steps", [("deploy_flexible", 40), ("rotating_beam", 40), ("spin_up", 40),
+                                          ("deploy_rigid", 300)])
 def test_runs_match_the_numpy_path(scene, steps, monkeypatch):
     E, iterations = run(scene, True, steps, monkeypatch)
     E_reference, iterations_reference = run(scene, False, steps, monkeypatch)
@@ -101,11 +123,11 @@ def test_runs_match_the_numpy_path(scene, steps, monkeypatch):
 def test_other_models_take_the_numpy_path(scene, reason):
     model = model_of(scene)
     assert unsupported(model) == reason
-    assert NewtonKernel.for_model(model, None) is None
+    assert StepKernel.for_model(model, None) is None
 
 
 def test_numpy_kernels_select_the_numpy_path(monkeypatch):
     monkeypatch.setenv("WINGSIM_KERNELS", "numpy")
     model = model_of("deploy_flexible")
-    assert NewtonKernel.for_model(model, IterationLU(len(model.initial_coordinates()), model.constraint_count,
+    assert StepKernel.for_model(model, IterationLU(len(model.initial_coordinates()), model.constraint_count,
                                                      model.iteration_pattern())) is None

@@ -1,0 +1,545 @@
+/* The structure unit's step on the ANCF models in C, on buffers allocated once (step_kernel.py): generalized-alpha's
+ * Newton correction and the factorization of its iteration matrix, one call each, and a whole RK4 step with its
+ * constraint projection in one call. The reference is the numpy path of model.StructureModel (force_q, mass_product,
+ * constraint_*, iteration_matrix), iteration_lu.IterationLU and integrators.RK4 ($WINGSIM_KERNELS=numpy); the tests
+ * compare both (tests/units/test_step_kernel.py).
+ *
+ * The model (Otsuka et al. 2019, Eqs. 4-5):
+ *   E = T q + P p, E' = T q' + P p' (T by its nonzero entries, CSR by rows of E; the prescribed parts per stage)
+ *   F(E, E') = f_constant + elastic(E) - sum_h torque_h grad_h     (gravity, point loads and Q in f_constant)
+ *   F_q = T^T F - C_q q' - r_constant                              (r_constant: T^T M_E P p'' + T^T C_E P p')
+ *   M_q q'' + G_q^T lambda = F_q,  Phi(E) = 0
+ * with the ANCF elastic force and its Hessian from element_kernels.c (passed in as function pointers), the
+ * chord-axis hinges' spring actuators (joints.fold_angle_gradient, joints.actuator_torque), the mass-proportional
+ * damping as its reduced matrix C_q, and the constraint rows: unit length and orthogonality Phi_i = c_i X_a . X_b +
+ * c0_i, then the linear rows L E - c (constraints.Constraints). What varies with time only (the prescribed motion,
+ * the loads, the latches) is set by the caller per stage: stage 0 is t (generalized-alpha: the step's end), 1 and 2
+ * RK4's t + h/2 and t + h.
+ *
+ * Generalized-alpha (Peng et al. 2019, Eqs. 23-25 and Fig. 3): the residual [M_q q'' - F_q + G_q^T lambda, beta' Phi]
+ * and the iteration matrix [[S, beta' G^T], [beta' G, 0]],
+ *   S = T^T (K_elastic + sum_i lambda_i H_i + sum_h (k_h + gamma' c_h) grad_h grad_h^T) T + gamma' C_q + beta' M_q,
+ * summed in the reference's order (the assembly's entries in turn, then gamma' C_q, then beta' M_q), so that S and G
+ * are the reference's bit for bit, gathered into LAPACK's band (or dense) storage; the band is factorized here
+ * (LAPACK dgbtf2's algorithm), a dense matrix by LAPACK (scipy's, through function pointers).
+ *
+ * RK4 (Otsuka et al. 2019, Sec. VI; integrators.RK4 and integrators.constrained_accelerations): at each stage q'' and
+ * lambda from the index-1 equations by the Schur complement G M_q^-1 G^T (Cholesky), then the mass-weighted
+ * projection of q and q' onto the constraints.
+ *
+ * The sums run in another order than numpy's products: the residual, the accelerations and the states agree with the
+ * reference to round-off. Arithmetic: IEEE double, built with -ffp-contract=off like the other kernels.
+ */
+#include <math.h>
+#include <string.h>
+
+typedef int (*elastic_add_t)(long n, long g, const double *table, const double *E, const long long *dofs,
+                             double *scratch, double *F);
+typedef int (*elastic_jacobian_t)(long n, long g, const double *table, const double *e, double *out);
+typedef void (*getrf_t)(int *m, int *n, double *a, int *lda, int *ipiv, int *info);
+typedef void (*getrs_t)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv, double *b, int *ldb,
+                        int *info);
+
+#define STAGES 3                     /* the times a step evaluates: t, t + h/2, t + h */
+#define PROJECTIONS 4                /* integrators.project: Newton projections of q at most */
+#define PROJECTION_TOLERANCE 1e-13   /* integrators.project: |Phi_i| below which q is on the constraints */
+
+/* What the step reads and writes; every array C-contiguous, allocated by step_kernel.py. */
+typedef struct {
+    long n, n_q, m;                  /* lengths of E and q, constraint rows */
+    const long *t_ptr, *t_col;       /* T: CSR over the n rows of E */
+    const double *t_val;
+    const double *offset;            /* (STAGES, n) P p */
+    const double *rate_offset;       /* (STAGES, n) P p' */
+    const double *accel_offset;      /* (STAGES, n) P p'' (the constraints' acceleration term) */
+    long moving;                     /* 1: the prescribed motion moves (P p', P p'' not zero) */
+    const double *f_constant;        /* (STAGES, n) gravity, point loads and Q, N and N m */
+    const double *r_constant;        /* (STAGES, n_q) the reduced force's terms that depend on time only */
+    const long *m_ptr, *m_col;       /* M_q: CSR (n_q rows) */
+    const double *m_val;
+    const double *mass;              /* (n_q, n_q) M_q dense, for the iteration matrix */
+    const double *mass_inverse;      /* (n_q, n_q) M_q^-1 (RK4) */
+    long damped;                     /* 1: C_q below */
+    const long *c_ptr, *c_col;       /* C_q: CSR (n_q rows) */
+    const double *c_val;
+    const double *damping;           /* (n_q, n_q) C_q dense */
+    /* elastic force and Hessian (element_kernels.c) */
+    long n_elements, gauss;
+    const double *table;             /* element._table */
+    const long long *dofs;           /* (n_elements, 18) */
+    elastic_add_t add_elastic_force;
+    elastic_jacobian_t elastic_jacobian;
+    double *element_scratch;         /* (36 n_elements,) */
+    /* hinges (chord axis): idx (n_hinges, 9) into E; per hinge stiffness (N m/rad), its neutral angle (rad),
+       damping (N m s/rad) and constant torque (N m): torque k (theta - theta_0) + c theta' + T_const */
+    long n_hinges;
+    const long *hinge_index;
+    const double *hinge_parameters;  /* (n_hinges, 4) */
+    /* the first n_products rows c X_a . X_b + c0: ia, ib (n_products, 3) E indices, coefficient, constant */
+    long n_products;
+    const long *row_a, *row_b;
+    const double *row_coefficient, *row_constant;
+    /* G_q: entries (source into the gathered pairs [X_a, X_b] of the rows (n_products, 6), target row * n_q + col,
+       weight) */
+    long n_jacobian;
+    const long *pair, *jacobian_source, *jacobian_target;
+    const double *jacobian_weight;
+    /* the linear rows after them: L (CSR over E), c, and L T (CSR over q) */
+    const long *l_ptr, *l_col, *lt_ptr, *lt_col;
+    const double *l_val, *l_offset, *lt_val;
+    /* the iteration matrix: its values (elastic blocks, lambda[hessian_row], hinge blocks) into S by the assembly */
+    long n_values, n_assembly;
+    const long *hessian_row;         /* (n_hessian,) the multiplier of each Hessian entry */
+    long n_hessian;
+    const long *assembly_source, *assembly_target;
+    const double *assembly_weight;
+    /* the factorization's storage: S entries (factor position, S flat), G and G^T entries (factor position, G flat) */
+    long banded, lower, upper, rows;  /* band: LAPACK's (2 kl + ku + 1, n_q + m); dense: rows = n_q + m */
+    long n_s, n_g;
+    const long *s_target, *s_source, *g_target, *g_source, *gt_target, *gt_source;
+    const long *order;               /* banded: the unknowns' order */
+    getrf_t getrf; getrs_t getrs;
+    /* work arrays */
+    double *E, *dE, *F, *Fq, *values, *S, *G, *rhs, *ordered;
+    double *MinvGt, *schur, *stage_q, *stage_v, *accelerations, *multipliers, *vector;
+} StepKernel;
+
+/* E = T q + offset, (offset NULL: none). */
+static void map_coordinates(const StepKernel *s, const double *q, const double *offset, double *E) {
+    for (long i = 0; i < s->n; i++) {
+        double acc = offset ? offset[i] : 0.0;
+        for (long k = s->t_ptr[i]; k < s->t_ptr[i + 1]; k++) acc += s->t_val[k] * q[s->t_col[k]];
+        E[i] = acc;
+    }
+}
+
+/* s->E and s->dE at (q, q') and the stage's prescribed motion. */
+static void coordinates(const StepKernel *s, const double *q, const double *dq, int stage) {
+    map_coordinates(s, q, s->offset + stage * s->n, s->E);
+    map_coordinates(s, dq, s->moving ? s->rate_offset + stage * s->n : NULL, s->dE);
+}
+
+/* theta and d theta/dx (9,) of a chord-axis hinge, x = [a, b, n] (joints.fold_angle_gradient, its arithmetic);
+ * returns 0, or 1 when s = c = 0 (no angle: the caller reports a divergence, as the NaN of the reference). */
+static int fold_angle_gradient(const double *x, double *theta, double *grad) {
+    const double a0 = x[0], a1 = x[1], a2 = x[2], b0 = x[3], b1 = x[4], b2 = x[5], n0 = x[6], n1 = x[7], n2 = x[8];
+    const double p0 = a1 * b2 - a2 * b1, p1 = a2 * b0 - a0 * b2, p2 = a0 * b1 - a1 * b0;
+    const double sn = p0 * n0 + p1 * n1 + p2 * n2, c = a0 * b0 + a1 * b1 + a2 * b2;
+    const double r2 = sn * sn + c * c;
+    if (!(r2 > 0.0)) return 1;
+    const double w = 1.0 / r2, cw = c * w, sw = sn * w;
+    grad[0] = cw * (b1 * n2 - b2 * n1) - sw * b0;
+    grad[1] = cw * (b2 * n0 - b0 * n2) - sw * b1;
+    grad[2] = cw * (b0 * n1 - b1 * n0) - sw * b2;
+    grad[3] = cw * (n1 * a2 - n2 * a1) - sw * a0;
+    grad[4] = cw * (n2 * a0 - n0 * a2) - sw * a1;
+    grad[5] = cw * (n0 * a1 - n1 * a0) - sw * a2;
+    grad[6] = cw * p0;
+    grad[7] = cw * p1;
+    grad[8] = cw * p2;
+    *theta = atan2(sn, c);
+    return 0;
+}
+
+/* The hinge h's gradient (9,) at E and its torque (N m) at E, dE; 1 where it has no angle. */
+static int hinge_torque(const StepKernel *s, long h, double *grad, double *torque) {
+    const long *idx = s->hinge_index + 9 * h;
+    const double *p = s->hinge_parameters + 4 * h;
+    double x[9], theta, rate = 0.0;
+    for (int k = 0; k < 9; k++) x[k] = s->E[idx[k]];
+    if (fold_angle_gradient(x, &theta, grad)) return 1;
+    for (int k = 0; k < 9; k++) rate += grad[k] * s->dE[idx[k]];
+    *torque = p[0] * (theta - p[1]) + p[2] * rate + p[3];
+    return 0;
+}
+
+/* y += A x for A in CSR (rows rows). */
+static void csr_add(long rows, const long *ptr, const long *col, const double *val, const double *x, double *y) {
+    for (long i = 0; i < rows; i++) {
+        double acc = 0.0;
+        for (long k = ptr[i]; k < ptr[i + 1]; k++) acc += val[k] * x[col[k]];
+        y[i] += acc;
+    }
+}
+
+/* s->Fq = F_q (n_q,) at s->E, s->dE and q' (model.StructureModel.force_q). Returns 0; 1 where a hinge has no angle;
+ * 2 when the element kernel refuses its Gauss points. */
+static int reduced_force(const StepKernel *s, const double *dq, int stage) {
+    const long n = s->n, n_q = s->n_q;
+    double *F = s->F, *Fq = s->Fq, grad[9], torque;
+    memcpy(F, s->f_constant + stage * n, n * sizeof(double));
+    if (s->n_elements && s->add_elastic_force(s->n_elements, s->gauss, s->table, s->E, s->dofs, s->element_scratch, F))
+        return 2;
+    for (long h = 0; h < s->n_hinges; h++) {
+        if (hinge_torque(s, h, grad, &torque)) return 1;
+        const long *idx = s->hinge_index + 9 * h;
+        for (int k = 0; k < 9; k++) F[idx[k]] -= torque * grad[k];
+    }
+    const double *constant = s->r_constant + stage * n_q;
+    for (long i = 0; i < n_q; i++) Fq[i] = -constant[i];
+    for (long i = 0; i < n; i++)
+        for (long k = s->t_ptr[i]; k < s->t_ptr[i + 1]; k++) Fq[s->t_col[k]] += s->t_val[k] * F[i];
+    if (s->damped)
+        for (long i = 0; i < n_q; i++) {
+            double acc = 0.0;
+            for (long k = s->c_ptr[i]; k < s->c_ptr[i + 1]; k++) acc += s->c_val[k] * dq[s->c_col[k]];
+            Fq[i] -= acc;
+        }
+    return 0;
+}
+
+/* Phi (m,) at s->E. */
+static void constraint_residual(const StepKernel *s, double *phi) {
+    const double *E = s->E;
+    const long np = s->n_products;
+    for (long i = 0; i < np; i++) {
+        const long *a = s->row_a + 3 * i, *b = s->row_b + 3 * i;
+        const double product = E[a[0]] * E[b[0]] + E[a[1]] * E[b[1]] + E[a[2]] * E[b[2]];
+        phi[i] = product * s->row_coefficient[i] + s->row_constant[i];
+    }
+    for (long r = 0; r < s->m - np; r++) {
+        double acc = 0.0;
+        for (long k = s->l_ptr[r]; k < s->l_ptr[r + 1]; k++) acc += s->l_val[k] * E[s->l_col[k]];
+        phi[np + r] = acc - s->l_offset[r];
+    }
+}
+
+/* G_q (m, n_q) dense at s->E. */
+static void constraint_jacobian(const StepKernel *s, double *G) {
+    const long n_q = s->n_q;
+    memset(G, 0, s->m * n_q * sizeof(double));
+    for (long k = 0; k < s->n_jacobian; k++)
+        G[s->jacobian_target[k]] += s->E[s->pair[s->jacobian_source[k]]] * s->jacobian_weight[k];
+    for (long r = 0; r < s->m - s->n_products; r++)
+        for (long k = s->lt_ptr[r]; k < s->lt_ptr[r + 1]; k++) G[(s->n_products + r) * n_q + s->lt_col[k]] = s->lt_val[k];
+}
+
+/* (dPhi/dE) x (m,) at s->E (constraints.Constraints.rate). */
+static void constraint_rate(const StepKernel *s, const double *x, double *out) {
+    const double *E = s->E;
+    const long np = s->n_products;
+    for (long i = 0; i < np; i++) {
+        const long *a = s->row_a + 3 * i, *b = s->row_b + 3 * i;
+        double acc = 0.0;
+        for (int c = 0; c < 3; c++) acc += E[a[c]] * x[b[c]] + E[b[c]] * x[a[c]];
+        out[i] = acc * s->row_coefficient[i];
+    }
+    for (long r = 0; r < s->m - np; r++) {
+        double acc = 0.0;
+        for (long k = s->l_ptr[r]; k < s->l_ptr[r + 1]; k++) acc += s->l_val[k] * x[s->l_col[k]];
+        out[np + r] = acc;
+    }
+}
+
+/* LU of the band matrix in LAPACK's band storage ab (ld rows, n columns; A(r, c) at row kl + ku + r - c of column
+ * c, 0-based; the first kl rows are the fill-in space), with partial pivoting within the band: LAPACK dgbtf2's
+ * algorithm, step for step (first largest pivot, row swaps within the updated columns, the column scaled by the
+ * pivot's reciprocal, the rank-one update), written out: at these bands (kl, ku ~ 20-30) the BLAS calls of LAPACK's
+ * dgbtf2 cost more than their arithmetic. pivots 1-based as LAPACK's. Returns 0, or j + 1 for a zero pivot in
+ * column j (the factorization completed, as LAPACK's info). */
+static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
+    const long kv = ku + kl;
+    int info = 0;
+    long ju = 0;                          /* the last column that row swaps and updates reach so far */
+#define AB(i, j) ab[(j) * ld + (i)]
+    for (long j = ku + 1; j < kv && j < n; j++)          /* the fill-in space of the first columns */
+        for (long i = kv - j; i < kl; i++) AB(i, j) = 0.0;
+    for (long j = 0; j < n; j++) {
+        if (j + kv < n)
+            for (long i = 0; i < kl; i++) AB(i, j + kv) = 0.0;
+        const long km = kl < n - 1 - j ? kl : n - 1 - j;
+        long jp = 0;
+        double largest = fabs(AB(kv, j));
+        for (long i = 1; i <= km; i++)
+            if (fabs(AB(kv + i, j)) > largest) { largest = fabs(AB(kv + i, j)); jp = i; }
+        pivots[j] = (int)(jp + j + 1);
+        if (AB(kv + jp, j) != 0.0) {
+            const long reach = j + ku + jp < n - 1 ? j + ku + jp : n - 1;
+            if (reach > ju) ju = reach;
+            if (jp != 0)
+                for (long k = 0; k <= ju - j; k++) {       /* rows j and j + jp over columns j..ju */
+                    const double t = AB(kv + jp - k, j + k);
+                    AB(kv + jp - k, j + k) = AB(kv - k, j + k);
+                    AB(kv - k, j + k) = t;
+                }
+            if (km > 0) {
+                const double reciprocal = 1.0 / AB(kv, j);
+                for (long i = 1; i <= km; i++) AB(kv + i, j) *= reciprocal;
+                for (long k = 1; k <= ju - j; k++) {       /* A(j+1.., j+k) -= l A(j, j+k) */
+                    const double u = AB(kv - k, j + k);
+                    if (u != 0.0)
+                        for (long i = 1; i <= km; i++) AB(kv - k + i, j + k) -= AB(kv + i, j) * u;
+                }
+            }
+        } else if (info == 0) {
+            info = (int)(j + 1);
+        }
+    }
+    return info;
+}
+
+/* x = A^-1 b in place for band_lu's factors: the row swaps and unit-lower eliminations (LAPACK dgbtrs), then the
+ * upper band of kl + ku superdiagonals backwards (dtbsv). */
+static void band_solve(long n, long kl, long ku, long ld, const double *ab, const int *pivots, double *x) {
+    const long kd = kl + ku;
+    if (kl > 0)
+        for (long j = 0; j < n - 1; j++) {
+            const long lm = kl < n - 1 - j ? kl : n - 1 - j, l = pivots[j] - 1;
+            if (l != j) { const double t = x[l]; x[l] = x[j]; x[j] = t; }
+            const double xj = x[j];
+            if (xj != 0.0)
+                for (long i = 1; i <= lm; i++) x[j + i] -= xj * AB(kd + i, j);
+        }
+    for (long j = n - 1; j >= 0; j--) {
+        if (x[j] != 0.0) {
+            x[j] /= AB(kd, j);
+            const double t = x[j];
+            for (long i = j - 1; i >= 0 && i >= j - kd; i--) x[i] -= t * AB(kd + i - j, j);
+        }
+    }
+#undef AB
+}
+
+/* The band's (or dense matrix's) solve of rhs in place; LAPACK's info. */
+static int solve(const StepKernel *s, const double *lu, const int *pivots, double *rhs) {
+    int size = (int)(s->n_q + s->m), one = 1, info = 0;
+    char trans = 'N';
+    if (s->banded) {
+        for (long i = 0; i < size; i++) s->ordered[i] = rhs[s->order[i]];
+        band_solve(size, s->lower, s->upper, s->rows, lu, pivots, s->ordered);
+        for (long i = 0; i < size; i++) rhs[s->order[i]] = s->ordered[i];
+    } else {
+        s->getrs(&trans, &size, &one, (double *)lu, &size, (int *)pivots, rhs, &size, &info);
+    }
+    return info;
+}
+
+/* One Newton correction of generalized-alpha (integrators.GeneralizedAlpha._newton) at stage 0: the residual
+ * [M_q q'' - F_q + G_q^T lambda, beta' Phi] at (q, q', q'', lambda), solved with the factorized iteration matrix
+ * (lu, pivots), and q -= delta, q' -= gamma' delta, q'' -= beta' delta, lambda -= beta' delta_lambda.
+ * *size = max |delta| on q (NaN if any is). Returns 0; 1 when the residual is not finite (nothing updated); 2 when
+ * the element kernel refuses its Gauss points; 3 when LAPACK's solve fails. */
+int newton_correction(const StepKernel *s, double *q, double *dq, double *ddq, double *lam, double beta_p,
+                      double gamma_p, const double *lu, const int *pivots, double *size) {
+    const long n_q = s->n_q, m = s->m;
+    double *rhs = s->rhs;
+    coordinates(s, q, dq, 0);
+    const int status = reduced_force(s, dq, 0);
+    if (status) return status;
+    memset(rhs, 0, n_q * sizeof(double));
+    csr_add(n_q, s->m_ptr, s->m_col, s->m_val, ddq, rhs);
+    for (long i = 0; i < n_q; i++) rhs[i] -= s->Fq[i];
+    for (long k = 0; k < s->n_jacobian; k++) {
+        const long target = s->jacobian_target[k];
+        rhs[target % n_q] += lam[target / n_q] * (s->E[s->pair[s->jacobian_source[k]]] * s->jacobian_weight[k]);
+    }
+    const long np = s->n_products;
+    for (long r = 0; r < m - np; r++)
+        for (long k = s->lt_ptr[r]; k < s->lt_ptr[r + 1]; k++) rhs[s->lt_col[k]] += lam[np + r] * s->lt_val[k];
+    constraint_residual(s, rhs + n_q);
+    for (long i = 0; i < m; i++) rhs[n_q + i] *= beta_p;
+    double sum = 0.0;
+    for (long i = 0; i < n_q + m; i++) sum += rhs[i];
+    if (!isfinite(sum)) return 1;
+    if (solve(s, lu, pivots, rhs)) return 3;
+    double largest = 0.0;
+    int nan = 0;
+    for (long i = 0; i < n_q; i++) {
+        const double d = rhs[i];
+        q[i] -= d;
+        dq[i] -= gamma_p * d;
+        ddq[i] -= beta_p * d;
+        if (isnan(d)) nan = 1;
+        else if (fabs(d) > largest) largest = fabs(d);
+    }
+    for (long i = 0; i < m; i++) lam[i] -= beta_p * rhs[n_q + i];
+    *size = nan ? NAN : largest;          /* as numpy's max: NaN if any correction is NaN */
+    return 0;
+}
+
+/* The iteration matrix at (q, q', lambda) and stage 0 (model.StructureModel.iteration_matrix, IterationLU.factor)
+ * into lu (band or dense storage, overwritten) and its LU with pivots (1-based, LAPACK's). Returns 0; j + 1 for a
+ * zero pivot in column j (LAPACK's info); -1 where a hinge has no angle; -2 when the element kernel refuses its Gauss
+ * points. */
+int newton_factor(const StepKernel *s, const double *q, const double *dq, const double *lam, double beta_p,
+                  double gamma_p, double *lu, int *pivots) {
+    const long n_q = s->n_q, m = s->m;
+    double *values = s->values, *S = s->S, *G = s->G, grad[9], torque;
+    coordinates(s, q, dq, 0);
+    long v = 0;
+    if (s->n_elements) {       /* the elastic Hessians, element by element (gathered into the scratch) */
+        double *e = s->element_scratch;
+        for (long i = 0; i < 18 * s->n_elements; i++) e[i] = s->E[s->dofs[i]];
+        if (s->elastic_jacobian(s->n_elements, s->gauss, s->table, e, values)) return -2;
+        v = 324 * s->n_elements;
+    }
+    for (long k = 0; k < s->n_hessian; k++) values[v++] = lam[s->hessian_row[k]];
+    for (long h = 0; h < s->n_hinges; h++) {
+        if (hinge_torque(s, h, grad, &torque)) return -1;
+        const double *p = s->hinge_parameters + 4 * h, factor = p[0] + gamma_p * p[2];
+        for (int i = 0; i < 9; i++)
+            for (int j = 0; j < 9; j++) values[v++] = factor * (grad[i] * grad[j]);
+    }
+    memset(S, 0, n_q * n_q * sizeof(double));
+    for (long k = 0; k < s->n_assembly; k++)
+        S[s->assembly_target[k]] += values[s->assembly_source[k]] * s->assembly_weight[k];
+    if (s->damped)
+        for (long i = 0; i < n_q * n_q; i++) S[i] += gamma_p * s->damping[i];
+    for (long i = 0; i < n_q * n_q; i++) S[i] += beta_p * s->mass[i];
+    if (m) {
+        constraint_jacobian(s, G);
+        for (long i = 0; i < m * n_q; i++) G[i] *= beta_p;
+    }
+    const long size = n_q + m;
+    memset(lu, 0, s->rows * size * sizeof(double));
+    for (long k = 0; k < s->n_s; k++) lu[s->s_target[k]] = S[s->s_source[k]];
+    for (long k = 0; k < s->n_g; k++) {
+        lu[s->g_target[k]] = G[s->g_source[k]];
+        lu[s->gt_target[k]] = G[s->gt_source[k]];
+    }
+    if (s->banded) return band_lu(size, s->lower, s->upper, s->rows, lu, pivots);
+    int rows = (int)size, info = 0;
+    s->getrf(&rows, &rows, lu, &rows, pivots, &info);
+    return info;
+}
+
+/* x = S^-1 b in place in b for the symmetric positive definite S (k, k), overwritten by its Cholesky factor L
+ * (lower, S = L L^T, LAPACK dposv's); 1 when S is not positive definite. */
+static int cholesky_solve(long k, double *S, double *b) {
+    for (long j = 0; j < k; j++) {
+        double d = S[j * k + j];
+        for (long p = 0; p < j; p++) d -= S[j * k + p] * S[j * k + p];
+        if (!(d > 0.0)) return 1;
+        d = sqrt(d);
+        S[j * k + j] = d;
+        for (long i = j + 1; i < k; i++) {
+            double acc = S[i * k + j];
+            for (long p = 0; p < j; p++) acc -= S[i * k + p] * S[j * k + p];
+            S[i * k + j] = acc / d;
+        }
+    }
+    for (long i = 0; i < k; i++) {                    /* L y = b */
+        double acc = b[i];
+        for (long p = 0; p < i; p++) acc -= S[i * k + p] * b[p];
+        b[i] = acc / S[i * k + i];
+    }
+    for (long i = k - 1; i >= 0; i--) {               /* L^T x = y */
+        double acc = b[i];
+        for (long p = i + 1; p < k; p++) acc -= S[p * k + i] * b[p];
+        b[i] = acc / S[i * k + i];
+    }
+    return 0;
+}
+
+/* s->MinvGt (n_q, m) = M_q^-1 G^T and s->schur (m, m) = G M_q^-1 G^T for G (m, n_q). */
+static void schur_complement(const StepKernel *s, const double *G) {
+    const long n_q = s->n_q, m = s->m;
+    for (long i = 0; i < n_q; i++)
+        for (long r = 0; r < m; r++) {
+            double acc = 0.0;
+            for (long j = 0; j < n_q; j++) acc += s->mass_inverse[i * n_q + j] * G[r * n_q + j];
+            s->MinvGt[i * m + r] = acc;
+        }
+    for (long r = 0; r < m; r++)
+        for (long c = 0; c < m; c++) {
+            double acc = 0.0;
+            for (long j = 0; j < n_q; j++) acc += G[r * n_q + j] * s->MinvGt[j * m + c];
+            s->schur[r * m + c] = acc;
+        }
+}
+
+/* x -= M_q^-1 G^T y for the Schur solve y = (G M_q^-1 G^T)^-1 b (b overwritten by y); 1 when the complement is not
+ * positive definite. */
+static int subtract_projection(const StepKernel *s, double *b, double *x) {
+    if (cholesky_solve(s->m, s->schur, b)) return 1;
+    for (long i = 0; i < s->n_q; i++) {
+        double acc = 0.0;
+        for (long r = 0; r < s->m; r++) acc += s->MinvGt[i * s->m + r] * b[r];
+        x[i] -= acc;
+    }
+    return 0;
+}
+
+/* q'' (n_q,) and lambda (m,) of the index-1 equations at (q, q') and the stage (integrators.constrained_accelerations):
+ * M_q^-1 F_q less M_q^-1 G^T lambda, lambda from the Schur complement with the right-hand side G M_q^-1 F_q - gamma,
+ * gamma = -(d^2 Phi/dt^2 - G q''). Returns reduced_force's status, or 3 when the complement is not positive
+ * definite (a rank-deficient constraint Jacobian). */
+static int accelerations(const StepKernel *s, const double *q, const double *v, int stage, double *a, double *lam) {
+    const long n_q = s->n_q, m = s->m, np = s->n_products;
+    coordinates(s, q, v, stage);
+    const int status = reduced_force(s, v, stage);
+    if (status) return status;
+    for (long i = 0; i < n_q; i++) {
+        double acc = 0.0;
+        for (long j = 0; j < n_q; j++) acc += s->mass_inverse[i * n_q + j] * s->Fq[j];
+        a[i] = acc;
+    }
+    if (!m) return 0;
+    constraint_jacobian(s, s->G);
+    schur_complement(s, s->G);
+    /* lam = G M^-1 F - gamma, gamma = -2 c dX_a . dX_b (the quadratic rows; 0 on the linear ones) - (dPhi/dE) P p'' */
+    if (s->moving) constraint_rate(s, s->accel_offset + stage * s->n, lam);
+    else memset(lam, 0, m * sizeof(double));
+    for (long i = 0; i < np; i++) {
+        const long *ia = s->row_a + 3 * i, *ib = s->row_b + 3 * i;
+        const double *dE = s->dE;
+        lam[i] += 2.0 * s->row_coefficient[i] * (dE[ia[0]] * dE[ib[0]] + dE[ia[1]] * dE[ib[1]] + dE[ia[2]] * dE[ib[2]]);
+    }
+    for (long r = 0; r < m; r++) {
+        double acc = 0.0;
+        for (long j = 0; j < n_q; j++) acc += s->G[r * n_q + j] * a[j];
+        lam[r] += acc;
+    }
+    return subtract_projection(s, lam, a) ? 3 : 0;
+}
+
+/* The mass-weighted projection of q onto Phi = 0 and of q' onto dPhi/dt = 0 at stage 2 (integrators.project), in
+ * place. Returns 0, or 3 when a Schur complement is not positive definite. */
+static int project(const StepKernel *s, double *q, double *dq) {
+    const int stage = 2;
+    double *phi = s->vector;
+    int on = 0;
+    for (int k = 0; k < PROJECTIONS && !on; k++) {
+        coordinates(s, q, dq, stage);
+        constraint_residual(s, phi);
+        on = 1;
+        for (long i = 0; i < s->m; i++)
+            if (!(-PROJECTION_TOLERANCE < phi[i] && phi[i] < PROJECTION_TOLERANCE)) on = 0;   /* false for NaN */
+        if (on) break;
+        constraint_jacobian(s, s->G);
+        schur_complement(s, s->G);
+        if (subtract_projection(s, phi, q)) return 3;
+    }
+    if (!on) coordinates(s, q, dq, stage);
+    constraint_jacobian(s, s->G);
+    schur_complement(s, s->G);
+    constraint_rate(s, s->dE, phi);
+    return subtract_projection(s, phi, dq) ? 3 : 0;
+}
+
+/* One RK4 step of h (integrators.RK4.step) from (q, v) at the stages' times t, t + h/2, t + h, followed by the
+ * projection: q_new, v_new (n_q,), the first stage's a1 (n_q,) and lambda (m,). Returns 0; 1 where a hinge has no
+ * angle, 2 when the element kernel refuses its Gauss points, 3 when a Schur complement is not positive definite. */
+int rk4_step(const StepKernel *s, const double *q, const double *v, double h, double *q_new, double *v_new,
+             double *a1, double *lam) {
+    const long n_q = s->n_q;
+    const double half = 0.5 * h;
+    double *a2 = s->accelerations, *a3 = a2 + n_q, *a4 = a3 + n_q, *sq = s->stage_q, *sv = s->stage_v;
+    double *v2 = v_new;                                    /* v2 is kept in v_new until the end */
+    int status = accelerations(s, q, v, 0, a1, lam);
+    if (status) return status;
+    for (long i = 0; i < n_q; i++) { v2[i] = v[i] + half * a1[i]; sq[i] = q[i] + half * v[i]; }
+    if ((status = accelerations(s, sq, v2, 1, a2, s->multipliers))) return status;
+    for (long i = 0; i < n_q; i++) { sv[i] = v[i] + half * a2[i]; sq[i] = q[i] + half * v2[i]; }
+    if ((status = accelerations(s, sq, sv, 1, a3, s->multipliers))) return status;
+    for (long i = 0; i < n_q; i++) { sq[i] = q[i] + h * sv[i]; sv[i] = v[i] + h * a3[i]; }
+    if ((status = accelerations(s, sq, sv, 2, a4, s->multipliers))) return status;
+    /* the weights h/6 (1, 2, 2, 1) with the stage rates v_i = v + c_i h a_{i-1} substituted (integrators.RK4.step) */
+    const double h2 = h * h / 6, h6 = h / 6;
+    for (long i = 0; i < n_q; i++) {
+        const double a23 = a2[i] + a3[i];
+        q_new[i] = q[i] + h * v[i] + h2 * (a1[i] + a23);
+        v_new[i] = v[i] + h6 * (a1[i] + a4[i] + 2.0 * a23);
+    }
+    return s->m ? project(s, q_new, v_new) : 0;
+}
