@@ -11,8 +11,8 @@ accelerations and the states equal to round-off, and the Newton iterations the s
 (tests/units/test_step_kernel.py).
 
 The kernel covers the rigid and flexible ANCF bodies with prescribed motions, unit-length, orthogonality and linear
-constraint rows, chord-axis hinges, and no or mass-proportional damping (`unsupported` names what else a model has);
-any other model takes the numpy path.
+constraint rows, chord-axis hinges, and damping of either model (`unsupported` names what else a model has); any
+other model takes the numpy path.
 """
 import ctypes
 from dataclasses import dataclass
@@ -32,7 +32,7 @@ from .model import StructureModel
 C_SOURCE = Path(__file__).with_name("step_kernels.c")    # the compiled step (fmu_common.c_library)
 _LONG = np.dtype(ctypes.c_long)                            # C long: 64 bits on Linux, 32 on Windows
 WORK = ("E", "dE", "F", "Fq", "values", "S", "G", "rhs", "ordered", "MinvGt", "schur", "stage_q", "stage_v",
-        "accelerations", "multipliers", "vector")      # step_kernels.c's work arrays
+        "accelerations", "multipliers", "vector", "body_work")      # step_kernels.c's work arrays
 _FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")]
            + [(name, ctypes.c_void_p) for name in ("t_ptr", "t_col", "t_val", "offset", "rate_offset", "accel_offset")]
            + [("moving", ctypes.c_long)]
@@ -43,6 +43,9 @@ _FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")]
            + [(name, ctypes.c_void_p) for name in ("table", "dofs", "add_elastic_force", "elastic_jacobian",
                                                     "element_scratch")]
            + [("n_hinges", ctypes.c_long), ("hinge_index", ctypes.c_void_p), ("hinge_parameters", ctypes.c_void_p)]
+           + [("n_damped", ctypes.c_long)]
+           + [(name, ctypes.c_void_p) for name in ("body_start", "body_size", "body_mass_offset", "body_alpha",
+                                                    "body_mass")]
            + [("n_products", ctypes.c_long)]
            + [(name, ctypes.c_void_p) for name in ("row_a", "row_b", "row_coefficient", "row_constant")]
            + [("n_jacobian", ctypes.c_long)]
@@ -108,8 +111,6 @@ def unsupported(model):
         return "redundant constraint rows"
     if any(h.axis_slot is None for h in model.hinges):
         return "a revolute joint whose axis is not a shared chord"
-    if model.mass_damping is None and model.damped_bodies:
-        return "deformation damping"
     return None
 
 
@@ -197,6 +198,16 @@ class StepKernel:
                           hessian_row=hold("hessian_row", hessian_rows, _LONG), n_hessian=len(hessian_rows))
             n_values += len(hessian_rows)
         n_values += 81 * len(self._hinges)
+        bodies = model.damped_bodies if model.mass_damping is None else []     # damping.py's, by body
+        sizes = [len(idx) for _, idx, _ in bodies]
+        struct.update(n_damped=len(bodies), body_start=hold("body_start", [idx[0] for _, idx, _ in bodies], _LONG),
+                      body_size=hold("body_size", sizes, _LONG),
+                      body_mass_offset=hold("body_mass_offset", np.cumsum([0] + [k * k for k in sizes])[:-1], _LONG),
+                      body_alpha=hold("body_alpha", [alpha for alpha, _, _ in bodies]),
+                      body_mass=hold("body_mass", np.concatenate([mass.ravel() for _, _, mass in bodies] or [[]])))
+        if any(np.any(np.diff(idx) != 1) for _, idx, _ in bodies):
+            raise ValueError("a damped body's coordinates are not contiguous in E")
+        n_values += sum(k * k for k in sizes)
         assembly = model.tangent_assembly
         if assembly is not None:
             struct.update(n_assembly=len(assembly.source),
@@ -218,7 +229,8 @@ class StepKernel:
                           getrf=_lapack("dgetrf"), getrs=_lapack("dgetrs"))
         lengths = {"E": n, "dE": n, "F": n, "Fq": n_q, "values": n_values, "S": n_q * n_q, "G": m * n_q, "rhs": size,
                    "ordered": size, "MinvGt": n_q * m, "schur": m * m, "stage_q": n_q, "stage_v": n_q,
-                   "accelerations": 3 * n_q, "multipliers": m, "vector": max(n_q, m)}
+                   "accelerations": 3 * n_q, "multipliers": m, "vector": max(n_q, m),
+                   "body_work": 18 * max(sizes, default=0)}
         struct.update({name: hold(name, np.zeros(max(lengths[name], 1))) for name in WORK})
         self._struct = _Struct(n_values=n_values, **struct)
         self._pointer = ctypes.pointer(self._struct)

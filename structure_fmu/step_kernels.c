@@ -11,14 +11,16 @@
  *   M_q q'' + G_q^T lambda = F_q,  Phi(E) = 0
  * with the ANCF elastic force and its Hessian from element_kernels.c (passed in as function pointers), the
  * chord-axis hinges' spring actuators (joints.fold_angle_gradient, joints.actuator_torque), the mass-proportional
- * damping as its reduced matrix C_q, and the constraint rows: unit length and orthogonality Phi_i = c_i X_a . X_b +
+ * damping as its reduced matrix C_q or the damping of deformation (damping.deformation_damping_force, its tangent
+ * alpha (I - P)^T M (I - P) damping.deformation_damping_matrix), and the constraint rows: unit length and orthogonality Phi_i = c_i X_a . X_b +
  * c0_i, then the linear rows L E - c (constraints.Constraints). What varies with time only (the prescribed motion,
  * the loads, the latches) is set by the caller per stage: stage 0 is t (generalized-alpha: the step's end), 1 and 2
  * RK4's t + h/2 and t + h.
  *
  * Generalized-alpha (Peng et al. 2019, Eqs. 23-25 and Fig. 3): the residual [M_q q'' - F_q + G_q^T lambda, beta' Phi]
  * and the iteration matrix [[S, beta' G^T], [beta' G, 0]],
- *   S = T^T (K_elastic + sum_i lambda_i H_i + sum_h (k_h + gamma' c_h) grad_h grad_h^T) T + gamma' C_q + beta' M_q,
+ *   S = T^T (K_elastic + sum_i lambda_i H_i + sum_h (k_h + gamma' c_h) grad_h grad_h^T + gamma' D) T + gamma' C_q
+ *       + beta' M_q,
  * summed in the reference's order (the assembly's entries in turn, then gamma' C_q, then beta' M_q), so that S and G
  * are the reference's bit for bit, gathered into LAPACK's band (or dense) storage; the band is factorized here
  * (LAPACK dgbtf2's algorithm), a dense matrix by LAPACK (scipy's, through function pointers).
@@ -75,6 +77,11 @@ typedef struct {
     long n_hinges;
     const long *hinge_index;
     const double *hinge_parameters;  /* (n_hinges, 4) */
+    /* the bodies whose deformation is damped: E[start..start + size) each, alpha (1/s), its mass block (size, size)
+       at mass_offset in body_mass */
+    long n_damped;
+    const long *body_start, *body_size, *body_mass_offset;
+    const double *body_alpha, *body_mass;
     /* the first n_products rows c X_a . X_b + c0: ia, ib (n_products, 3) E indices, coefficient, constant */
     long n_products;
     const long *row_a, *row_b;
@@ -102,6 +109,7 @@ typedef struct {
     /* work arrays */
     double *E, *dE, *F, *Fq, *values, *S, *G, *rhs, *ordered;
     double *MinvGt, *schur, *stage_q, *stage_v, *accelerations, *multipliers, *vector;
+    double *body_work;               /* (2 size + 9 size) of the largest damped body */
 } StepKernel;
 
 /* E = T q + offset, (offset NULL: none). */
@@ -162,6 +170,123 @@ static void csr_add(long rows, const long *ptr, const long *col, const double *v
     }
 }
 
+/* c = a x b */
+static void cross(const double *a, const double *b, double *c) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* W (3, 9), omega = W d(root)/dt, for the root node's [r, r_x, r_y] (damping.frame_angular_velocity_map): the frame
+ * e_1 = r_x / |r_x|, e_2 = r_y, e_3 = e_1 x e_2, omega = 1/2 sum_i e_i x de_i. */
+static void angular_velocity_map(const double *root, double W[3][9]) {
+    const double *x = root + 3, *y = root + 6;
+    const double nx = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    double e1[3] = {x[0] / nx, x[1] / nx, x[2] / nx}, e3[3], de1[3][3], de3[3][3];
+    cross(e1, y, e3);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) de1[i][j] = ((i == j ? 1.0 : 0.0) - e1[i] * e1[j]) / nx;   /* d e1 / d r_x */
+    for (int j = 0; j < 3; j++) {            /* d e3 / d r_x = -[e2]x de1 = -(e2 x de1[:, j]) */
+        double column[3] = {de1[0][j], de1[1][j], de1[2][j]}, c[3];
+        cross(y, column, c);
+        for (int i = 0; i < 3; i++) de3[i][j] = -c[i];
+    }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) W[i][j] = 0.0;
+    for (int j = 0; j < 3; j++) {
+        double a[3] = {de1[0][j], de1[1][j], de1[2][j]}, b[3] = {de3[0][j], de3[1][j], de3[2][j]}, ca[3], cb[3];
+        cross(e1, a, ca);                    /* [e1]x de1 + [e3]x de3_dx, column j */
+        cross(e3, b, cb);
+        for (int i = 0; i < 3; i++) W[i][3 + j] = 0.5 * (ca[i] + cb[i]);
+        double unit[3] = {0.0, 0.0, 0.0}, cy[3], c3[3], d3[3];
+        unit[j] = 1.0;
+        cross(y, unit, cy);                  /* [e2]x e_j */
+        cross(e1, unit, d3);                 /* d e3 / d r_y = [e1]x, column j */
+        cross(e3, d3, c3);
+        for (int i = 0; i < 3; i++) W[i][6 + j] = 0.5 * (cy[i] + c3[i]);
+    }
+}
+
+/* The arm a rigid rotation of a body acts on at its node j, vector k (0: r - r_root, 1: r_x, 2: r_y). */
+static void arm(const double *E, long j, int k, double *a) {
+    for (int c = 0; c < 3; c++) a[c] = k == 0 ? E[9 * j + c] - E[c] : E[9 * j + 3 * k + c];
+}
+
+/* F[body] += -alpha (I - P)^T M (I - P) dE on every damped body (damping.deformation_damping_force): v = dE less the
+ * rigid velocity of the root frame, y = M v, F = -alpha (y - P^T y), P^T y on the root coordinates only. */
+static void deformation_damping(const StepKernel *s, double *F) {
+    for (long b = 0; b < s->n_damped; b++) {
+        const long start = s->body_start[b], size = s->body_size[b], nodes = size / 9;
+        const double *E = s->E + start, *dE = s->dE + start, *M = s->body_mass + s->body_mass_offset[b];
+        double *v = s->body_work, *y = v + size, W[3][9], omega[3] = {0.0, 0.0, 0.0}, a[3], w[3], sum[3] = {0, 0, 0};
+        angular_velocity_map(E, W);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 9; j++) omega[i] += W[i][j] * dE[j];
+        for (long j = 0; j < nodes; j++)
+            for (int k = 0; k < 3; k++) {
+                arm(E, j, k, a);
+                cross(omega, a, w);
+                for (int c = 0; c < 3; c++) v[9 * j + 3 * k + c] = dE[9 * j + 3 * k + c] - (w[c] + (k == 0 ? dE[c] : 0.0));
+            }
+        for (long i = 0; i < size; i++) {
+            double acc = 0.0;
+            for (long j = 0; j < size; j++) acc += M[i * size + j] * v[j];
+            y[i] = acc;
+        }
+        double moment[3] = {0.0, 0.0, 0.0}, back[9];
+        for (long j = 0; j < nodes; j++)
+            for (int k = 0; k < 3; k++) {
+                arm(E, j, k, a);
+                cross(a, y + 9 * j + 3 * k, w);
+                for (int c = 0; c < 3; c++) moment[c] += w[c];
+                if (k == 0)
+                    for (int c = 0; c < 3; c++) sum[c] += y[9 * j + c];
+            }
+        for (int j = 0; j < 9; j++) back[j] = W[0][j] * moment[0] + W[1][j] * moment[1] + W[2][j] * moment[2];
+        for (int c = 0; c < 3; c++) back[c] += sum[c];
+        for (int j = 0; j < 9; j++) y[j] -= back[j];
+        for (long i = 0; i < size; i++) F[start + i] -= s->body_alpha[b] * y[i];
+    }
+}
+
+/* values[0..size^2) = gamma' alpha (I - P)^T M (I - P) of damped body b (damping.deformation_damping_matrix): P
+ * has 9 nonzero columns (the root's), P9 = -[arm]x W (+ I on the root's r), so that (I - P)^T M (I - P) = M - M P9
+ * - (M P9)^T + P9^T M P9 on the root's rows and columns. */
+static void deformation_damping_block(const StepKernel *s, long b, double gamma_p, double *values) {
+    const long start = s->body_start[b], size = s->body_size[b], nodes = size / 9;
+    const double *E = s->E + start, *M = s->body_mass + s->body_mass_offset[b], alpha = s->body_alpha[b];
+    double *P = s->body_work, *MP = P + 9 * size, W[3][9], a[3];     /* P9 (size, 9), M P9 (size, 9) */
+    angular_velocity_map(E, W);
+    for (long j = 0; j < nodes; j++)
+        for (int k = 0; k < 3; k++) {
+            arm(E, j, k, a);
+            for (int col = 0; col < 9; col++) {       /* -(a x W[:, col]) */
+                double wc[3] = {W[0][col], W[1][col], W[2][col]}, r[3];
+                cross(a, wc, r);
+                for (int c = 0; c < 3; c++)
+                    P[(9 * j + 3 * k + c) * 9 + col] = -r[c] + (k == 0 && col == c ? 1.0 : 0.0);
+            }
+        }
+    for (long i = 0; i < size; i++)
+        for (int col = 0; col < 9; col++) {
+            double acc = 0.0;
+            for (long j = 0; j < size; j++) acc += M[i * size + j] * P[j * 9 + col];
+            MP[i * 9 + col] = acc;
+        }
+    for (long i = 0; i < size; i++)
+        for (long j = 0; j < size; j++) {
+            double x = M[i * size + j];
+            if (j < 9) x -= MP[i * 9 + j];
+            if (i < 9) x -= MP[j * 9 + i];
+            if (i < 9 && j < 9) {
+                double acc = 0.0;
+                for (long k = 0; k < size; k++) acc += P[k * 9 + i] * MP[k * 9 + j];
+                x += acc;
+            }
+            values[i * size + j] = gamma_p * (alpha * x);
+        }
+}
+
 /* s->Fq = F_q (n_q,) at s->E, s->dE and q' (model.StructureModel.force_q). Returns 0; 1 where a hinge has no angle;
  * 2 when the element kernel refuses its Gauss points. */
 static int reduced_force(const StepKernel *s, const double *dq, int stage) {
@@ -175,6 +300,7 @@ static int reduced_force(const StepKernel *s, const double *dq, int stage) {
         const long *idx = s->hinge_index + 9 * h;
         for (int k = 0; k < 9; k++) F[idx[k]] -= torque * grad[k];
     }
+    deformation_damping(s, F);
     const double *constant = s->r_constant + stage * n_q;
     for (long i = 0; i < n_q; i++) Fq[i] = -constant[i];
     for (long i = 0; i < n; i++)
@@ -379,6 +505,10 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
         const double *p = s->hinge_parameters + 4 * h, factor = p[0] + gamma_p * p[2];
         for (int i = 0; i < 9; i++)
             for (int j = 0; j < 9; j++) values[v++] = factor * (grad[i] * grad[j]);
+    }
+    for (long b = 0; b < s->n_damped; b++) {
+        deformation_damping_block(s, b, gamma_p, values + v);
+        v += s->body_size[b] * s->body_size[b];
     }
     memset(S, 0, n_q * n_q * sizeof(double));
     for (long k = 0; k < s->n_assembly; k++)

@@ -26,7 +26,9 @@ CASES = [("deploy_flexible", [], False), ("deploy_flexible", [], True),     # th
          ("scissor_array", [], False),                                       # a chord-axis hinge per scissor
          ("rotating_beam", [], False),                                       # linear constraint rows
          ("spin_up", [], False),                                             # a prescribed root motion
-         ("deploy_rigid", ["structure.integrator=generalized-alpha"], False)]   # rigid bodies: no elastic force
+         ("deploy_rigid", ["structure.integrator=generalized-alpha"], False),   # rigid bodies: no elastic force
+         ("deploy_flexible", ["structure.damping_model=deformation"], True),    # deformation damping
+         ("hale_wing", [], False)]
 
 
 def model_of(scene, overrides=()):
@@ -106,7 +108,7 @@ def run(scene, compiled, steps, monkeypatch, overrides=()):
 
 
 @pytest.mark.parametrize("scene, steps", [("deploy_flexible", 40), ("rotating_beam", 40), ("spin_up", 40),
-                                          ("deploy_rigid", 300)])
+                                          ("deploy_rigid", 300), ("cantilever_large_deflection", 40)])
 def test_runs_match_the_numpy_path(scene, steps, monkeypatch):
     E, iterations = run(scene, True, steps, monkeypatch)
     E_reference, iterations_reference = run(scene, False, steps, monkeypatch)
@@ -115,7 +117,6 @@ def test_runs_match_the_numpy_path(scene, steps, monkeypatch):
 
 
 @pytest.mark.parametrize("scene, reason", [("two_body_003", "a strain-based model"),
-                                           ("hale_wing", "deformation damping"),
                                            ("scissor_wing_flexible", "a revolute joint whose axis is not a shared "
                                                                      "chord"),
                                            ("flared_wingtip", "axis or sliding constraint rows"),
