@@ -390,11 +390,15 @@ static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
                 }
             if (km > 0) {
                 const double reciprocal = 1.0 / AB(kv, j);
-                for (long i = 1; i <= km; i++) AB(kv + i, j) *= reciprocal;
+                long last = 0;                             /* the last nonzero of l: the band is sparse within */
+                for (long i = 1; i <= km; i++) {
+                    AB(kv + i, j) *= reciprocal;
+                    if (AB(kv + i, j) != 0.0) last = i;
+                }
                 for (long k = 1; k <= ju - j; k++) {       /* A(j+1.., j+k) -= l A(j, j+k) */
                     const double u = AB(kv - k, j + k);
                     if (u != 0.0)
-                        for (long i = 1; i <= km; i++) AB(kv - k + i, j + k) -= AB(kv + i, j) * u;
+                        for (long i = 1; i <= last; i++) AB(kv - k + i, j + k) -= AB(kv + i, j) * u;
                 }
             }
         } else if (info == 0) {
@@ -510,19 +514,23 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
         deformation_damping_block(s, b, gamma_p, values + v);
         v += s->body_size[b] * s->body_size[b];
     }
-    memset(S, 0, n_q * n_q * sizeof(double));
+    /* S's entries in the pattern only (the assembly's targets are among them): the assembly's sums, then
+       + gamma' C_q, then + beta' M_q, each entry in the reference's order */
+    for (long k = 0; k < s->n_s; k++) S[s->s_source[k]] = 0.0;
     for (long k = 0; k < s->n_assembly; k++)
         S[s->assembly_target[k]] += values[s->assembly_source[k]] * s->assembly_weight[k];
-    if (s->damped)
-        for (long i = 0; i < n_q * n_q; i++) S[i] += gamma_p * s->damping[i];
-    for (long i = 0; i < n_q * n_q; i++) S[i] += beta_p * s->mass[i];
     if (m) {
         constraint_jacobian(s, G);
         for (long i = 0; i < m * n_q; i++) G[i] *= beta_p;
     }
     const long size = n_q + m;
     memset(lu, 0, s->rows * size * sizeof(double));
-    for (long k = 0; k < s->n_s; k++) lu[s->s_target[k]] = S[s->s_source[k]];
+    for (long k = 0; k < s->n_s; k++) {
+        const long i = s->s_source[k];
+        double x = S[i];
+        if (s->damped) x += gamma_p * s->damping[i];
+        lu[s->s_target[k]] = x + beta_p * s->mass[i];
+    }
     for (long k = 0; k < s->n_g; k++) {
         lu[s->g_target[k]] = G[s->g_source[k]];
         lu[s->gt_target[k]] = G[s->gt_source[k]];
