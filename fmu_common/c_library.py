@@ -195,7 +195,11 @@ def kernels(source: str | Path, signatures: dict) -> ctypes.CDLL | None:
 
 def address(array) -> int:
     """The address of the data of a writable, C-contiguous, non-empty numpy array: array.ctypes.data at a fraction
-    of its cost (the kernels are called thousands of times per simulated second)."""
+    of its cost (the kernels are called thousands of times per simulated second).
+
+    Args:
+        array: the numpy array.
+    """
     return ctypes.addressof(ctypes.c_char.from_buffer(array))
 
 
