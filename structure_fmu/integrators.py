@@ -24,6 +24,7 @@ from scipy.linalg.lapack import dposv
 
 from fmu_common.errors import SceneError, SolverDiverged
 
+from . import iteration_lu, step_kernel
 from .iteration_lu import IterationLU
 from .step_kernel import StepKernel
 
@@ -382,12 +383,15 @@ class GeneralizedAlpha:
             q_scale = max(1.0, float(np.max(np.abs(q if weights is None else weights * q))))
             dq_scale = max(1.0, float(np.max(np.abs(dq if weights is None else weights * dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
+        kernel = self._kernel(model, n)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
-        # saves; refreshing only every second step gains at short steps and loses at long ones.
-        factorized_here = self._matrix is None or self._matrix[0] != h or predictor == "displacement"
-        kernel = self._kernel(model, n)
+        # saves; refreshing only every second step gains at short steps and loses at long ones. A factorization
+        # of the other path (restored from a state saved where $WINGSIM_KERNELS differed) is made again.
+        kind = iteration_lu.Factorization if kernel is None else step_kernel.Factorization
+        factorized_here = (self._matrix is None or self._matrix[0] != h or predictor == "displacement"
+                           or not isinstance(self._matrix[1], kind))
         if kernel is not None:
             kernel.prepare((t,), Q, state.latched)
         if factorized_here:

@@ -519,9 +519,13 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
     for (long k = 0; k < s->n_s; k++) S[s->s_source[k]] = 0.0;
     for (long k = 0; k < s->n_assembly; k++)
         S[s->assembly_target[k]] += values[s->assembly_source[k]] * s->assembly_weight[k];
-    if (m) {
-        constraint_jacobian(s, G);
-        for (long i = 0; i < m * n_q; i++) G[i] *= beta_p;
+    if (m) {                   /* G's entries in the pattern only (constraint_jacobian's, in its order) */
+        for (long k = 0; k < s->n_g; k++) G[s->g_source[k]] = 0.0;
+        for (long k = 0; k < s->n_jacobian; k++)
+            G[s->jacobian_target[k]] += s->E[s->pair[s->jacobian_source[k]]] * s->jacobian_weight[k];
+        for (long r = 0; r < m - s->n_products; r++)
+            for (long k = s->lt_ptr[r]; k < s->lt_ptr[r + 1]; k++)
+                G[(s->n_products + r) * n_q + s->lt_col[k]] = s->lt_val[k];
     }
     const long size = n_q + m;
     memset(lu, 0, s->rows * size * sizeof(double));
@@ -531,9 +535,9 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
         if (s->damped) x += gamma_p * s->damping[i];
         lu[s->s_target[k]] = x + beta_p * s->mass[i];
     }
-    for (long k = 0; k < s->n_g; k++) {
-        lu[s->g_target[k]] = G[s->g_source[k]];
-        lu[s->gt_target[k]] = G[s->gt_source[k]];
+    for (long k = 0; k < s->n_g; k++) {      /* beta' G and beta' G^T */
+        lu[s->g_target[k]] = beta_p * G[s->g_source[k]];
+        lu[s->gt_target[k]] = beta_p * G[s->gt_source[k]];
     }
     if (s->banded) return band_lu(size, s->lower, s->upper, s->rows, lu, pivots);
     int rows = (int)size, info = 0;

@@ -132,3 +132,20 @@ def test_numpy_kernels_select_the_numpy_path(monkeypatch):
     model = model_of("deploy_flexible")
     assert StepKernel.for_model(model, IterationLU(len(model.initial_coordinates()), model.constraint_count,
                                                      model.iteration_pattern())) is None
+
+
+def test_a_factorization_of_the_other_path_is_made_again(monkeypatch):
+    # a solver state saved on one path and restored on the other (a process with another $WINGSIM_KERNELS)
+    # carries the other path's factorization in the integrator's memory; the step factorizes afresh
+    solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "deploy_flexible.toml")))
+    Q = np.zeros(len(solver.e))
+    solver.advance(2e-3, Q)
+    saved = solver.get_state()
+    solver.advance(3e-3, Q)
+    compiled = solver.e.copy()
+    solver.set_state(saved)
+    integrator = solver.integrator
+    monkeypatch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
+    integrator._lu = None                     # the numpy path from here on, with the compiled factorization kept
+    solver.advance(3e-3, Q)
+    np.testing.assert_allclose(solver.e, compiled, rtol=0, atol=1e-11 * np.abs(compiled).max())
