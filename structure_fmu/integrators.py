@@ -26,7 +26,6 @@ from fmu_common.errors import SceneError, SolverDiverged
 
 from . import iteration_lu, step_kernel
 from .iteration_lu import IterationLU
-from .step_kernel import StepKernel
 
 
 @dataclass
@@ -73,6 +72,10 @@ def constrained_accelerations(model, t, q, dq, Q, latched):
     Returns:
         (q'' (n_q,) per s^2, lambda (m,) the constraint multipliers).
     """
+    kernel = step_kernel.kernel_for(model)
+    if kernel is not None:                  # the same solve in one compiled call
+        kernel.prepare((t,), Q, latched)
+        return kernel.accelerations(q, dq)
     F, E, dE, ddp = model.force_q(q, dq, t, Q, latched)
     if model.constraint_count == 0:
         return model.solve_mass(q, t, F), np.zeros(0)
@@ -127,9 +130,6 @@ class RK4:
                        "\"generalized-alpha\"")
     memory = None
 
-    def __init__(self):
-        self._kernel = None          # (model, StepKernel or None)
-
     def reset(self):
         """Nothing to forget: every step starts from the state alone."""
 
@@ -156,9 +156,7 @@ class RK4:
         """
         t, q, v = state.t, state.q, state.dq
         half = 0.5 * h
-        if self._kernel is None or self._kernel[0] is not model:
-            self._kernel = (model, StepKernel.for_model(model, None))
-        kernel = self._kernel[1]
+        kernel = step_kernel.kernel_for(model)
         if kernel is not None:      # the same step in one compiled call
             kernel.prepare((t, t + half, t + h), Q, state.latched)
             q_new, v_new, a1, lam = kernel.rk4_step(q, v, h)
@@ -258,8 +256,8 @@ class GeneralizedAlpha:
         self._start_acceleration = 0.0   # max |q''_0| of the state initialized last, per s^2 (`start_up`)
         self._start = None               # steps h of the start-up left; None: not planned yet
         self._matrix = None          # (h, iteration_lu.Factorization) of the iteration matrix
-        self._lu = None              # (model, IterationLU, StepKernel or None): how that model's iteration matrix
-                                     # is factorized, and its compiled iteration (step_kernel.py)
+        self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized on the
+                                     # numpy path (the compiled step has its own, step_kernel.py)
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
         self.newton_iterations = 0   # total, for monitoring
 
@@ -295,21 +293,15 @@ class GeneralizedAlpha:
         self._start = None
         return state
 
-    def _kernel(self, model, n_q):
-        """The compiled Newton iteration (step_kernel.StepKernel) of the model of n_q coordinates, or None: the
-        numpy path."""
-        if self._lu is None or self._lu[0] is not model:
-            lu = IterationLU(n_q, model.constraint_count, model.iteration_pattern())
-            self._lu = (model, lu, StepKernel.for_model(model, lu))
-        return self._lu[2]
-
     def _factor(self, model, t, q, dq, latched, lam, h):
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
-        kernel = self._kernel(model, len(q))
+        kernel = step_kernel.kernel_for(model)
         if kernel is not None:
             self._matrix = (h, kernel.factor(q, dq, lam, beta_p, gamma_p))
             return
+        if self._lu is None or self._lu[0] is not model:
+            self._lu = (model, IterationLU(len(q), model.constraint_count, model.iteration_pattern()))
         S, E = model.iteration_matrix(t, q, dq, latched, lam, beta_p, gamma_p)
         G = model.constraint_jacobian(q, E) if model.constraint_count else None
         self._matrix = (h, self._lu[1].factor(S, G, beta_p))
@@ -383,7 +375,7 @@ class GeneralizedAlpha:
             q_scale = max(1.0, float(np.max(np.abs(q if weights is None else weights * q))))
             dq_scale = max(1.0, float(np.max(np.abs(dq if weights is None else weights * dq))))
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
-        kernel = self._kernel(model, n)
+        kernel = step_kernel.kernel_for(model)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it

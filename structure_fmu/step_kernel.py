@@ -15,6 +15,7 @@ constraint rows, chord-axis hinges, and damping of either model (`unsupported` n
 other model takes the numpy path.
 """
 import ctypes
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,10 +25,13 @@ from scipy.linalg import cython_lapack
 
 from fmu_common import c_library
 from fmu_common.c_library import address
+from fmu_common.compiled import selected
 
 from . import element
+from .iteration_lu import IterationLU
 from .joints import actuator_spring, hinge_coordinates
 from .model import StructureModel
+from .strain_model import StrainBasedModel
 
 C_SOURCE = Path(__file__).with_name("step_kernels.c")    # the compiled step (fmu_common.c_library)
 _LONG = np.dtype(ctypes.c_long)                            # C long: 64 bits on Linux, 32 on Windows
@@ -79,7 +83,8 @@ def c_kernels():
         "newton_factor": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, ctypes.c_double,
                                          ctypes.c_double, pointer, pointer]),
         "rk4_step": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, ctypes.c_double, pointer, pointer,
-                                    pointer, pointer])})
+                                    pointer, pointer]),
+        "index1_accelerations": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer])})
 
 
 def _lapack(name):
@@ -92,14 +97,37 @@ def _lapack(name):
     return get_pointer(capsule, get_name(capsule))
 
 
+_KERNELS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()     # model -> its StepKernel or None
+
+
+def kernel_for(model):
+    """The model's StepKernel (with the IterationLU of its iteration pattern), built at the first call for the model
+    and shared by its integrator and its other constrained solves; None when the model is `unsupported` or
+    $WINGSIM_KERNELS selects the numpy path (read at every call).
+
+    Args:
+        model: the StructuralModel.
+    """
+    if selected() == "numpy":
+        return None
+    if model not in _KERNELS:
+        lu = None
+        if unsupported(model) is None:
+            lu = IterationLU(len(model.initial_coordinates()), model.constraint_count, model.iteration_pattern())
+        _KERNELS[model] = StepKernel.for_model(model, lu)
+    return _KERNELS[model]
+
+
 def unsupported(model):
     """Why the compiled iteration cannot take this model (a sentence), or None when it can.
 
     Args:
         model: the StructuralModel (structure_fmu.fidelities).
     """
-    if type(model) is not StructureModel:
+    if isinstance(model, StrainBasedModel):
         return "a strain-based model"
+    if type(model) is not StructureModel:
+        return "a model other than the ANCF StructureModel"
     if model.flexible and model._law[0] is not element:
         return "a shear-deformable element"
     if not len(model.initial_coordinates()):
@@ -136,6 +164,7 @@ class StepKernel:
 
     def __init__(self, model, lu, kernels, elements):
         self._correct, self._factor, self._rk4 = kernels.newton_correction, kernels.newton_factor, kernels.rk4_step
+        self._accelerations = kernels.index1_accelerations
         self._model = model
         n, n_q, m = model.n, model.T.shape[1], model.constraint_count
         self.n_q, self.m = n_q, m
@@ -326,6 +355,29 @@ class StepKernel:
             raise ValueError(f"compiled Newton correction failed (status {status}: 2 the element kernel's Gauss "
                              "points, 3 LAPACK's solve)")
         return self._size.value
+
+    def accelerations(self, q, v):
+        """q'' and lambda of the index-1 equations at (q, q') and the first stage's time set by `prepare`
+        (integrators.constrained_accelerations); numpy.linalg.LinAlgError when the Schur complement G M_q^-1 G^T
+        is not positive definite.
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            v: (n_q,) their rates, per s.
+
+        Returns:
+            (q'' (n_q,) per s^2, lambda (m,)); NaN where a hinge's angle vanished.
+        """
+        a, lam = np.empty(self.n_q), np.empty(self.m)
+        status = self._accelerations(self._pointer, address(q), address(v), address(a),
+                                     address(lam) if self.m else None)
+        if status == 1:
+            a.fill(np.nan)
+        elif status == 2:
+            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
+        elif status == 3:
+            raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled step)")
+        return a, lam
 
     def rk4_step(self, q, v, h):
         """One RK4 step of h with the projection onto the constraints, at the stages' times set by `prepare`

@@ -635,6 +635,12 @@ static int accelerations(const StepKernel *s, const double *q, const double *v, 
     return subtract_projection(s, lam, a) ? 3 : 0;
 }
 
+/* q'' (n_q,) and lambda (m,) of the index-1 equations at (q, q') and stage 0's time (integrators.
+ * constrained_accelerations): `accelerations`'s status. */
+int index1_accelerations(const StepKernel *s, const double *q, const double *v, double *a, double *lam) {
+    return accelerations(s, q, v, 0, a, lam);
+}
+
 /* The mass-weighted projection of q onto Phi = 0 and of q' onto dPhi/dt = 0 at stage 2 (integrators.project), in
  * place. Returns 0, or 3 when a Schur complement is not positive definite. */
 static int project(const StepKernel *s, double *q, double *dq) {

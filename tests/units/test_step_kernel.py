@@ -11,12 +11,13 @@ states.
 import numpy as np
 import pytest
 
+from structure_fmu import step_kernel
 import structure_fmu.integrators as integrators
 from fmu_common.specs import StructureUnitSpec
 from orchestrator.scene.load import load_scene
 from structure_fmu.integrators import RK4, GeneralizedAlpha, State
 from structure_fmu.iteration_lu import IterationLU
-from structure_fmu.step_kernel import StepKernel, unsupported
+from structure_fmu.step_kernel import StepKernel, kernel_for, unsupported
 from structure_fmu.solver import StructureSolver
 from repository import SCENES
 
@@ -82,10 +83,9 @@ def test_an_rk4_step_is_the_reference_step(scene, overrides, latched, monkeypatc
     h = 1e-5
     state = State(0.0123, q, v, np.zeros_like(q), np.zeros_like(q), np.zeros(model.constraint_count),
                   {hinge.name: latched for hinge in model.hinges}, {})
-    rk4 = RK4()
-    compiled = rk4.step(model, state, h, Q)
-    assert rk4._kernel[1] is not None          # the compiled step ran
-    monkeypatch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
+    assert kernel_for(model) is not None           # the compiled step runs
+    compiled = RK4().step(model, state, h, Q)
+    monkeypatch.setattr(step_kernel, "kernel_for", lambda model: None)
     reference = RK4().step(model, state, h, Q)
     for name in ("q", "dq", "ddq", "multipliers"):
         value, expected = getattr(compiled, name), getattr(reference, name)
@@ -98,7 +98,7 @@ def run(scene, compiled, steps, monkeypatch, overrides=()):
     (E, Newton iterations)."""
     with monkeypatch.context() as patch:
         if not compiled:
-            patch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
+            patch.setattr(step_kernel, "kernel_for", lambda model: None)
         solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", overrides)))
         Q = np.zeros(len(solver.e))
         for k in range(1, steps + 1):
@@ -130,6 +130,7 @@ def test_other_models_take_the_numpy_path(scene, reason):
 def test_numpy_kernels_select_the_numpy_path(monkeypatch):
     monkeypatch.setenv("WINGSIM_KERNELS", "numpy")
     model = model_of("deploy_flexible")
+    assert kernel_for(model) is None
     assert StepKernel.for_model(model, IterationLU(len(model.initial_coordinates()), model.constraint_count,
                                                      model.iteration_pattern())) is None
 
@@ -145,7 +146,22 @@ def test_a_factorization_of_the_other_path_is_made_again(monkeypatch):
     compiled = solver.e.copy()
     solver.set_state(saved)
     integrator = solver.integrator
-    monkeypatch.setattr(integrators.StepKernel, "for_model", classmethod(lambda cls, model, lu: None))
-    integrator._lu = None                     # the numpy path from here on, with the compiled factorization kept
+    assert integrator.memory[0][1].__class__ is step_kernel.Factorization
+    monkeypatch.setattr(step_kernel, "kernel_for", lambda model: None)    # the numpy path from here on
     solver.advance(3e-3, Q)
     np.testing.assert_allclose(solver.e, compiled, rtol=0, atol=1e-11 * np.abs(compiled).max())
+
+
+@pytest.mark.parametrize("scene, overrides, latched", CASES)
+def test_index1_accelerations_are_the_reference(scene, overrides, latched, monkeypatch):
+    # the probes' accelerations and the integrators' initial ones: integrators.constrained_accelerations
+    model = model_of(scene, overrides)
+    rng = np.random.default_rng(3)
+    q, v, _, _ = generic_state(model, rng)
+    Q = rng.standard_normal(model.n)
+    latches = {hinge.name: latched for hinge in model.hinges}
+    compiled = integrators.constrained_accelerations(model, 0.0123, q, v, Q, latches)
+    monkeypatch.setattr(step_kernel, "kernel_for", lambda model: None)
+    reference = integrators.constrained_accelerations(model, 0.0123, q, v, Q, latches)
+    for value, expected in zip(compiled, reference):
+        np.testing.assert_allclose(value, expected, rtol=0, atol=1e-12 * max(np.abs(expected).max(initial=0), 1.0))
