@@ -6,8 +6,9 @@ The matrix of each Newton step (Peng et al. 2019, Fig. 3, in the index-3 form of
 
 with b' = beta' scaling the constraint rows. A beam's elements couple only neighbouring nodes and its internal
 constraints (Otsuka et al. 2019, Eq. 6) only the coordinates of one node, so A is sparse with a narrow band
-once its unknowns are ordered along the beam (reverse Cuthill-McKee on its pattern). `IterationLU` takes
-the pattern of A (the model's `iteration_pattern`: every entry that can be nonzero) and chooses, once:
+once its unknowns are ordered along the beam. `IterationLU` takes the pattern of A (the model's
+`iteration_pattern`: every entry that can be nonzero) and chooses, once, the order of the unknowns whose band
+costs the least work (`band_order`), and:
 
 * banded: the unknowns reordered, the band gathered from S and G into LAPACK's band storage (dgbtrf/dgbtrs,
   partial pivoting within the band: exact, like the dense LU), when the band's work is well below the dense
@@ -67,6 +68,34 @@ def _scatter(values, order):
     return out
 
 
+def band_order(pattern, n_q):
+    """The order of A's unknowns with the least banded LU work n kl (kl + ku + 1) of two: reverse Cuthill-McKee on
+    the pattern, and the coordinates in their own order with each constraint row after the last coordinate it
+    holds (a beam's coordinates run node by node: deploy_flexible's 158 unknowns have a band of 23 so, 30 by
+    reverse Cuthill-McKee; a scissor array's joints couple distant nodes, where reverse Cuthill-McKee wins).
+
+    Args:
+        pattern: (n_q + m, n_q + m) bool, True wherever A can be nonzero, the diagonal included.
+        n_q: number of generalized coordinates (the first n_q unknowns; the constraint rows follow).
+
+    Returns:
+        (order (n_q + m,) int, kl, ku): the unknowns' order and the band's lower and upper widths in it.
+    """
+    size = len(pattern)
+    rows_last = [np.flatnonzero(pattern[i, :n_q]) for i in range(n_q, size)]
+    key = np.concatenate([np.arange(n_q, dtype=float),
+                          [(r.max() if r.size else n_q) + 0.5 for r in rows_last]])
+    best = None
+    for order in (reverse_cuthill_mckee(scipy.sparse.csr_array(pattern), symmetric_mode=False),
+                  np.argsort(key, kind="stable")):
+        order = np.asarray(order, dtype=np.intp)
+        rows, cols = np.nonzero(pattern[np.ix_(order, order)])
+        lower, upper = int(np.max(rows - cols)), int(np.max(cols - rows))
+        if best is None or lower * (lower + upper + 1) < best[1] * (best[1] + best[2] + 1):
+            best = (order, lower, upper)
+    return best
+
+
 class IterationLU:
     """Factorizes A (module docstring) for a model with n_q coordinates and m constraint rows."""
 
@@ -84,9 +113,7 @@ class IterationLU:
         if pattern is None or size < 2:
             return
         pattern = np.asarray(pattern, dtype=bool) | np.eye(size, dtype=bool)
-        order = reverse_cuthill_mckee(scipy.sparse.csr_array(pattern), symmetric_mode=False).astype(np.intp)
-        rows, cols = np.nonzero(pattern[np.ix_(order, order)])
-        lower, upper = int(np.max(rows - cols)), int(np.max(cols - rows))
+        order, lower, upper = band_order(pattern, n_q)
         if size * max(lower, 1) * (lower + upper + 1) > BANDED_WORK_FRACTION * size ** 3 / 3:
             return
         self.banded, self.order, self.lower, self.upper = True, order, lower, upper
