@@ -62,7 +62,7 @@ _FIELDS = ([(name, ctypes.c_long) for name in ("n", "n_q", "m")]
            + [(name, ctypes.c_long) for name in ("banded", "lower", "upper", "rows", "n_s", "n_g")]
            + [(name, ctypes.c_void_p) for name in ("s_target", "s_source", "g_target", "g_source", "gt_target",
                                                     "gt_source", "order", "getrf", "getrs")]
-           + [(name, ctypes.c_void_p) for name in WORK])
+           + [(name, ctypes.c_void_p) for name in WORK] + [("nonzero", ctypes.c_void_p)])
 STAGES = 3      # step_kernels.c: the times a step evaluates (generalized-alpha: its end; RK4: t, t + h/2, t + h)
 
 
@@ -261,6 +261,7 @@ class StepKernel:
                    "accelerations": 3 * n_q, "multipliers": m, "vector": max(n_q, m),
                    "body_work": 18 * max(sizes, default=0)}
         struct.update({name: hold(name, np.zeros(max(lengths[name], 1))) for name in WORK})
+        struct["nonzero"] = hold("nonzero", np.zeros(max(m * (n_q + 1), 1)), _LONG)
         self._struct = _Struct(n_values=n_values, **struct)
         self._pointer = ctypes.pointer(self._struct)
         self._size = ctypes.c_double()

@@ -110,6 +110,7 @@ typedef struct {
     double *E, *dE, *F, *Fq, *values, *S, *G, *rhs, *ordered;
     double *MinvGt, *schur, *stage_q, *stage_v, *accelerations, *multipliers, *vector;
     double *body_work;               /* (2 size + 9 size) of the largest damped body */
+    long *nonzero;                   /* (m, n_q + 1): per row of G its count of nonzero columns, then the columns */
 } StepKernel;
 
 /* E = T q + offset, (offset NULL: none). */
@@ -576,18 +577,27 @@ static int cholesky_solve(long k, double *S, double *b) {
 /* s->MinvGt (n_q, m) = M_q^-1 G^T and s->schur (m, m) = G M_q^-1 G^T for G (m, n_q). */
 static void schur_complement(const StepKernel *s, const double *G) {
     const long n_q = s->n_q, m = s->m;
+    for (long r = 0; r < m; r++) {      /* G's rows are sparse (a node's coordinates): their nonzero columns */
+        long *list = s->nonzero + r * (n_q + 1), count = 0;
+        for (long j = 0; j < n_q; j++)
+            if (G[r * n_q + j] != 0.0) list[1 + count++] = j;
+        list[0] = count;
+    }
     for (long i = 0; i < n_q; i++)
         for (long r = 0; r < m; r++) {
+            const long *list = s->nonzero + r * (n_q + 1);
             double acc = 0.0;
-            for (long j = 0; j < n_q; j++) acc += s->mass_inverse[i * n_q + j] * G[r * n_q + j];
+            for (long k = 1; k <= list[0]; k++) acc += s->mass_inverse[i * n_q + list[k]] * G[r * n_q + list[k]];
             s->MinvGt[i * m + r] = acc;
         }
-    for (long r = 0; r < m; r++)
+    for (long r = 0; r < m; r++) {
+        const long *list = s->nonzero + r * (n_q + 1);
         for (long c = 0; c < m; c++) {
             double acc = 0.0;
-            for (long j = 0; j < n_q; j++) acc += G[r * n_q + j] * s->MinvGt[j * m + c];
+            for (long k = 1; k <= list[0]; k++) acc += G[r * n_q + list[k]] * s->MinvGt[list[k] * m + c];
             s->schur[r * m + c] = acc;
         }
+    }
 }
 
 /* x -= M_q^-1 G^T y for the Schur solve y = (G M_q^-1 G^T)^-1 b (b overwritten by y); 1 when the complement is not
@@ -628,8 +638,9 @@ static int accelerations(const StepKernel *s, const double *q, const double *v, 
         lam[i] += 2.0 * s->row_coefficient[i] * (dE[ia[0]] * dE[ib[0]] + dE[ia[1]] * dE[ib[1]] + dE[ia[2]] * dE[ib[2]]);
     }
     for (long r = 0; r < m; r++) {
+        const long *list = s->nonzero + r * (n_q + 1);
         double acc = 0.0;
-        for (long j = 0; j < n_q; j++) acc += s->G[r * n_q + j] * a[j];
+        for (long k = 1; k <= list[0]; k++) acc += s->G[r * n_q + list[k]] * a[list[k]];
         lam[r] += acc;
     }
     return subtract_projection(s, lam, a) ? 3 : 0;
