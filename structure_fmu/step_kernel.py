@@ -145,10 +145,12 @@ def unsupported(model):
 @dataclass(frozen=True)
 class Factorization:
     """One factorized iteration matrix in LAPACK's storage (band or dense, iteration_lu.IterationLU's choice) with
-    LAPACK's pivots (1-based). Never modified after it is made, so that a saved solver state may hold it."""
+    LAPACK's pivots (1-based), and the addresses of both. Never modified after it is made, so that a saved solver
+    state may hold it."""
 
     lu: np.ndarray
     pivots: np.ndarray
+    addresses: tuple
 
 
 class StepKernel:
@@ -264,6 +266,7 @@ class StepKernel:
         struct["nonzero"] = hold("nonzero", np.zeros(max(m * (n_q + 1), 1)), _LONG)
         self._struct = _Struct(n_values=n_values, **struct)
         self._pointer = ctypes.pointer(self._struct)
+        self._bound = (None,) * 8
         self._size = ctypes.c_double()
         self._size_pointer = ctypes.pointer(self._size)
 
@@ -332,7 +335,7 @@ class StepKernel:
             raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
         if status != 0:      # -1: a hinge without an angle (vanished vectors): no tangent either
             raise np.linalg.LinAlgError(f"singular iteration matrix (compiled Newton iteration, status {status})")
-        return Factorization(lu, pivots)
+        return Factorization(lu, pivots, (address(lu), address(pivots)))
 
     def correct(self, q, dq, ddq, lam, beta_p, gamma_p, factorization):
         """One Newton correction at the first stage's time, in place on q, q', q'' and lambda; the largest correction
@@ -347,9 +350,12 @@ class StepKernel:
             gamma_p: gamma', 1/s.
             factorization: the Factorization of the iteration matrix (`factor`).
         """
-        status = self._correct(self._pointer, address(q), address(dq), address(ddq),
-                               address(lam) if lam.size else None, beta_p, gamma_p,
-                               address(factorization.lu), address(factorization.pivots), self._size_pointer)
+        bound = self._bound      # the addresses of the arrays of the last call: a step's iterations pass the same
+        if not (q is bound[0] and dq is bound[1] and ddq is bound[2] and lam is bound[3]):
+            bound = self._bound = (q, dq, ddq, lam, address(q), address(dq), address(ddq),
+                                   address(lam) if lam.size else None)
+        status = self._correct(self._pointer, *bound[4:], beta_p, gamma_p, *factorization.addresses,
+                               self._size_pointer)
         if status == 1:
             return None
         if status != 0:
