@@ -42,6 +42,14 @@ typedef void (*getrf_t)(int *m, int *n, double *a, int *lda, int *ipiv, int *inf
 typedef void (*getrs_t)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv, double *b, int *ldb,
                         int *info);
 
+/* the banded LU's loops built for AVX-512, AVX2 and plain x86-64, as in biot_savart.c (without fused multiply-add,
+ * -ffp-contract=off: every build gives the same bits) */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
+#define VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define VECTOR_CLONES
+#endif
+
 #define STAGES 3                     /* the times a step evaluates: t, t + h/2, t + h */
 #define PROJECTIONS 4                /* integrators.project: Newton projections of q at most */
 #define PROJECTION_TOLERANCE 1e-13   /* integrators.project: |Phi_i| below which q is on the constraints */
@@ -364,7 +372,7 @@ static void constraint_rate(const StepKernel *s, const double *x, double *out) {
  * pivot's reciprocal, the rank-one update), written out: at these bands (kl, ku ~ 20-30) the BLAS calls of LAPACK's
  * dgbtf2 cost more than their arithmetic. pivots 1-based as LAPACK's. Returns 0, or j + 1 for a zero pivot in
  * column j (the factorization completed, as LAPACK's info). */
-static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
+VECTOR_CLONES static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
     const long kv = ku + kl;
     int info = 0;
     long ju = 0;                          /* the last column that row swaps and updates reach so far */
@@ -411,7 +419,8 @@ static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
 
 /* x = A^-1 b in place for band_lu's factors: the row swaps and unit-lower eliminations (LAPACK dgbtrs), then the
  * upper band of kl + ku superdiagonals backwards (dtbsv). */
-static void band_solve(long n, long kl, long ku, long ld, const double *ab, const int *pivots, double *x) {
+VECTOR_CLONES static void band_solve(long n, long kl, long ku, long ld, const double *ab, const int *pivots,
+                                     double *x) {
     const long kd = kl + ku;
     if (kl > 0)
         for (long j = 0; j < n - 1; j++) {
