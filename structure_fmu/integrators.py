@@ -343,11 +343,16 @@ class GeneralizedAlpha:
                 raise SolverDiverged(state.t, str(err), "reduce structure.step or check the scene's "
                                      "stiffness and masses") from None
 
-    def _predictor(self, state, h, kind):
+    def _predictor(self, state, h, kind, kernel=None):
         """(q, dq, ddq, a_known) at the start of Newton: q''_{n+1} = q''_n ("acceleration") or
         q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are Peng et al. 2019,
-        Eqs. (23)-(24)."""
+        Eqs. (23)-(24). With the model's compiled step (`kernel`), in one call (the same bits) that also returns
+        max |q| and max |q'|."""
         am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
+        if kernel is not None:
+            return kernel.predict(state.q, state.dq, state.ddq, state.accel,
+                                  (af, am, 1 - am, (1 - af) / (1 - am), h * (1 - g), h * g, h, h * h * (0.5 - b),
+                                   h * h * b, -(0.5 - b) / b, 1 - af), kind == "displacement")
         a_known = (af * state.ddq - am * state.accel) / (1 - am)
         if kind == "acceleration":
             ddq = state.ddq.copy()
@@ -364,7 +369,8 @@ class GeneralizedAlpha:
         beta_p = (1 - am) / (h * h * b * (1 - af))
         gamma_p = g / (h * b)
         t = state.t + h
-        q, dq, ddq, a_known = self._predictor(state, h, predictor)
+        kernel = step_kernel.kernel_for(model)
+        q, dq, ddq, a_known, *largest = self._predictor(state, h, predictor, kernel)
         lam = state.multipliers.copy()
         n = len(q)
         # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
@@ -372,10 +378,10 @@ class GeneralizedAlpha:
         scale, weights = 1.0, None
         if n:
             weights = model.newton_weights
-            q_scale = max(1.0, float(np.max(np.abs(q if weights is None else weights * q))))
-            dq_scale = max(1.0, float(np.max(np.abs(dq if weights is None else weights * dq))))
+            if not largest:
+                largest = [float(np.max(np.abs(v if weights is None else weights * v))) for v in (q, dq)]
+            q_scale, dq_scale = max(1.0, largest[0]), max(1.0, largest[1])
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
-        kernel = step_kernel.kernel_for(model)
         # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
         # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
         # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it

@@ -12,6 +12,7 @@ from fmu_common.errors import SceneError, SolverDiverged, checked_input
 from fmu_common.scene_schema import parameter_values
 from fmu_common.specs import StructureUnitSpec
 
+from . import step_kernel
 from .fidelities import model_class
 from .integrators import State, constrained_accelerations, integrator_for, project
 from .joint_monitors import joint_monitors, monitor_names
@@ -197,9 +198,13 @@ class StructureSolver:
         for cached, values in self._cache:
             if cached is state:
                 return values
-        E, dE, _ = self.model.coordinates(state.q, state.dq, state.t)
-        residual = self.model.constraint_violation(state.q, E)
-        values = (E, dE, self.model.fold_angles(state.q, E), residual)
+        kernel = step_kernel.kernel_for(self.model)
+        if kernel is not None:          # the same in one compiled call
+            values = kernel.evaluate(state.q, state.dq, state.t)
+        else:
+            E, dE, _ = self.model.coordinates(state.q, state.dq, state.t)
+            residual = self.model.constraint_violation(state.q, E)
+            values = (E, dE, self.model.fold_angles(state.q, E), residual)
         self._cache = ((state, values), self._cache[0])
         return values
 

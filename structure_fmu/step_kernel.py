@@ -84,7 +84,9 @@ def c_kernels():
                                          ctypes.c_double, pointer, pointer]),
         "rk4_step": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, ctypes.c_double, pointer, pointer,
                                     pointer, pointer]),
-        "index1_accelerations": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer])})
+        "index1_accelerations": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer]),
+        "alpha_predictor": (None, [ctypes.c_long] + [pointer] * 5 + [ctypes.c_int] + [pointer] * 5),
+        "evaluate_state": (ctypes.c_double, [ctypes.POINTER(_Struct)] + [pointer] * 5)})
 
 
 def _lapack(name):
@@ -167,6 +169,9 @@ class StepKernel:
     def __init__(self, model, lu, kernels, elements):
         self._correct, self._factor, self._rk4 = kernels.newton_correction, kernels.newton_factor, kernels.rk4_step
         self._accelerations = kernels.index1_accelerations
+        self._predict, self._evaluate = kernels.alpha_predictor, kernels.evaluate_state
+        self._largest = np.zeros(2)
+        self._hinge_names = [h.name for h in model.hinges]
         self._model = model
         n, n_q, m = model.n, model.T.shape[1], model.constraint_count
         self.n_q, self.m = n_q, m
@@ -385,6 +390,49 @@ class StepKernel:
         elif status == 3:
             raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled step)")
         return a, lam
+
+    def predict(self, q, dq, ddq, accel, coefficients, displacement):
+        """Generalized-alpha's predictor in one call, the same bits as integrators.GeneralizedAlpha._predictor's numpy
+        arithmetic.
+
+        Args:
+            q: (n_q,) generalized coordinates at the step's start.
+            dq: (n_q,) their rates, per s.
+            ddq: (n_q,) their accelerations, per s^2.
+            accel: (n_q,) generalized-alpha's auxiliary acceleration a, per s^2.
+            coefficients: (11,) alpha_f, alpha_m, 1 - alpha_m, (1 - alpha_f) / (1 - alpha_m), h (1 - gamma), h gamma,
+                h, h^2 (1/2 - beta), h^2 beta, -(1/2 - beta) / beta, 1 - alpha_f (step_kernels.c, alpha_predictor).
+            displacement: True for the displacement predictor, False for the acceleration one.
+
+        Returns:
+            (q, q', q'', a_known, each (n_q,); max |q|, max |q'| of the prediction, NaN if any entry is).
+        """
+        out = [np.empty(self.n_q) for _ in range(4)]
+        c = np.array(coefficients, dtype=float)
+        self._predict(self.n_q, address(q), address(dq), address(ddq), address(accel), address(c), int(displacement),
+                      *(address(a) for a in out), address(self._largest))
+        return (*out, float(self._largest[0]), float(self._largest[1]))
+
+    def evaluate(self, q, dq, t):
+        """What the solver checks and reports of a state, in one call: E, dE/dt, the fold angles and the largest
+        |Phi| (model.coordinates, model.constraint_violation, model.fold_angles).
+
+        Args:
+            q: (n_q,) generalized coordinates.
+            dq: (n_q,) their rates, per s.
+            t: time, s.
+
+        Returns:
+            (E (n,), dE (n,), {hinge: fold angle, rad}, max |Phi|).
+        """
+        model = self._model
+        Pp, Pdp, _ = model.motion_offsets(t)
+        self.offset[0] = Pp
+        if self._moving:
+            self.rate_offset[0] = Pdp
+        E, dE, angles = np.empty(model.n), np.empty(model.n), np.empty(max(len(self._hinge_names), 1))
+        residual = self._evaluate(self._pointer, address(q), address(dq), address(E), address(dE), address(angles))
+        return E, dE, dict(zip(self._hinge_names, angles.tolist())), residual
 
     def rk4_step(self, q, v, h):
         """One RK4 step of h with the projection onto the constraints, at the stages' times set by `prepare`

@@ -711,3 +711,61 @@ int rk4_step(const StepKernel *s, const double *q, const double *v, double h, do
     }
     return s->m ? project(s, q_new, v_new) : 0;
 }
+
+/* Generalized-alpha's predictor (integrators.GeneralizedAlpha._predictor), element by element in the numpy path's
+ * order of operations (the same bits): from q, q', q'' and a of the step's start, the q, q', q'' and a_known of the
+ * Newton iteration's start, "acceleration" (q''_{n+1} = q''_n) or "displacement" (the a_{n+1} that cancels the
+ * accelerations in q_{n+1}). c: alpha_f, alpha_m, 1 - alpha_m, (1 - alpha_f) / (1 - alpha_m), h (1 - gamma),
+ * h gamma, h, h^2 (1/2 - beta), h^2 beta, -(1/2 - beta) / beta, 1 - alpha_f (Peng et al. 2019, Eqs. 23-24).
+ * largest[0], largest[1]: max |q|, max |q'| of the prediction (NaN if any is NaN). */
+void alpha_predictor(long n, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
+                     const double *c, int displacement, double *q, double *dq, double *ddq, double *a_known,
+                     double *largest) {
+    const double af = c[0], am = c[1], one_am = c[2], ratio = c[3], c1 = c[4], c2 = c[5], h = c[6], c3 = c[7],
+                 c4 = c[8], cd = c[9], one_af = c[10];
+    double lq = 0.0, ldq = 0.0;
+    int nan_q = 0, nan_dq = 0;
+    for (long i = 0; i < n; i++) {
+        const double known = (af * ddq0[i] - am * accel0[i]) / one_am;
+        double a_new, dd;
+        if (displacement) {
+            a_new = cd * accel0[i];
+            dd = (a_new - known) * one_am / one_af;
+        } else {
+            dd = ddq0[i];
+            a_new = known + ratio * dd;
+        }
+        a_known[i] = known;
+        ddq[i] = dd;
+        dq[i] = dq0[i] + c1 * accel0[i] + c2 * a_new;
+        q[i] = q0[i] + h * dq0[i] + c3 * accel0[i] + c4 * a_new;
+        if (isnan(q[i])) nan_q = 1; else if (fabs(q[i]) > lq) lq = fabs(q[i]);
+        if (isnan(dq[i])) nan_dq = 1; else if (fabs(dq[i]) > ldq) ldq = fabs(dq[i]);
+    }
+    largest[0] = nan_q ? NAN : lq;
+    largest[1] = nan_dq ? NAN : ldq;
+}
+
+/* E and dE/dt (n,) at (q, q') and stage 0's prescribed motion, the largest |Phi| of the constraint rows (NaN if any
+ * is) and each hinge's fold angle (joints.fold_angle) into angles (n_hinges,); solver.StructureSolver's checks and
+ * outputs of a state. Returns the largest |Phi|. */
+double evaluate_state(const StepKernel *s, const double *q, const double *dq, double *E, double *dE, double *angles) {
+    coordinates(s, q, dq, 0);
+    memcpy(E, s->E, s->n * sizeof(double));
+    memcpy(dE, s->dE, s->n * sizeof(double));
+    double *phi = s->vector, largest = 0.0;
+    int nan = 0;
+    constraint_residual(s, phi);
+    for (long i = 0; i < s->m; i++) {
+        if (isnan(phi[i])) nan = 1;
+        else if (fabs(phi[i]) > largest) largest = fabs(phi[i]);
+    }
+    for (long h = 0; h < s->n_hinges; h++) {
+        const long *idx = s->hinge_index + 9 * h;
+        double x[9];
+        for (int k = 0; k < 9; k++) x[k] = E[idx[k]];
+        const double p0 = x[1] * x[5] - x[2] * x[4], p1 = x[2] * x[3] - x[0] * x[5], p2 = x[0] * x[4] - x[1] * x[3];
+        angles[h] = atan2(p0 * x[6] + p1 * x[7] + p2 * x[8], x[0] * x[3] + x[1] * x[4] + x[2] * x[5]);
+    }
+    return nan ? NAN : largest;
+}

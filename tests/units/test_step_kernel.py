@@ -165,3 +165,30 @@ def test_index1_accelerations_are_the_reference(scene, overrides, latched, monke
     reference = integrators.constrained_accelerations(model, 0.0123, q, v, Q, latches)
     for value, expected in zip(compiled, reference):
         np.testing.assert_allclose(value, expected, rtol=0, atol=1e-12 * max(np.abs(expected).max(initial=0), 1.0))
+
+
+@pytest.mark.parametrize("kind", ["acceleration", "displacement"])
+def test_the_compiled_predictor_is_the_numpy_one_bit_for_bit(kind):
+    model = model_of("deploy_flexible")
+    rng = np.random.default_rng(4)
+    q, dq, ddq, _ = generic_state(model, rng)
+    state = State(0.01, q, dq, ddq, rng.standard_normal(len(q)), np.zeros(model.constraint_count), {}, {})
+    alpha = GeneralizedAlpha(0.8)
+    *compiled, largest_q, largest_dq = alpha._predictor(state, 2e-4, kind, kernel_for(model))
+    reference = alpha._predictor(state, 2e-4, kind)
+    for value, expected in zip(compiled, reference):
+        assert np.array_equal(value, expected)
+    assert (largest_q, largest_dq) == (np.abs(reference[0]).max(), np.abs(reference[1]).max())
+
+
+@pytest.mark.parametrize("scene, overrides, latched", CASES)
+def test_a_state_is_evaluated_as_the_numpy_path_does(scene, overrides, latched):
+    # solver.StructureSolver's checks and outputs: E, dE, the fold angles, the largest constraint residual
+    model = model_of(scene, overrides)
+    q, dq, _, _ = generic_state(model, np.random.default_rng(5))
+    E, dE, angles, residual = kernel_for(model).evaluate(q, dq, 0.0123)
+    E_reference, dE_reference, _ = model.coordinates(q, dq, 0.0123)
+    for value, expected in ((E, E_reference), (dE, dE_reference)):
+        np.testing.assert_allclose(value, expected, rtol=0, atol=4 * EPS * np.abs(expected).max())
+    assert angles == pytest.approx(model.fold_angles(q, E_reference), rel=0, abs=1e-14)
+    assert residual == pytest.approx(model.constraint_violation(q, E_reference), rel=1e-12, abs=1e-15)
