@@ -293,10 +293,11 @@ class GeneralizedAlpha:
         self._start = None
         return state
 
-    def _factor(self, model, t, q, dq, latched, lam, h):
+    def _factor(self, model, t, q, dq, latched, lam, h, kernel):
+        """The iteration matrix at (q, q', lambda) factorized into `_matrix`, by the model's compiled step `kernel`
+        (step_kernel.kernel_for) or, where it is None, on the numpy path."""
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
-        kernel = step_kernel.kernel_for(model)
         if kernel is not None:
             self._matrix = (h, kernel.factor(q, dq, lam, beta_p, gamma_p))
             return
@@ -393,7 +394,7 @@ class GeneralizedAlpha:
         if kernel is not None:
             kernel.prepare((t,), Q, state.latched)
         if factorized_here:
-            self._factor(model, t, q, dq, state.latched, lam, h)
+            self._factor(model, t, q, dq, state.latched, lam, h, kernel)
         # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
         # contraction rate theta of an earlier step, raised to the power 0.8 at every step so that it drifts
         # back to 1 and a later step measures theta again (Hairer and Wanner 1996, Sec. IV.8). A tangent
@@ -430,7 +431,7 @@ class GeneralizedAlpha:
             # after at least two iterations with the current one
             fresh += 1
             if fresh >= 2 and size > 0.3 * previous:
-                self._factor(model, t, q, dq, state.latched, lam, h)
+                self._factor(model, t, q, dq, state.latched, lam, h, kernel)
                 fresh = 0
             previous = size
         else:
