@@ -205,6 +205,21 @@ def test_the_slot_basis_has_the_zero_pattern_the_c_kernels_skip():
         np.stack([1.0 - element.GAUSS_XI, element.GAUSS_XI], axis=-1), (11, g, 2)), rtol=1e-15, atol=1e-15)
 
 
+@pytest.mark.parametrize("points", [element.CONSTANT_POINTS, element.VARYING_POINTS])
+def test_the_energy_reads_the_strain_measures_of_the_gradients_bit_for_bit(points):
+    """elastic_energy takes its measures from element._energy_measures, which leaves out the cross products
+    only the gradients need: flap r''.n, chordwise r''.r_y, the axial strains and tau equal those of
+    element._measures (the gradients' path) exactly, on elements bent, stretched and twisted at random."""
+    rng = np.random.default_rng(23)
+    for n in (1, 2, 7):
+        length = rng.uniform(0.05, 2.0, n)
+        e = np.stack([straight(l) for l in length]) + 0.3 * rng.standard_normal((n, 18))
+        full = element._measures(e, length, points)
+        flap, chordwise, axial, tau = element._energy_measures(e, length, points)
+        for name, value in (("flap", flap), ("chordwise", chordwise), ("axial", axial), ("tau", tau)):
+            np.testing.assert_array_equal(value, full[name], err_msg=name)
+
+
 def varying(stiffness, rng):
     """The stiffness table (n, 4) made to vary along each element: (n, VARYING_POINTS, 4), each column scaled by
     independent random factors in [0.5, 2] at the Gauss points."""
