@@ -318,6 +318,9 @@ def elastic_energy(e, length, stiffness):
 
     Otsuka et al. 2019, Eq. 7
 
+    Real coordinates run the C kernel of element_kernels.c (fmu_common.c_library; the same terms, equal to 1e-12)
+    unless $WINGSIM_KERNELS = numpy; the numpy form below is complex-safe.
+
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
         length: (n,) l, m.
@@ -327,6 +330,9 @@ def elastic_energy(e, length, stiffness):
     Returns:
         (n,) J.
     """
+    kernels = c_kernels() if np.isrealobj(e) else None
+    if kernels is not None:
+        return _compiled(kernels.elastic_energy, e, length, stiffness, ())
     g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
     flap, chordwise, strains, tau = _energy_measures(e, length, g)
     w = gauss_rule(g)[1][None, :] * np.asarray(length)[:, None]
@@ -523,13 +529,13 @@ def c_kernels():
     selects the numpy kernels."""
     signature = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY])
     gathered = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY, _ARRAY, _ARRAY])
-    return c_library.kernels(C_SOURCE, {"elastic_force": signature, "elastic_jacobian": signature,
-                                        "add_elastic_force": gathered})
+    return c_library.kernels(C_SOURCE, {"elastic_energy": signature, "elastic_force": signature,
+                                        "elastic_jacobian": signature, "add_elastic_force": gathered})
 
 
 def _compiled(kernel, e, length, stiffness, shape):
-    """`kernel` of element_kernels.c (elastic_force or elastic_jacobian) on e (n, 18), length (n,) and stiffness
-    (n, 4) or (n, g, 4): its result, (n, *shape)."""
+    """`kernel` of element_kernels.c (elastic_energy, elastic_force or elastic_jacobian) on e (n, 18), length (n,)
+    and stiffness (n, 4) or (n, g, 4): its result, (n, *shape)."""
     e = np.ascontiguousarray(e, dtype=float)
     if not e.flags.writeable:
         e = e.copy()                                # `_address` reads writable arrays only

@@ -245,6 +245,26 @@ def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch, section):
 
 
 @pytest.mark.parametrize("section", ["constant", "varying"])
+def test_the_c_elastic_energy_equals_the_numpy_reference(monkeypatch, section):
+    """element_kernels.c's elastic_energy against element.elastic_energy's numpy form on random elements (stretch,
+    both bendings and torsion all active), a stiffness per element and one varying along the span: equal to 1e-12
+    of each element's energy; and the straight element, unstrained, holds none but the round-off of its strains
+    (EA l (8 eps)^2 at most: a stretch of a few eps)."""
+    rng = np.random.default_rng(13)
+    e = rng.standard_normal((7, 18))
+    length, stiffness = rng.uniform(0.05, 0.5, 7), rng.uniform(1.0, 1e3, (7, 4))
+    if section == "varying":
+        stiffness = varying(stiffness, rng)
+    energies = {}
+    for kind in ("numpy", "compiled"):
+        monkeypatch.setenv("WINGSIM_KERNELS", kind)
+        energies[kind] = element.elastic_energy(e, length, stiffness)
+        unstrained = element.elastic_energy(straight(0.3)[None], np.array([0.3]), stiffness[:1])[0]
+        assert 0.0 <= unstrained <= stiffness.max() * 0.3 * (8 * np.finfo(float).eps) ** 2
+    np.testing.assert_allclose(energies["compiled"], energies["numpy"], rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("section", ["constant", "varying"])
 def test_the_gathered_c_force_equals_the_numpy_assembly(monkeypatch, section):
     """add_elastic_force (one C call: gathered from E, added into F) on a chain of elements sharing nodes, against
     F + the numpy forces summed by np.bincount (its $WINGSIM_KERNELS=numpy reference): equal to 1e-12 of the
