@@ -34,6 +34,7 @@ curvature (degree 8) the integrand is of degree 12, which VARYING_POINTS = 7 poi
 """
 import ctypes
 import functools
+import math
 from pathlib import Path
 
 import numpy as np
@@ -146,9 +147,9 @@ def flap_curvature(derivatives):
     n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
     curvature itself, also where the line stretches. Positive when the line bends toward +n. On a plate of
     thickness h, h/2 kappa_y is the extensional strain of the -n face (the +n face has its opposite):
-    Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
-    |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2 (one determinant and one Gram product: on the few
-    points of a sample this is half the cost of the cross and dot products).
+    Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. With |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2, on Python
+    floats point by point: the strain gauges read it at a few points per communication step, where numpy's
+    per-call cost would be most of the time.
 
     Args:
         derivatives: (..., 3, 3) the rows r' (1), r'' (1/m) along the span and the chord vector r_y (1) at the same
@@ -157,9 +158,13 @@ def flap_curvature(derivatives):
     Returns:
         (...,) 1/m.
     """
-    gram = derivatives @ np.swapaxes(derivatives, -1, -2)
-    r1r1, ryry, r1ry = gram[..., 0, 0], gram[..., 2, 2], gram[..., 0, 2]
-    return -np.linalg.det(derivatives) / (np.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1)
+    derivatives = np.asarray(derivatives, dtype=float)
+    out = []
+    for (a0, a1, a2), r2, (c0, c1, c2) in derivatives.reshape(-1, 3, 3).tolist():    # r', r'', r_y
+        n0, n1, n2 = a1 * c2 - a2 * c1, a2 * c0 - a0 * c2, a0 * c1 - a1 * c0      # r' x r_y
+        r1r1, ryry, r1ry = a0 * a0 + a1 * a1 + a2 * a2, c0 * c0 + c1 * c1 + c2 * c2, a0 * c0 + a1 * c1 + a2 * c2
+        out.append((r2[0] * n0 + r2[1] * n1 + r2[2] * n2) / (math.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1))
+    return np.array(out).reshape(derivatives.shape[:-2])
 
 
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_inertia=None):
