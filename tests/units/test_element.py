@@ -240,16 +240,21 @@ def varying(stiffness, rng):
     return stiffness[:, None, :] * rng.uniform(0.5, 2.0, (len(stiffness), g, 4))
 
 
+def random_elements(seed, section):
+    """Seven random elements, every term of the energy active (e (7, 18), length (7,) m, stiffness (7, 4)), their
+    stiffness per element ("constant") or varying along the span ("varying")."""
+    rng = np.random.default_rng(seed)
+    e = rng.standard_normal((7, 18))
+    length, stiffness = rng.uniform(0.05, 0.5, 7), rng.uniform(1.0, 1e3, (7, 4))
+    return e, length, varying(stiffness, rng) if section == "varying" else stiffness
+
+
 @pytest.mark.parametrize("section", ["constant", "varying"])
 def test_the_c_elastic_force_equals_the_numpy_reference(monkeypatch, section):
     """element_kernels.c against element.elastic_force's numpy form on random elements (every term active:
     stretch, both bendings, torsion), with a stiffness per element and one that varies along the span (given at
     the Gauss points): equal to 1e-12 of the largest component."""
-    rng = np.random.default_rng(11)
-    e = rng.standard_normal((7, 18))
-    length, stiffness = rng.uniform(0.05, 0.5, 7), rng.uniform(1.0, 1e3, (7, 4))
-    if section == "varying":
-        stiffness = varying(stiffness, rng)
+    e, length, stiffness = random_elements(11, section)
     forces = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
@@ -263,11 +268,7 @@ def test_the_c_elastic_energy_equals_the_numpy_reference(monkeypatch, section):
     both bendings and torsion all active), a stiffness per element and one varying along the span: equal to 1e-12
     of each element's energy; and the straight element, unstrained, holds none but the round-off of its strains
     (EA l (8 eps)^2 at most: a stretch of a few eps)."""
-    rng = np.random.default_rng(13)
-    e = rng.standard_normal((7, 18))
-    length, stiffness = rng.uniform(0.05, 0.5, 7), rng.uniform(1.0, 1e3, (7, 4))
-    if section == "varying":
-        stiffness = varying(stiffness, rng)
+    e, length, stiffness = random_elements(13, section)
     energies = {}
     for kind in ("numpy", "compiled"):
         monkeypatch.setenv("WINGSIM_KERNELS", kind)
