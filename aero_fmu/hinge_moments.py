@@ -26,25 +26,39 @@ Sec. VII.A, Fig. 11b, F = T_const / T_aero, is T_const / M_hinge (positive when 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from fmu_common.vectors import cross
 
 
 @dataclass(frozen=True)
 class HingeLine:
     """What the hinge moment of one revolute joint needs: its `name`; `parent_node`, the global node index of the
     parent's tip node (None: the ground); `child_node`, that of the child's root node; `axis` (3,), the unit axis
-    in the parent's tip frame (span, chord, normal components), global components with the ground; `panels`
-    (k,), the lattice indices of the panels of the outboard bodies."""
+    in the parent's tip frame (span, chord, normal components), global components with the ground; `panels`,
+    the lattice indices of the panels of the outboard bodies: (k,) indices, or the slice of them when they are
+    consecutive (`panel_selection`; a view of the panel arrays instead of a copy, the same rows)."""
 
     name: str
     parent_node: int | None
     child_node: int
     axis: np.ndarray
-    panels: np.ndarray
+    panels: np.ndarray | slice
+
+
+def panel_selection(indices) -> np.ndarray | slice:
+    """The rows `indices` (k,) of a panel array as a slice when they are consecutive and ascending, else the
+    indices: indexing by the slice reads the same rows, in the same order, without copying them.
+
+    Args:
+        indices: (k,) lattice panel indices.
+    """
+    indices = np.asarray(indices, dtype=np.intp)
+    if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
+        return slice(int(indices[0]), int(indices[0]) + indices.size)
+    return indices
 
 
 def outboard_bodies(joint_lines, child: str) -> list[str]:
@@ -83,12 +97,15 @@ def hinge_lines(topology, lattice) -> list[HingeLine]:
         parent_node = None if line.parent is None else topology.bodies[line.parent].nodes[-1]
         axis = np.asarray(line.axis, dtype=float)
         lines.append(HingeLine(line.name, parent_node, topology.bodies[line.child].nodes[0],
-                               axis / np.linalg.norm(axis), np.flatnonzero(np.isin(lattice.body, outboard))))
+                               axis / np.linalg.norm(axis),
+                               panel_selection(np.flatnonzero(np.isin(lattice.body, outboard)))))
     return lines
 
 
-def hinge_axis(e, line: HingeLine) -> tuple[np.ndarray, np.ndarray]:
+def hinge_axis(e, line: HingeLine) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """The hinge's point and unit axis in the current configuration (module docstring).
+
+    On Python floats: three components each, where numpy's per-call cost would be most of the time.
 
     Args:
         e: (9 n_nodes,) exchanged coordinates (per node r, r_x, r_y), m and 1, global frame.
@@ -97,32 +114,42 @@ def hinge_axis(e, line: HingeLine) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         (x_h (3,) m, a (3,) unit), global frame.
     """
-    e = np.asarray(e, dtype=float)
     if line.parent_node is None:
         k = 9 * line.child_node
-        return e[k:k + 3].copy(), line.axis.copy()
+        return tuple(e[k:k + 3].tolist()), tuple(line.axis.tolist())
     k = 9 * line.parent_node
-    r, r_x, r_y = e[k:k + 3], e[k + 3:k + 6], e[k + 6:k + 9]
-    x = r_x / np.linalg.norm(r_x)
-    axis = line.axis[0] * x + line.axis[1] * r_y + line.axis[2] * cross(x, r_y)
-    return r.copy(), axis / np.linalg.norm(axis)
+    r, r_x, r_y = e[k:k + 3].tolist(), e[k + 3:k + 6].tolist(), e[k + 6:k + 9].tolist()
+    x = _unit(r_x)
+    z = (x[1] * r_y[2] - x[2] * r_y[1], x[2] * r_y[0] - x[0] * r_y[2], x[0] * r_y[1] - x[1] * r_y[0])  # x cross r_y
+    a0, a1, a2 = line.axis.tolist()
+    return tuple(r), _unit([a0 * x[i] + a1 * r_y[i] + a2 * z[i] for i in range(3)])
+
+
+def _unit(v) -> tuple[float, float, float]:
+    """v / |v| of three floats."""
+    norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v[0] / norm, v[1] / norm, v[2] / norm
 
 
 def hinge_moment(points, forces, point, axis) -> float:
     """a . sum_p (x_p - x_h) x F_p: the moment of forces about an axis.
 
+    From the 3 x 3 moments G = sum_p (x_p - x_h) F_p^T (one matrix product over the panels): the summed cross
+    product's components are G_12 - G_21, G_20 - G_02, G_01 - G_10, so that the cost on the panels is two numpy
+    calls whatever their number.
+
     Args:
-        points: (P, 3) where the forces act, x_p, m, global frame.
-        forces: (P, 3) the forces F_p, N, global frame.
+        points: (P, 3) where the forces act, x_p, m, global frame (an array).
+        forces: (P, 3) the forces F_p, N, global frame (an array).
         point: (3,) a point x_h on the axis, m, global frame.
         axis: (3,) the axis direction a, unit, global frame.
 
     Returns:
         the moment about the axis, N m, positive right-handed about `axis`.
     """
-    points, forces = np.asarray(points, dtype=float).reshape(-1, 3), np.asarray(forces, dtype=float).reshape(-1, 3)
-    moment = cross(points - np.asarray(point, dtype=float), forces).sum(axis=0)
-    return float(moment @ np.asarray(axis, dtype=float))
+    G = np.dot((points - np.asarray(point, dtype=float)).T, forces).tolist()
+    a0, a1, a2 = axis
+    return float(a0 * (G[1][2] - G[2][1]) + a1 * (G[2][0] - G[0][2]) + a2 * (G[0][1] - G[1][0]))
 
 
 def hinge_moments(lines, e, points, forces) -> dict[str, float]:

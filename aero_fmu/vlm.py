@@ -300,8 +300,8 @@ def lift_direction(area_normal, flow_velocity) -> np.ndarray:
         (3,) global frame.
     """
     # on three Python floats: a dozen numpy calls on (3,) arrays would cost more than the arithmetic
-    n = [float(x) for x in area_normal]
-    u = _unit_floats([float(x) for x in flow_velocity])
+    n = np.asarray(area_normal, dtype=float).tolist()
+    u = _unit_floats(np.asarray(flow_velocity, dtype=float).tolist())
     if u is not None:
         along = n[0] * u[0] + n[1] * u[1] + n[2] * u[2]
         n = [n[i] - along * u[i] for i in range(3)]

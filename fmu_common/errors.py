@@ -1,5 +1,7 @@
 """Errors both units raise, each naming what was wrong, and the checks of unknown scene keys and of inputs that
 raise them (the scene's values are checked by fmu_common.scene_schema)."""
+import math
+
 import numpy as np
 
 
@@ -66,7 +68,8 @@ def checked_input(name: str, value, n: int, time: float):
     value = np.asarray(value, dtype=float)
     if value.shape != (n,):
         raise InputError(f"{name} has shape {value.shape}, the topology has {n} coordinates")
-    if not np.isfinite(value).all():
+    # the sum is finite when every entry is (one reduction, a third of isfinite's two calls); else find them
+    if not math.isfinite(value.sum()) and not np.isfinite(value).all():
         bad = ~np.isfinite(value)
         k = int(np.flatnonzero(bad)[0])
         raise InputError(f"{name}[{k + 1}] = {value[k]} at t = {time:.6g} s: {int(bad.sum())} NaN/inf value(s) "

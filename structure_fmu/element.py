@@ -34,6 +34,7 @@ curvature (degree 8) the integrand is of degree 12, which VARYING_POINTS = 7 poi
 """
 import ctypes
 import functools
+import math
 from pathlib import Path
 
 import numpy as np
@@ -147,9 +148,9 @@ def flap_curvature(derivatives):
     n = (r' x r_y) / |r' x r_y|: the measure of the flap energy above, normalized so that it is the
     curvature itself, also where the line stretches. Positive when the line bends toward +n. On a plate of
     thickness h, h/2 kappa_y is the extensional strain of the -n face (the +n face has its opposite):
-    Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. Computed as r'' . (r' x r_y) = -det[r', r'', r_y] and
-    |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2 (one determinant and one Gram product: on the few
-    points of a sample this is half the cost of the cross and dot products).
+    Otsuka et al. 2022, Sec. 5's h/2 x kappa_y. With |r' x r_y|^2 = |r'|^2 |r_y|^2 - (r' . r_y)^2, on Python
+    floats point by point: the strain gauges read it at a few points per communication step, where numpy's
+    per-call cost would be most of the time.
 
     Args:
         derivatives: (..., 3, 3) the rows r' (1), r'' (1/m) along the span and the chord vector r_y (1) at the same
@@ -158,9 +159,13 @@ def flap_curvature(derivatives):
     Returns:
         (...,) 1/m.
     """
-    gram = derivatives @ np.swapaxes(derivatives, -1, -2)
-    r1r1, ryry, r1ry = gram[..., 0, 0], gram[..., 2, 2], gram[..., 0, 2]
-    return -np.linalg.det(derivatives) / (np.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1)
+    derivatives = np.asarray(derivatives, dtype=float)
+    out = []
+    for (a0, a1, a2), r2, (c0, c1, c2) in derivatives.reshape(-1, 3, 3).tolist():    # r', r'', r_y
+        n0, n1, n2 = a1 * c2 - a2 * c1, a2 * c0 - a0 * c2, a0 * c1 - a1 * c0      # r' x r_y
+        r1r1, ryry, r1ry = a0 * a0 + a1 * a1 + a2 * a2, c0 * c0 + c1 * c1 + c2 * c2, a0 * c0 + a1 * c1 + a2 * c2
+        out.append((r2[0] * n0 + r2[1] * n1 + r2[2] * n2) / (math.sqrt(r1r1 * ryry - r1ry * r1ry) * r1r1))
+    return np.array(out).reshape(derivatives.shape[:-2])
 
 
 def mass_matrix(length, mass_per_length, first_moment, chord_inertia, rotary_inertia=None):
@@ -271,18 +276,27 @@ def stiffness_terms(stiffness):
     return g, axial, stiffness[..., 1], stiffness[..., 2], stiffness[..., 3] @ w
 
 
-def _measures(e, length, g):
-    """Strain measures at the g Gauss points and the quantities their gradients need."""
+def _fields(e, length, g):
+    """The element's nodal vectors v (n, 6, 3), its slot basis, r', r'', r_y at the g Gauss points (n, g, 3) each,
+    |r'| (n, g), the nodal |r_x| (n, 2) and the axial strains [eps_A, eps_B, eps_arc] (n, 3): what the energy
+    and its gradients share (`_measures`, `_energy_measures`)."""
     v = e.reshape(-1, 6, 3)
-    xA, yA, xB, yB = v[:, 1], v[:, 2], v[:, 4], v[:, 5]
     slots = v[:, [3, 1, 2, 4, 5]]                                           # (n, 5, 3): [d, xA, yA, xB, yB]
     slots[:, 0] -= v[:, 0]
     basis = _slot_basis(length, g)
-    fields = basis @ slots                                                  # (n, 3 g, 3)
-    r1, r2, ry = fields[:, :g], fields[:, g:2 * g], fields[:, 2 * g:]       # r', r'', r_y at the Gauss points
+    fields = basis @ slots                                  # (n, 3 g, 3): r', r'', r_y at the Gauss points
+    r1 = fields[:, :g]
     speed = np.sqrt(_dot(r1, r1))                                           # |r'|
     nodal = np.sqrt(_dot(v[:, [1, 4]], v[:, [1, 4]]))                       # |r_x^A|, |r_x^B|, (n, 2)
     axial = np.concatenate([nodal - 1.0, (speed @ gauss_rule(g)[1] - 1.0)[:, None]], axis=1)  # eps_A, eps_B, eps_arc
+    return v, basis, fields, speed, nodal, axial
+
+
+def _measures(e, length, g):
+    """Strain measures at the g Gauss points and the quantities their gradients need."""
+    v, basis, fields, speed, nodal, axial = _fields(e, length, g)
+    xA, yA, xB, yB = v[:, 1], v[:, 2], v[:, 4], v[:, 5]
+    r1, r2, ry = fields[:, :g], fields[:, g:2 * g], fields[:, 2 * g:]
     # the cyclic products r_y x r'', r'' x r', r' x r_y (= n) in one call
     crossed = cross(fields[:, _cycle(g)[0]], fields[:, _cycle(g)[1]])
     ry_r2, r2_r1, normal = crossed[:, :g], crossed[:, g:2 * g], crossed[:, 2 * g:]
@@ -294,10 +308,24 @@ def _measures(e, length, g):
                 triple=triple)
 
 
+def _energy_measures(e, length, g):
+    """The strain measures the energy reads, (flap r''.n (n, g), chordwise r''.r_y (n, g), axial (n, 3), tau (n,)),
+    by the same arithmetic as `_measures` (the same numbers, bit for bit) without the cross products only the
+    gradients need: the energy is an output read at communication points, the gradients are the step's."""
+    v, _, fields, _, _, axial = _fields(e, length, g)
+    r1, r2, ry = fields[:, :g], fields[:, g:2 * g], fields[:, 2 * g:]
+    frames = cross(v[:, [1, 4]], v[:, [2, 5]])                             # xA x yA, xB x yB
+    tau = 0.5 * (_dot(frames[:, 0], v[:, 5]) - _dot(frames[:, 1], v[:, 2]))
+    return _dot(r2, cross(r1, ry)), _dot(r2, ry), axial, tau
+
+
 def elastic_energy(e, length, stiffness):
     """Elastic energy U per element.
 
     Otsuka et al. 2019, Eq. 7
+
+    Real coordinates run the C kernel of element_kernels.c (fmu_common.c_library; the same terms, equal to 1e-12)
+    unless $WINGSIM_KERNELS = numpy; the numpy form below is complex-safe.
 
     Args:
         e: (n, 18) element coordinates, m (r) and 1 (r_x, r_y), global frame.
@@ -308,12 +336,15 @@ def elastic_energy(e, length, stiffness):
     Returns:
         (n,) J.
     """
+    kernels = c_kernels() if np.isrealobj(e) else None
+    if kernels is not None:
+        return _compiled(kernels.elastic_energy, e, length, stiffness, ())
     g, gram, EIy, EIz, GJ = stiffness_terms(stiffness)
-    m = _measures(e, length, g)
+    flap, chordwise, strains, tau = _energy_measures(e, length, g)
     w = gauss_rule(g)[1][None, :] * np.asarray(length)[:, None]
-    bending = EIy * m["flap"] ** 2 + EIz * m["chordwise"] ** 2
-    axial = length * np.einsum("ni,nij,nj->n", m["axial"], gram, m["axial"])
-    return 0.5 * (np.sum(w * bending, axis=1) + axial) + 0.5 * GJ * m["tau"] ** 2 / length
+    bending = EIy * flap ** 2 + EIz * chordwise ** 2
+    axial = length * np.einsum("ni,nij,nj->n", strains, gram, strains)
+    return 0.5 * (np.sum(w * bending, axis=1) + axial) + 0.5 * GJ * tau ** 2 / length
 
 
 def elastic_force(e, length, stiffness):
@@ -504,13 +535,13 @@ def c_kernels():
     selects the numpy kernels."""
     signature = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY])
     gathered = (ctypes.c_int, [ctypes.c_long, ctypes.c_long, _ARRAY, _ARRAY, _ARRAY, _ARRAY, _ARRAY])
-    return c_library.kernels(C_SOURCE, {"elastic_force": signature, "elastic_jacobian": signature,
-                                        "add_elastic_force": gathered})
+    return c_library.kernels(C_SOURCE, {"elastic_energy": signature, "elastic_force": signature,
+                                        "elastic_jacobian": signature, "add_elastic_force": gathered})
 
 
 def _compiled(kernel, e, length, stiffness, shape):
-    """`kernel` of element_kernels.c (elastic_force or elastic_jacobian) on e (n, 18), length (n,) and stiffness
-    (n, 4) or (n, g, 4): its result, (n, *shape)."""
+    """`kernel` of element_kernels.c (elastic_energy, elastic_force or elastic_jacobian) on e (n, 18), length (n,)
+    and stiffness (n, 4) or (n, g, 4): its result, (n, *shape)."""
     e = np.ascontiguousarray(e, dtype=float)
     if not e.flags.writeable:
         e = e.copy()                                # `_address` reads writable arrays only

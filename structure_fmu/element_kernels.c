@@ -5,6 +5,8 @@
  * element.elastic_jacobian, whose numpy forms are the reference ($WINGSIM_KERNELS=numpy; the force's is also the
  * complex-safe one the tests differentiate); the tests check both agree to 1e-12 relative.
  *
+ *   elastic_energy    out (n,): U per element, J, the elastic energy of Otsuka et al. 2019, Eq. 7 (read by the
+ *                     energy monitor, an output: the step needs only its derivatives)
  *   elastic_force     out (n, 18): -dU/de per element, N (on r) and N m (on r_x, r_y), Otsuka et al. 2019,
  *                     Eq. 4, U the elastic energy of Eq. 7
  *   elastic_jacobian  out (n, 18, 18): d^2U/de^2 per element, N/m, N and N m, the exact Hessian of that energy
@@ -12,7 +14,7 @@
  *   add_elastic_force F[dofs[m, k]] += elastic_force's out[m, k]: every element's force gathered from and added
  *                     into the vectors of the whole structure, E and F (element.add_elastic_force), in one call
  *
- * Inputs of both, as element.py prepares them, C-contiguous doubles: n elements, g Gauss points; e (n, 18)
+ * Inputs of each, as element.py prepares them, C-contiguous doubles: n elements, g Gauss points; e (n, 18)
  * [r^A, r_x^A, r_y^A, r^B, r_x^B, r_y^B] (m and 1); table, the arguments that are constant in a run, one after
  * the other (g + 11 n + 17 g n numbers, element._table, element.stiffness_terms):
  *   weights (g,)         Gauss weights on [0, 1] (element.gauss_rule)
@@ -22,7 +24,7 @@
  *   torsion (n,)         GJ, its mean over the element (N m^2)
  *   basis (n, 3 g, 5)    the rows r', r'', r_y at the Gauss points from the slots [d = r^B - r^A, r_x^A, r_y^A,
  *                        r_x^B, r_y^B] (element._slot_basis; 1/m and 1/m^2 on r', r'')
- * Both return 0, or -1 (nothing written) when g is not in 1..MAX_GAUSS, the size of the scratch arrays.
+ * Each returns 0, or -1 (nothing written) when g is not in 1..MAX_GAUSS, the size of the scratch arrays.
  *
  * The kernels assume the basis's zero pattern and skip its zeros: r' and r'' are made of the slots CURVE =
  * (d, r_x^A, r_x^B) only (the Hermite functions in x), r_y of CHORD = (r_y^A, r_y^B) only (linear in x); any
@@ -94,6 +96,37 @@ INLINE double torsion(double slots[5][3], double triple[5][3]) {
     cross(slots[4], slots[1], triple[3]);
     cross(slots[2], slots[3], triple[4]);
     return 0.5 * (dot(triple[0], slots[4]) - dot(triple[1], slots[2]));
+}
+
+/* out (n,) = U per element (header): per Gauss point the two bendings w l (EI_yy flap^2 + EI_zz chordwise^2),
+ * flap = r'' . (r' x r_y), chordwise = r'' . r_y, and the arc length; then the stretches' Gram form
+ * l eps^T gram eps and the torsion GJ tau^2 / l, all halved (element.elastic_energy's terms). */
+int elastic_energy(long n, long g, const double *table, const double *e, double *out) {
+    if (g < 1 || g > MAX_GAUSS) return -1;
+    const double *weights = table, *length = weights + g, *grams = length + n, *bending = grams + 9 * n,
+                 *torsions = bending + 2 * g * n, *basis = torsions + n;
+    double slots[5][3], fields[3 * MAX_GAUSS][3], normal[3], xa_ya[3], xb_yb[3];
+    for (long m = 0; m < n; m++) {
+        const double l = length[m], *gram = grams + 9 * m, *EI = bending + 2 * g * m;
+        slots_and_fields(e + 18 * m, basis + 15 * g * m, (int)g, slots, fields);
+        double arc = 0.0, bent = 0.0;
+        for (int i = 0; i < g; i++) {
+            const double *r1 = fields[i], *r2 = fields[g + i], *ry = fields[2 * g + i];
+            cross(r1, ry, normal);
+            const double flap = dot(r2, normal), chordwise = dot(r2, ry);
+            arc += sqrt(dot(r1, r1)) * weights[i];
+            bent += weights[i] * l * (EI[2 * i] * flap * flap + EI[2 * i + 1] * chordwise * chordwise);
+        }
+        const double eps[3] = {sqrt(dot(slots[1], slots[1])) - 1.0, sqrt(dot(slots[3], slots[3])) - 1.0, arc - 1.0};
+        double axial = 0.0;
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) axial += eps[i] * gram[3 * i + j] * eps[j];
+        cross(slots[1], slots[2], xa_ya);
+        cross(slots[3], slots[4], xb_yb);
+        const double tau = 0.5 * (dot(xa_ya, slots[4]) - dot(xb_yb, slots[2]));
+        out[m] = 0.5 * (bent + l * axial) + 0.5 * torsions[m] * tau * tau / l;
+    }
+    return 0;
 }
 
 /* out (n, 18) = -dU/de per element (header): per Gauss point the gradients by the fields r', r'', r_y of the arc

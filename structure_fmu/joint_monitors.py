@@ -12,6 +12,7 @@ parent's tip node A and the child's root node B, in the unit frames F = [x, y, z
                          |r_x^P + r_z^Q|, the same for its anti-parallel axes).
 Joints with the ground are left out (their point and chord are prescribed, or held by the constraint rows).
 """
+import functools
 import math
 
 import numpy as np
@@ -20,15 +21,16 @@ import numpy as np
 from .joints import dot, frame_direction, unit_frame
 
 
-def monitor_names(name: str, kind: str) -> list[str]:
-    """The monitors of a joint with a parent body.
+@functools.cache
+def monitor_names(name: str, kind: str) -> tuple[str, ...]:
+    """The monitors of a joint with a parent body (made once per joint: `joint_monitors` names them at every read).
 
     Args:
         name: the joint's name.
         kind: its type, 'ball', 'universal' or 'revolute'.
     """
     axis = {"universal": ["_axis_product"], "revolute": ["_axis_error"]}.get(kind, [])
-    return [f"{name}{suffix}" for suffix in ["_point_mismatch", *axis]]
+    return tuple(f"{name}{suffix}" for suffix in ["_point_mismatch", *axis])
 
 
 def joint_monitors(joint_lines, bodies, e) -> dict[str, float]:

@@ -5,9 +5,10 @@ thin-airfoil theory for a slender plate hinged along a spanwise line, and zero i
 import numpy as np
 import pytest
 
-from aero_fmu.hinge_moments import HingeLine, hinge_axis, hinge_moment
+from aero_fmu.hinge_moments import HingeLine, hinge_axis, hinge_moment, hinge_moments, panel_selection
 from aero_fmu.solver import AeroSolver
 from fmu_common.scene_schema import resolve_scene
+from fmu_common.vectors import cross
 from fmu_common.specs import AeroUnitSpec
 from orchestrator.scene.load import load_scene
 from repository import SCENES
@@ -50,6 +51,42 @@ def test_the_axis_turns_with_the_parent_tip_frame():
     point, turned = hinge_axis(e, HingeLine("h", None, 0, np.array([0.0, 1.0, 0.0]), np.arange(0)))
     np.testing.assert_array_equal(point, [0, 0, 0])
     np.testing.assert_array_equal(turned, [0, 1, 0])
+
+
+def test_consecutive_panels_are_read_as_a_slice_of_the_same_rows():
+    assert panel_selection(np.arange(4, 9)) == slice(4, 9)
+    for scattered in (np.array([0, 2, 3]), np.array([3, 2]), np.arange(0)):
+        np.testing.assert_array_equal(panel_selection(scattered), scattered)
+    rng = np.random.default_rng(5)
+    points, forces, e = rng.standard_normal((5, 3)), rng.standard_normal((5, 3)), rng.standard_normal(18)
+    axis = np.array([0.3, 0.9, 0.2]) / np.linalg.norm([0.3, 0.9, 0.2])
+    by_slice, by_index = (hinge_moments([HingeLine("h", 1, 0, axis, panels)], e, points, forces)["h"]
+                          for panels in (panel_selection(np.arange(1, 4)), np.arange(1, 4)))
+    assert by_slice == by_index
+
+
+def test_the_axis_and_the_moment_are_those_of_the_vector_formulas_to_round_off():
+    """hinge_axis (on Python floats) and hinge_moment (from the moments sum_p (x_p - x_h) F_p^T) against the
+    formulas a0 x + a1 r_y + a2 x cross r_y normalized, and a . sum_p (x_p - x_h) x F_p, written on numpy arrays
+    with np.linalg.norm and fmu_common.vectors.cross: the same numbers but for the order of the sums, so within a
+    few units of round-off of the terms summed (eps |x_p - x_h| |F_p| each), on random frames, axes and forces."""
+    rng = np.random.default_rng(11)
+    eps = np.finfo(float).eps
+    for _ in range(200):
+        e, axis = rng.standard_normal(18) * rng.uniform(0.1, 10.0), rng.standard_normal(3)
+        axis /= np.linalg.norm(axis)
+        r_x, r_y = e[12:15], e[15:18]
+        x = r_x / np.linalg.norm(r_x)
+        turned = axis[0] * x + axis[1] * r_y + axis[2] * cross(x, r_y)
+        point, unit = hinge_axis(e, HingeLine("h", 1, 0, axis, np.arange(0)))
+        np.testing.assert_array_equal(point, e[9:12])
+        np.testing.assert_allclose(unit, turned / np.linalg.norm(turned), rtol=0, atol=8 * eps)
+        points = rng.standard_normal((int(rng.integers(1, 40)), 3)) * rng.uniform(0.1, 10.0)
+        forces = rng.standard_normal((len(points), 3)) * rng.uniform(0.1, 10.0, (len(points), 1))
+        arms = points - np.asarray(point)
+        reference = float(cross(arms, forces).sum(axis=0) @ np.asarray(unit))
+        scale = float(np.sum(np.linalg.norm(arms, axis=1) * np.linalg.norm(forces, axis=1)))
+        assert abs(hinge_moment(points, forces, point, unit) - reference) <= 8 * eps * scale
 
 
 # --- the unit ----------------------------------------------------------------------------------------------
