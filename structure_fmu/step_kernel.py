@@ -172,7 +172,7 @@ class StepKernel:
         self._predict, self._evaluate = kernels.alpha_predictor, kernels.evaluate_state
         self._largest = np.zeros(2)
         self._hinge_names = [h.name for h in model.hinges]
-        self._model = model
+        self._model = weakref.proxy(model)      # not a reference: kernel_for keeps the kernel while the model lives
         n, n_q, m = model.n, model.T.shape[1], model.constraint_count
         self.n_q, self.m = n_q, m
         keep = self._keep = {}     # every array the struct points at, held for the object's life

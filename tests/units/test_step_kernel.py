@@ -192,3 +192,15 @@ def test_a_state_is_evaluated_as_the_numpy_path_does(scene, overrides, latched):
         np.testing.assert_allclose(value, expected, rtol=0, atol=4 * EPS * np.abs(expected).max())
     assert angles == pytest.approx(model.fold_angles(q, E_reference), rel=0, abs=1e-14)
     assert residual == pytest.approx(model.constraint_violation(q, E_reference), rel=1e-12, abs=1e-15)
+
+
+def test_a_model_and_its_kernel_are_freed_together():
+    # a unit instantiated and freed again and again (a host's instantiate/free cycles) leaves no model behind
+    import gc
+    import weakref
+    model = model_of("deploy_flexible")
+    assert kernel_for(model) is not None
+    alive = weakref.ref(model)
+    del model
+    gc.collect()
+    assert alive() is None
