@@ -23,9 +23,9 @@ from repository import SCENES
 from subprocesses import CODE_ROOT
 
 STILL = ["--set", "aero.model=none", "--set", "time.stop=0.02", "--backend", "direct"]
-C_SOURCES = ["aero_fmu/biot_savart.c", "aero_fmu/flat_wake_step.c", "structure_fmu/element_kernels.c",
-             "structure_fmu/shear_element_kernels.c", "structure_fmu/strain_kernels.c", "orchestrator/build/fmi_shim.c",
-             "orchestrator/export/container.c"]
+# every C source of the packages: the kernels compiled at first use and into the FMUs, the FMUs' native binaries
+C_SOURCES = sorted(str(p.relative_to(CODE_ROOT)) for package in ("aero_fmu", "structure_fmu", "orchestrator")
+                   for p in (CODE_ROOT / package).rglob("*.c"))
 
 
 def first_comment(path: Path) -> str:
