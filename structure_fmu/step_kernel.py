@@ -144,6 +144,24 @@ def unsupported(model):
     return None
 
 
+GAUSS_POINTS_REFUSED = ("the element C kernels cannot take this many Gauss points (element_kernels.c, "
+                        "MAX_GAUSS)")
+
+
+def _solved(status, outputs):
+    """The outputs of an index-1 solve (`accelerations`, `rk4_step`) by its C status: 0 as computed; 1 (a hinge's
+    angle vanished) all NaN, for the solver's finite check to report; 2 ValueError (the element kernel's Gauss
+    points); 3 numpy.linalg.LinAlgError (a Schur complement G M_q^-1 G^T not positive definite)."""
+    if status == 1:
+        for output in outputs:
+            output.fill(np.nan)
+    elif status == 2:
+        raise ValueError(GAUSS_POINTS_REFUSED)
+    elif status == 3:
+        raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled step)")
+    return outputs
+
+
 @dataclass(frozen=True)
 class Factorization:
     """One factorized iteration matrix in LAPACK's storage (band or dense, iteration_lu.IterationLU's choice) with
@@ -337,7 +355,7 @@ class StepKernel:
         status = self._factor(self._pointer, address(q), address(dq), address(lam) if lam.size else None,
                               beta_p, gamma_p, address(lu), address(pivots))
         if status == -2:
-            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
+            raise ValueError(GAUSS_POINTS_REFUSED)
         if status != 0:      # -1: a hinge without an angle (vanished vectors): no tangent either
             raise np.linalg.LinAlgError(f"singular iteration matrix (compiled Newton iteration, status {status})")
         return Factorization(lu, pivots, (address(lu), address(pivots)))
@@ -363,9 +381,10 @@ class StepKernel:
                                self._size_pointer)
         if status == 1:
             return None
+        if status == 2:
+            raise ValueError(GAUSS_POINTS_REFUSED)
         if status != 0:
-            raise ValueError(f"compiled Newton correction failed (status {status}: 2 the element kernel's Gauss "
-                             "points, 3 LAPACK's solve)")
+            raise ValueError(f"compiled Newton correction failed: LAPACK's solve (status {status})")
         return self._size.value
 
     def accelerations(self, q, v):
@@ -378,18 +397,11 @@ class StepKernel:
             v: (n_q,) their rates, per s.
 
         Returns:
-            (q'' (n_q,) per s^2, lambda (m,)); NaN where a hinge's angle vanished.
+            (q'' (n_q,) per s^2, lambda (m,)); both NaN where a hinge's angle vanished.
         """
         a, lam = np.empty(self.n_q), np.empty(self.m)
-        status = self._accelerations(self._pointer, address(q), address(v), address(a),
-                                     address(lam) if self.m else None)
-        if status == 1:
-            a.fill(np.nan)
-        elif status == 2:
-            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
-        elif status == 3:
-            raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled step)")
-        return a, lam
+        return tuple(_solved(self._accelerations(self._pointer, address(q), address(v), address(a),
+                                                 address(lam) if self.m else None), (a, lam)))
 
     def predict(self, q, dq, ddq, accel, coefficients, displacement):
         """Generalized-alpha's predictor in one call, the same bits as integrators.GeneralizedAlpha._predictor's numpy
@@ -446,15 +458,8 @@ class StepKernel:
 
         Returns:
             (q (n_q,), q' (n_q,)) at t + h, the accelerations q'' (n_q,) and multipliers lambda (m,) at t; a state with
-            a hinge whose angle vanished is NaN (the solver's finite check reports it).
+            all NaN where a hinge's angle vanished (the solver's finite check reports it).
         """
         q_new, v_new, a1, lam = np.empty(self.n_q), np.empty(self.n_q), np.empty(self.n_q), np.empty(self.m)
-        status = self._rk4(self._pointer, address(q), address(v), h, address(q_new), address(v_new), address(a1),
-                           address(lam) if self.m else None)
-        if status == 1:
-            q_new.fill(np.nan)
-        elif status == 2:
-            raise ValueError("the element C kernels cannot take this many Gauss points (element_kernels.c, MAX_GAUSS)")
-        elif status == 3:
-            raise np.linalg.LinAlgError("constraint Jacobian rank deficient (Schur complement, compiled RK4 step)")
-        return q_new, v_new, a1, lam
+        return _solved(self._rk4(self._pointer, address(q), address(v), h, address(q_new), address(v_new),
+                                 address(a1), address(lam) if self.m else None), (q_new, v_new, a1, lam))

@@ -339,14 +339,19 @@ static void constraint_residual(const StepKernel *s, double *phi) {
     }
 }
 
-/* G_q (m, n_q) dense at s->E. */
-static void constraint_jacobian(const StepKernel *s, double *G) {
+/* G_q's nonzero entries at s->E into G (m, n_q), whose other entries the caller has zeroed. */
+static void constraint_jacobian_entries(const StepKernel *s, double *G) {
     const long n_q = s->n_q;
-    memset(G, 0, s->m * n_q * sizeof(double));
     for (long k = 0; k < s->n_jacobian; k++)
         G[s->jacobian_target[k]] += s->E[s->pair[s->jacobian_source[k]]] * s->jacobian_weight[k];
     for (long r = 0; r < s->m - s->n_products; r++)
         for (long k = s->lt_ptr[r]; k < s->lt_ptr[r + 1]; k++) G[(s->n_products + r) * n_q + s->lt_col[k]] = s->lt_val[k];
+}
+
+/* G_q (m, n_q) dense at s->E. */
+static void constraint_jacobian(const StepKernel *s, double *G) {
+    memset(G, 0, s->m * s->n_q * sizeof(double));
+    constraint_jacobian_entries(s, G);
 }
 
 /* (dPhi/dE) x (m,) at s->E (constraints.Constraints.rate). */
@@ -531,11 +536,7 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
         S[s->assembly_target[k]] += values[s->assembly_source[k]] * s->assembly_weight[k];
     if (m) {                   /* G's entries in the pattern only (constraint_jacobian's, in its order) */
         for (long k = 0; k < s->n_g; k++) G[s->g_source[k]] = 0.0;
-        for (long k = 0; k < s->n_jacobian; k++)
-            G[s->jacobian_target[k]] += s->E[s->pair[s->jacobian_source[k]]] * s->jacobian_weight[k];
-        for (long r = 0; r < m - s->n_products; r++)
-            for (long k = s->lt_ptr[r]; k < s->lt_ptr[r + 1]; k++)
-                G[(s->n_products + r) * n_q + s->lt_col[k]] = s->lt_val[k];
+        constraint_jacobian_entries(s, G);
     }
     const long size = n_q + m;
     memset(lu, 0, s->rows * size * sizeof(double));

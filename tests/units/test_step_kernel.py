@@ -36,6 +36,14 @@ def model_of(scene, overrides=()):
     return StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / f"{scene}.toml", overrides))).model
 
 
+def generic_inputs(scene, overrides, latched, seed):
+    """(model, q, q', Q (n,), latches) of the scene at a generic state with a random generalized force."""
+    model = model_of(scene, overrides)
+    rng = np.random.default_rng(seed)
+    q, v, _, _ = generic_state(model, rng)
+    return model, q, v, rng.standard_normal(model.n), {hinge.name: latched for hinge in model.hinges}
+
+
 def generic_state(model, rng):
     """A state off the solution: q about the initial coordinates, random rates, accelerations and multipliers."""
     q = model.initial_coordinates() + 0.01 * rng.standard_normal(len(model.initial_coordinates()))
@@ -76,13 +84,9 @@ def test_a_correction_solves_the_reference_equations(scene, overrides, latched):
 
 @pytest.mark.parametrize("scene, overrides, latched", CASES)
 def test_an_rk4_step_is_the_reference_step(scene, overrides, latched, monkeypatch):
-    model = model_of(scene, overrides)
-    rng = np.random.default_rng(2)
-    q, v, _, _ = generic_state(model, rng)
-    Q = rng.standard_normal(model.n)
+    model, q, v, Q, latches = generic_inputs(scene, overrides, latched, 2)
     h = 1e-5
-    state = State(0.0123, q, v, np.zeros_like(q), np.zeros_like(q), np.zeros(model.constraint_count),
-                  {hinge.name: latched for hinge in model.hinges}, {})
+    state = State(0.0123, q, v, np.zeros_like(q), np.zeros_like(q), np.zeros(model.constraint_count), latches, {})
     assert kernel_for(model) is not None           # the compiled step runs
     compiled = RK4().step(model, state, h, Q)
     monkeypatch.setattr(step_kernel, "kernel_for", lambda model: None)
@@ -155,11 +159,7 @@ def test_a_factorization_of_the_other_path_is_made_again(monkeypatch):
 @pytest.mark.parametrize("scene, overrides, latched", CASES)
 def test_index1_accelerations_are_the_reference(scene, overrides, latched, monkeypatch):
     # the probes' accelerations and the integrators' initial ones: integrators.constrained_accelerations
-    model = model_of(scene, overrides)
-    rng = np.random.default_rng(3)
-    q, v, _, _ = generic_state(model, rng)
-    Q = rng.standard_normal(model.n)
-    latches = {hinge.name: latched for hinge in model.hinges}
+    model, q, v, Q, latches = generic_inputs(scene, overrides, latched, 3)
     compiled = integrators.constrained_accelerations(model, 0.0123, q, v, Q, latches)
     monkeypatch.setattr(step_kernel, "kernel_for", lambda model: None)
     reference = integrators.constrained_accelerations(model, 0.0123, q, v, Q, latches)
