@@ -184,6 +184,13 @@ Measured: a damped spinning plate then decays as exp(-alpha t) to 1e-4 over 1000
 1e-9: 6e-4, tests/units/test_damping.py), for about a third more iterations on deploy_flexible."""
 
 
+SAME_STEP = 1e-9
+"""Relative difference of two steps h below which generalized-alpha keeps the iteration matrix of the earlier one
+(`GeneralizedAlpha._newton`): the last internal step of a communication step, t_end - t, differs from structure.step
+by round-off alone (1e-13 relative after 20 s of 5 ms steps), and beta' and gamma' of the matrix then differ from the
+step's by as little."""
+
+
 START_DISPLACEMENT = 1.0
 """Bound on h_s^2 max|q''_0| / 2 in the units of the Newton tolerance (m and 1: the ANCF positions and gradients, of
 unit length; the strain-based model's coordinates times its newton_weights) for the
@@ -383,14 +390,12 @@ class GeneralizedAlpha:
                 largest = [float(np.max(np.abs(v if weights is None else weights * v))) for v in (q, dq)]
             q_scale, dq_scale = max(1.0, largest[0]), max(1.0, largest[1])
             scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
-        # h is compared exactly: the last internal step of a communication step (t_end - t) differs from
-        # structure.step by round-off, so the matrix is refreshed there and at the next step. Reusing it
-        # across them (a relative tolerance on h) costs more Newton iterations than the factorizations it
-        # saves; refreshing only every second step gains at short steps and loses at long ones. A factorization
-        # of the other path (restored from a state saved where $WINGSIM_KERNELS differed) is made again.
+        # The matrix of an earlier step serves while h is the same to round-off (SAME_STEP) and it contracts fast
+        # enough (below). A factorization of the other path (restored from a state saved where $WINGSIM_KERNELS
+        # differed) is made again.
         kind = iteration_lu.Factorization if kernel is None else step_kernel.Factorization
-        factorized_here = (self._matrix is None or self._matrix[0] != h or predictor == "displacement"
-                           or not isinstance(self._matrix[1], kind))
+        factorized_here = (self._matrix is None or abs(self._matrix[0] - h) > SAME_STEP * h
+                           or predictor == "displacement" or not isinstance(self._matrix[1], kind))
         if kernel is not None:
             kernel.prepare((t,), Q, state.latched)
         if factorized_here:
