@@ -234,6 +234,16 @@ def start_up(h, acceleration, rho_inf):
     return d, max(1, math.ceil(short / d))
 
 
+def _failure(status, predictor, size, first, max_iterations):
+    """Why a Newton iteration failed, by step_kernels.c alpha_step's status: 1 a residual not finite, 4 diverging
+    (the last correction `size` against the `first`), 5 not converged within `max_iterations`."""
+    if status == 1:
+        return f"Newton iteration produced NaN/inf ({predictor} predictor)"
+    if status == 4:
+        return f"Newton iteration diverged ({predictor} predictor, correction {size:.3g} after {first:.3g})"
+    return f"Newton did not converge in {max_iterations} iterations ({predictor} predictor, last correction {size:.3g})"
+
+
 class _NewtonDiverging(Exception):
     """The Newton iteration of one generalized-alpha step failed (internal: step() retries, then raises
     SolverDiverged)."""
@@ -300,14 +310,11 @@ class GeneralizedAlpha:
         self._start = None
         return state
 
-    def _factor(self, model, t, q, dq, latched, lam, h, kernel):
-        """The iteration matrix at (q, q', lambda) factorized into `_matrix`, by the model's compiled step `kernel`
-        (step_kernel.kernel_for) or, where it is None, on the numpy path."""
+    def _factor(self, model, t, q, dq, latched, lam, h):
+        """The iteration matrix at (q, q', lambda) factorized into `_matrix` on the numpy path (the compiled step
+        factorizes within its call, step_kernel.StepKernel.alpha_step)."""
         beta_p = (1 - self.alpha_m) / (h * h * self.beta * (1 - self.alpha_f))
         gamma_p = self.gamma / (h * self.beta)
-        if kernel is not None:
-            self._matrix = (h, kernel.factor(q, dq, lam, beta_p, gamma_p))
-            return
         if self._lu is None or self._lu[0] is not model:
             self._lu = (model, IterationLU(len(q), model.constraint_count, model.iteration_pattern()))
         S, E = model.iteration_matrix(t, q, dq, latched, lam, beta_p, gamma_p)
@@ -351,16 +358,11 @@ class GeneralizedAlpha:
                 raise SolverDiverged(state.t, str(err), "reduce structure.step or check the scene's "
                                      "stiffness and masses") from None
 
-    def _predictor(self, state, h, kind, kernel=None):
+    def _predictor(self, state, h, kind):
         """(q, dq, ddq, a_known) at the start of Newton: q''_{n+1} = q''_n ("acceleration") or
         q_{n+1} = q_n + h q'_n ("displacement"); a_{n+1} and the update formulas are Peng et al. 2019,
-        Eqs. (23)-(24). With the model's compiled step (`kernel`), in one call (the same bits) that also returns
-        max |q| and max |q'|."""
+        Eqs. (23)-(24)."""
         am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
-        if kernel is not None:
-            return kernel.predict(state.q, state.dq, state.ddq, state.accel,
-                                  (af, am, 1 - am, (1 - af) / (1 - am), h * (1 - g), h * g, h, h * h * (0.5 - b),
-                                   h * h * b, -(0.5 - b) / b, 1 - af), kind == "displacement")
         a_known = (af * state.ddq - am * state.accel) / (1 - am)
         if kind == "acceleration":
             ddq = state.ddq.copy()
@@ -378,28 +380,38 @@ class GeneralizedAlpha:
         gamma_p = g / (h * b)
         t = state.t + h
         kernel = step_kernel.kernel_for(model)
-        q, dq, ddq, a_known, *largest = self._predictor(state, h, predictor, kernel)
-        lam = state.multipliers.copy()
-        n = len(q)
-        # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
-        # would leave velocity errors of gamma' tol per step, growing as h shrinks)
-        scale, weights = 1.0, None
-        if n:
-            weights = model.newton_weights
-            if not largest:
-                largest = [float(np.max(np.abs(v if weights is None else weights * v))) for v in (q, dq)]
-            q_scale, dq_scale = max(1.0, largest[0]), max(1.0, largest[1])
-            scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         # The matrix of an earlier step serves while h is the same to round-off (SAME_STEP) and it contracts fast
-        # enough (below). A factorization of the other path (restored from a state saved where $WINGSIM_KERNELS
-        # differed) is made again.
+        # enough (`_iterate`). A factorization of the other path (restored from a state saved where
+        # $WINGSIM_KERNELS differed) is made again.
         kind = iteration_lu.Factorization if kernel is None else step_kernel.Factorization
         factorized_here = (self._matrix is None or abs(self._matrix[0] - h) > SAME_STEP * h
                            or predictor == "displacement" or not isinstance(self._matrix[1], kind))
-        if kernel is not None:
+        if kernel is not None:        # the same step in one compiled call (step_kernel.py)
             kernel.prepare((t,), Q, state.latched)
+            coefficients = (af, am, 1 - am, (1 - af) / (1 - am), h * (1 - g), h * g, h, h * h * (0.5 - b), h * h * b,
+                            -(0.5 - b) / b, 1 - af)
+            control = (beta_p, gamma_p, self.tol, VELOCITY_TOLERANCE / self.tol, self._eta, float(factorized_here),
+                       self.max_iterations, float(predictor == "displacement"))
+            status, (q, dq, ddq, accel, lam), iterations, size, first, self._eta, matrix = kernel.alpha_step(
+                state, coefficients, control, None if factorized_here else self._matrix[1])
+            self.newton_iterations += iterations
+            if factorized_here or matrix is not self._matrix[1]:
+                self._matrix = (h, matrix)
+            if status:
+                raise _NewtonDiverging(_failure(status, predictor, size, first, self.max_iterations))
+            return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)
+        q, dq, ddq, a_known = self._predictor(state, h, predictor)
+        lam = state.multipliers.copy()
+        # the tolerance applies to q and to q' (corrections of q' are gamma' times those of q: a q-only test
+        # would leave velocity errors of gamma' tol per step, growing as h shrinks)
+        scale = 1.0
+        if len(q):
+            weights = model.newton_weights
+            largest = [float(np.max(np.abs(v if weights is None else weights * v))) for v in (q, dq)]
+            q_scale, dq_scale = max(1.0, largest[0]), max(1.0, largest[1])
+            scale = min(q_scale, VELOCITY_TOLERANCE / self.tol * dq_scale / gamma_p)
         if factorized_here:
-            self._factor(model, t, q, dq, state.latched, lam, h, kernel)
+            self._factor(model, t, q, dq, state.latched, lam, h)
         # The error a first correction leaves is estimated as eta times it, eta = theta / (1 - theta) from the
         # contraction rate theta of an earlier step, raised to the power 0.8 at every step so that it drifts
         # back to 1 and a later step measures theta again (Hairer and Wanner 1996, Sec. IV.8). A tangent
@@ -408,15 +420,20 @@ class GeneralizedAlpha:
         # by, those steps only (a matrix reused from an earlier step contracts more slowly).
         if factorized_here:
             self._eta = max(self._eta, np.finfo(float).eps) ** 0.8
+        self._iterate(model, t, Q, state.latched, q, dq, ddq, lam, h, beta_p, gamma_p, scale, factorized_here,
+                      predictor)
+        accel = a_known + (1 - af) / (1 - am) * ddq
+        return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)
+
+    def _iterate(self, model, t, Q, latched, q, dq, ddq, lam, h, beta_p, gamma_p, scale, factorized_here,
+                 predictor):
+        """The Newton iteration of `_newton` on the numpy path, in place on q, q', q'' and lambda (step_kernels.c,
+        alpha_step, is the same control in one compiled call)."""
         previous, first, fresh = 0.0, None, 0     # fresh: iterations since the matrix was last factorized
-        rhs = None if kernel is not None else np.empty(n + model.constraint_count)    # `_correct`'s
+        rhs = np.empty(len(q) + model.constraint_count)    # `_correct`'s
+        tolerance = self.tol * scale
         for iteration in range(self.max_iterations):
-            if kernel is not None:                # the same correction in one compiled call (step_kernel.py)
-                size = kernel.correct(q, dq, ddq, lam, beta_p, gamma_p, self._matrix[1]) if n else 0.0
-                if size is None:
-                    raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
-            else:
-                size = self._correct(model, t, Q, state.latched, q, dq, ddq, lam, rhs, beta_p, gamma_p, predictor)
+            size = self._correct(model, t, Q, latched, q, dq, ddq, lam, rhs, beta_p, gamma_p, predictor)
             self.newton_iterations += 1
             first = size if first is None else first
             # stop when the correction, or the error it leaves (rate/(1 - rate) times it, with the
@@ -426,24 +443,19 @@ class GeneralizedAlpha:
                 self._eta = rate / (1 - rate) if rate < 1 else 1.0
             estimate = (self._eta if iteration == 0 and factorized_here else
                         rate / (1 - rate) if previous > 0 and rate < 0.5 else math.inf)
-            if size <= self.tol * scale or estimate * size <= self.tol * scale:
-                break
-            if not np.isfinite(size) or size > 100 * max(first, self.tol * scale):
-                raise _NewtonDiverging(f"Newton iteration diverged ({predictor} predictor, correction "
-                                       f"{size:.3g} after {first:.3g})")
+            if size <= tolerance or estimate * size <= tolerance:
+                return
+            if not np.isfinite(size) or size > 100 * max(first, tolerance):
+                raise _NewtonDiverging(_failure(4, predictor, size, first, self.max_iterations))
             # a slow contraction means the matrix is no longer the tangent at the iterate (reused from an
             # earlier step, or factorized at a predictor far from the solution): refactorize it here,
             # after at least two iterations with the current one
             fresh += 1
             if fresh >= 2 and size > 0.3 * previous:
-                self._factor(model, t, q, dq, state.latched, lam, h, kernel)
+                self._factor(model, t, q, dq, latched, lam, h)
                 fresh = 0
             previous = size
-        else:
-            raise _NewtonDiverging(f"Newton did not converge in {self.max_iterations} iterations "
-                                   f"({predictor} predictor, last correction {size:.3g})")
-        accel = a_known + (1 - af) / (1 - am) * ddq
-        return replace(state, t=t, q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam)
+        raise _NewtonDiverging(_failure(5, predictor, size, first, self.max_iterations))
 
     def _correct(self, model, t, Q, latched, q, dq, ddq, lam, rhs, beta_p, gamma_p, predictor):
         """One Newton correction on the numpy path, in place on q, q', q'' and lambda: the residual
@@ -458,7 +470,7 @@ class GeneralizedAlpha:
             residual += lam @ model.constraint_jacobian(q, E)
             np.multiply(model.constraint_residual(q, E), beta_p, out=scaled_phi)
         if not math.isfinite(rhs.sum()):      # any NaN or inf entry makes the sum NaN or inf
-            raise _NewtonDiverging(f"Newton iteration produced NaN/inf ({predictor} predictor)")
+            raise _NewtonDiverging(_failure(1, predictor, math.nan, math.nan, 0))
         delta = self._matrix[1].solve(rhs)    # the Newton correction is -delta
         dq_step = delta[:n]
         q -= dq_step

@@ -82,10 +82,10 @@ def c_kernels():
                                              ctypes.c_double, ctypes.c_double, pointer, pointer, _DOUBLES]),
         "newton_factor": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, ctypes.c_double,
                                          ctypes.c_double, pointer, pointer]),
+        "alpha_step": (ctypes.c_int, [ctypes.POINTER(_Struct)] + [pointer] * 13),
         "rk4_step": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, ctypes.c_double, pointer, pointer,
                                     pointer, pointer]),
         "index1_accelerations": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer]),
-        "alpha_predictor": (None, [ctypes.c_long] + [pointer] * 5 + [ctypes.c_int] + [pointer] * 5),
         "evaluate_state": (ctypes.c_double, [ctypes.POINTER(_Struct)] + [pointer] * 5)})
 
 
@@ -186,9 +186,13 @@ class StepKernel:
 
     def __init__(self, model, lu, kernels, elements):
         self._correct, self._factor, self._rk4 = kernels.newton_correction, kernels.newton_factor, kernels.rk4_step
+        self._alpha_step = kernels.alpha_step
+        # alpha_step's predictor coefficients, control and results, and their addresses
+        self._coefficients, self._control, self._out = np.zeros(11), np.zeros(8), np.zeros(6)
+        self._addresses = tuple(address(a) for a in (self._coefficients, self._control, self._out))
+        self._spare = None       # (lu, pivots) where alpha_step factorizes, made when needed
         self._accelerations = kernels.index1_accelerations
-        self._predict, self._evaluate = kernels.alpha_predictor, kernels.evaluate_state
-        self._largest = np.zeros(2)
+        self._evaluate = kernels.evaluate_state
         self._hinge_names = [h.name for h in model.hinges]
         self._model = weakref.proxy(model)      # not a reference: kernel_for keeps the kernel while the model lives
         n, n_q, m = model.n, model.T.shape[1], model.constraint_count
@@ -272,7 +276,7 @@ class StepKernel:
         self._storage = None
         if lu is not None:
             rows, (s_target, s_source), (g_target, g_source), (gt_target, gt_source) = lu.storage()
-            self._storage = (rows * size, size)
+            self._storage = (rows * size, 3 * size)    # the pivots and the band's extents (step_kernels.c, band_lu)
             struct.update(banded=int(lu.banded), lower=lu.lower if lu.banded else 0,
                           upper=lu.upper if lu.banded else 0, rows=rows, n_s=len(s_target), n_g=len(g_target),
                           s_target=hold("s_target", s_target, _LONG), s_source=hold("s_source", s_source, _LONG),
@@ -360,6 +364,57 @@ class StepKernel:
             raise np.linalg.LinAlgError(f"singular iteration matrix (compiled Newton iteration, status {status})")
         return Factorization(lu, pivots, (address(lu), address(pivots)))
 
+    def alpha_step(self, state, coefficients, control, factorization):
+        """One generalized-alpha step to the first stage's time (set by `prepare`) in one call (step_kernels.c,
+        alpha_step): the predictor, the iteration matrix factorized at it where asked, Newton corrections (`correct`)
+        until converged, refactorizing (`factor`) where convergence slows; integrators.GeneralizedAlpha._newton's
+        arithmetic and control. ValueError where the element kernel refuses its Gauss points or LAPACK's solve fails;
+        numpy.linalg.LinAlgError where a factorization is singular.
+
+        Args:
+            state: the integrators.State at the step's start (not modified).
+            coefficients: (11,) the predictor's: alpha_f, alpha_m, 1 - alpha_m, (1 - alpha_f) / (1 - alpha_m),
+                h (1 - gamma), h gamma, h, h^2 (1/2 - beta), h^2 beta, -(1/2 - beta) / beta, 1 - alpha_f (Peng et al.
+                2019, Eqs. 23-24).
+            control: (8,) beta' (1/s^2), gamma' (1/s), the Newton tolerance, the velocity tolerance over it, the first
+                correction's error estimate factor eta, 1 to factorize at the predictor, the iterations allowed, 1 for
+                the displacement predictor (0: the acceleration one).
+            factorization: the Factorization to start with; None where the step factorizes at its predictor.
+
+        Returns:
+            (status, (q, q', q'', a, lambda) at the step's end, corrections taken, last correction, first correction,
+            eta, the Factorization at the end: a new one where the step factorized); status 0 converged, 1 a residual
+            not finite, 4 diverging, 5 not converged within the iterations allowed (the predictor where none is).
+        """
+        if self._storage is None:
+            raise ValueError("this StepKernel was built without an IterationLU: it has no iteration matrix")
+        n_q = self.n_q
+        x = np.empty(5 * n_q + self.m)      # q, q', q'', a, a_known, lambda (the state keeps views of its rows)
+        self._coefficients[:] = coefficients
+        self._control[:] = control
+        if self._spare is None:
+            self._spare = (np.empty(self._storage[0]), np.empty(self._storage[1], dtype=np.intc))
+        spare = self._spare
+        given = factorization.addresses if factorization is not None else (None, None)
+        status = self._alpha_step(self._pointer, address(state.q), address(state.dq), address(state.ddq),
+                                  address(state.accel), address(state.multipliers) if self.m else None,
+                                  self._addresses[0], self._addresses[1], *given, address(spare[0]),
+                                  address(spare[1]), address(x), self._addresses[2])
+        iterations, size, first, eta, factorized, factor_status = self._out.tolist()
+        if factorized:
+            factorization, self._spare = Factorization(*spare, (address(spare[0]), address(spare[1]))), None
+        if status == 2:
+            raise ValueError(GAUSS_POINTS_REFUSED)
+        if status == 3:
+            raise ValueError("compiled Newton correction failed: LAPACK's solve")
+        if status == 6:
+            if factor_status == -2:
+                raise ValueError(GAUSS_POINTS_REFUSED)
+            raise np.linalg.LinAlgError(f"singular iteration matrix (compiled Newton iteration, status "
+                                        f"{int(factor_status)})")
+        values = (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q], x[5 * n_q:])
+        return status, values, int(iterations), size, first, eta, factorization
+
     def correct(self, q, dq, ddq, lam, beta_p, gamma_p, factorization):
         """One Newton correction at the first stage's time, in place on q, q', q'' and lambda; the largest correction
         of q (NaN if any is), or None when the residual is not finite (nothing updated).
@@ -402,28 +457,6 @@ class StepKernel:
         a, lam = np.empty(self.n_q), np.empty(self.m)
         return tuple(_solved(self._accelerations(self._pointer, address(q), address(v), address(a),
                                                  address(lam) if self.m else None), (a, lam)))
-
-    def predict(self, q, dq, ddq, accel, coefficients, displacement):
-        """Generalized-alpha's predictor in one call, the same bits as integrators.GeneralizedAlpha._predictor's numpy
-        arithmetic.
-
-        Args:
-            q: (n_q,) generalized coordinates at the step's start.
-            dq: (n_q,) their rates, per s.
-            ddq: (n_q,) their accelerations, per s^2.
-            accel: (n_q,) generalized-alpha's auxiliary acceleration a, per s^2.
-            coefficients: (11,) alpha_f, alpha_m, 1 - alpha_m, (1 - alpha_f) / (1 - alpha_m), h (1 - gamma), h gamma,
-                h, h^2 (1/2 - beta), h^2 beta, -(1/2 - beta) / beta, 1 - alpha_f (step_kernels.c, alpha_predictor).
-            displacement: True for the displacement predictor, False for the acceleration one.
-
-        Returns:
-            (q, q', q'', a_known, each (n_q,); max |q|, max |q'| of the prediction, NaN if any entry is).
-        """
-        out = [np.empty(self.n_q) for _ in range(4)]
-        c = np.array(coefficients, dtype=float)
-        self._predict(self.n_q, address(q), address(dq), address(ddq), address(accel), address(c), int(displacement),
-                      *(address(a) for a in out), address(self._largest))
-        return (*out, float(self._largest[0]), float(self._largest[1]))
 
     def evaluate(self, q, dq, t):
         """What the solver checks and reports of a state, in one call: E, dE/dt, the fold angles and the largest

@@ -32,6 +32,7 @@
  * The sums run in another order than numpy's products: the residual, the accelerations and the states agree with the
  * reference to round-off. Arithmetic: IEEE double, built with -ffp-contract=off like the other kernels.
  */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -375,8 +376,10 @@ static void constraint_rate(const StepKernel *s, const double *x, double *out) {
  * c, 0-based; the first kl rows are the fill-in space), with partial pivoting within the band: LAPACK dgbtf2's
  * algorithm, step for step (first largest pivot, row swaps within the updated columns, the column scaled by the
  * pivot's reciprocal, the rank-one update), written out: at these bands (kl, ku ~ 20-30) the BLAS calls of LAPACK's
- * dgbtf2 cost more than their arithmetic. pivots 1-based as LAPACK's. Returns 0, or j + 1 for a zero pivot in
- * column j (the factorization completed, as LAPACK's info). */
+ * dgbtf2 cost more than their arithmetic. pivots (3 n): LAPACK's, 1-based; then, for band_solve, each column's last
+ * nonzero row of L (as an offset below the diagonal) and first nonzero row of U (a row index): the band is sparse
+ * within (about half of it is zeros on deploy_flexible), and the solves skip what is zero. Returns 0, or j + 1 for a
+ * zero pivot in column j (the factorization completed, as LAPACK's info). */
 VECTOR_CLONES static int band_lu(long n, long kl, long ku, long ld, double *ab, int *pivots) {
     const long kv = ku + kl;
     int info = 0;
@@ -393,6 +396,7 @@ VECTOR_CLONES static int band_lu(long n, long kl, long ku, long ld, double *ab, 
         for (long i = 1; i <= km; i++)
             if (fabs(AB(kv + i, j)) > largest) { largest = fabs(AB(kv + i, j)); jp = i; }
         pivots[j] = (int)(jp + j + 1);
+        pivots[n + j] = 0;
         if (AB(kv + jp, j) != 0.0) {
             const long reach = j + ku + jp < n - 1 ? j + ku + jp : n - 1;
             if (reach > ju) ju = reach;
@@ -409,6 +413,7 @@ VECTOR_CLONES static int band_lu(long n, long kl, long ku, long ld, double *ab, 
                     AB(kv + i, j) *= reciprocal;
                     if (AB(kv + i, j) != 0.0) last = i;
                 }
+                pivots[n + j] = (int)last;
                 for (long k = 1; k <= ju - j; k++) {       /* A(j+1.., j+k) -= l A(j, j+k) */
                     const double u = AB(kv - k, j + k);
                     if (u != 0.0)
@@ -419,17 +424,22 @@ VECTOR_CLONES static int band_lu(long n, long kl, long ku, long ld, double *ab, 
             info = (int)(j + 1);
         }
     }
+    for (long j = 0; j < n; j++) {       /* U's first nonzero row in each column (the diagonal's if none above) */
+        long i = j - kv > 0 ? j - kv : 0;
+        while (i < j && AB(kv + i - j, j) == 0.0) i++;
+        pivots[2 * n + j] = (int)i;
+    }
     return info;
 }
 
 /* x = A^-1 b in place for band_lu's factors: the row swaps and unit-lower eliminations (LAPACK dgbtrs), then the
- * upper band of kl + ku superdiagonals backwards (dtbsv). */
+ * upper band of kl + ku superdiagonals backwards (dtbsv), each column within its nonzeros (band_lu's pivots). */
 VECTOR_CLONES static void band_solve(long n, long kl, long ku, long ld, const double *ab, const int *pivots,
                                      double *x) {
     const long kd = kl + ku;
     if (kl > 0)
         for (long j = 0; j < n - 1; j++) {
-            const long lm = kl < n - 1 - j ? kl : n - 1 - j, l = pivots[j] - 1;
+            const long lm = pivots[n + j], l = pivots[j] - 1;
             if (l != j) { const double t = x[l]; x[l] = x[j]; x[j] = t; }
             const double xj = x[j];
             if (xj != 0.0)
@@ -439,7 +449,8 @@ VECTOR_CLONES static void band_solve(long n, long kl, long ku, long ld, const do
         if (x[j] != 0.0) {
             x[j] /= AB(kd, j);
             const double t = x[j];
-            for (long i = j - 1; i >= 0 && i >= j - kd; i--) x[i] -= t * AB(kd + i - j, j);
+            const double *column = &AB(kd - j, j);      /* column[i] = AB(kd + i - j, j): contiguous in i */
+            for (long i = pivots[2 * n + j]; i < j; i++) x[i] -= t * column[i];
         }
     }
 #undef AB
@@ -554,6 +565,85 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
     int rows = (int)size, info = 0;
     s->getrf(&rows, &rows, lu, &rows, pivots, &info);
     return info;
+}
+
+/* One generalized-alpha step (integrators.GeneralizedAlpha._newton, the same arithmetic and tests in the same order):
+ * the predictor (alpha_predictor, from q0, q0', q0'', a0 with its coefficients c) into x = [q, q', q'', a, a_known,
+ * lambda] (5 n_q + m; lambda from lambda0), the iteration matrix factorized at the predictor where asked, then Newton
+ * corrections (newton_correction) with the factorized iteration matrix until the correction, or the error it leaves,
+ * is within the tolerance; after two or more corrections with a matrix, a correction above 0.3 times the one before
+ * refactorizes it at the iterate. Each factorization goes into (spare_lu, spare_pivots), which is then the matrix: a
+ * matrix given, (lu, pivots), is never modified (a saved solver state may hold it). Last a = a_known + c[3] q''.
+ * control: beta', gamma', the Newton tolerance, the velocity tolerance over it, the first correction's error
+ * estimate factor eta, 1 to factorize at the predictor, the iterations allowed, 1 for the displacement predictor.
+ * out: the corrections taken, the last correction, the first one, eta (as updated), the factorizations made, the
+ * status of a failed factorization. Returns 0 when converged; 1 when a residual is not finite; 2 when the element
+ * kernel refuses its Gauss points; 3 when LAPACK's solve fails; 4 when the iteration diverges; 5 when it has not
+ * converged within the iterations allowed (x holds the predictor where none is allowed); 6 when a factorization
+ * fails (its status in out[5], newton_factor's). */
+void alpha_predictor(long n, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
+                     const double *c, int displacement, double *q, double *dq, double *ddq, double *a_known,
+                     double *largest);
+
+int alpha_step(const StepKernel *s, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
+               const double *lam0, const double *c, const double *control, const double *lu, const int *pivots,
+               double *spare_lu, int *spare_pivots, double *x, double *out) {
+    const long n = s->n_q, m = s->m;
+    double *q = x, *dq = x + n, *ddq = x + 2 * n, *accel = x + 3 * n, *a_known = x + 4 * n, *lam = x + 5 * n;
+    const double beta_p = control[0], gamma_p = control[1];
+    const int factorized_here = control[5] != 0.0;
+    const long max_iterations = (long)control[6];
+    double largest[2], eta = control[4], previous = 0.0, first = 0.0, size = 0.0;
+    long fresh = 0, iterations = 0, factorized = 0;
+    int status = 5;
+    alpha_predictor(n, q0, dq0, ddq0, accel0, c, control[7] != 0.0, q, dq, ddq, a_known, largest);
+    if (m) memcpy(lam, lam0, m * sizeof(double));
+    /* the tolerance applies to q and to q' (GeneralizedAlpha._newton) */
+    const double q_scale = largest[0] > 1.0 ? largest[0] : 1.0, dq_scale = largest[1] > 1.0 ? largest[1] : 1.0;
+    const double velocity_scale = control[3] * dq_scale / gamma_p;
+    const double tol = control[2] * (velocity_scale < q_scale ? velocity_scale : q_scale);
+    if (factorized_here) {
+        const int factored = newton_factor(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots);
+        if (factored) {
+            out[5] = factored;
+            status = 6;
+        } else {
+            lu = spare_lu;
+            pivots = spare_pivots;
+            factorized++;
+        }
+        eta = pow(eta > DBL_EPSILON ? eta : DBL_EPSILON, 0.8);
+    }
+    for (long iteration = 0; status != 6 && iteration < max_iterations; iteration++) {
+        const int corrected = newton_correction(s, q, dq, ddq, lam, beta_p, gamma_p, lu, pivots, &size);
+        if (corrected) { status = corrected; break; }
+        iterations++;
+        if (iteration == 0) first = size;
+        /* stop when the correction, or the error it leaves (rate / (1 - rate) times it), is within the tolerance */
+        const double rate = previous > 0.0 ? size / previous : 1.0;
+        if (iteration == 1 && factorized_here && fresh == 1) eta = rate < 1.0 ? rate / (1.0 - rate) : 1.0;
+        const double estimate = iteration == 0 && factorized_here ? eta
+                                : previous > 0.0 && rate < 0.5 ? rate / (1.0 - rate) : INFINITY;
+        if (size <= tol || estimate * size <= tol) { status = 0; break; }
+        if (!isfinite(size) || size > 100.0 * (tol > first ? tol : first)) { status = 4; break; }
+        fresh++;
+        if (fresh >= 2 && size > 0.3 * previous) {       /* the matrix is no longer the tangent at the iterate */
+            const int factored = newton_factor(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots);
+            if (factored) { out[5] = factored; status = 6; break; }
+            lu = spare_lu;
+            pivots = spare_pivots;
+            factorized++;
+            fresh = 0;
+        }
+        previous = size;
+    }
+    for (long i = 0; i < n; i++) accel[i] = a_known[i] + c[3] * ddq[i];
+    out[0] = (double)iterations;
+    out[1] = size;
+    out[2] = first;
+    out[3] = eta;
+    out[4] = (double)factorized;
+    return status;
 }
 
 /* x = S^-1 b in place in b for the symmetric positive definite S (k, k), overwritten by its Cholesky factor L
