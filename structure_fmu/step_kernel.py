@@ -1,9 +1,10 @@
 """The structure unit's step on the ANCF models in compiled calls: step_kernels.c on buffers allocated once per model.
 
-For generalized-alpha, `StepKernel.correct` takes one Newton correction (the residual of the equations of motion and
-of the scaled constraints, its solve with the factorized iteration matrix, the update of q, q', q'' and lambda) and
-`StepKernel.factor` forms and factorizes the iteration matrix, each in one C call; integrators.GeneralizedAlpha keeps
-the iteration's control (predictor, convergence test, refactorization) in Python for both paths. For RK4,
+For generalized-alpha, `StepKernel.alpha_step` takes a whole step in one C call: the predictor, the iteration matrix
+formed and factorized where the step asks, the Newton corrections (the residual of the equations of motion and of the
+scaled constraints, its solve with the factorized matrix, the update of q, q', q'' and lambda) with the convergence
+test and the refactorizations of integrators.GeneralizedAlpha's control; `StepKernel.correct` and `StepKernel.factor`
+are one correction and one factorization alone (the tests check each against the reference). For RK4,
 `StepKernel.rk4_step` takes the whole step (four stages of the index-1 accelerations and the projection onto the
 constraints) in one call. The numpy path of model.StructureModel, iteration_lu.IterationLU and integrators.RK4 stays
 the reference ($WINGSIM_KERNELS=numpy): the iteration matrix is the same bit for bit, the residual, the

@@ -1,6 +1,6 @@
-/* The structure unit's step on the ANCF models in C, on buffers allocated once (step_kernel.py): generalized-alpha's
- * Newton correction and the factorization of its iteration matrix, one call each, and a whole RK4 step with its
- * constraint projection in one call. The reference is the numpy path of model.StructureModel (force_q, mass_product,
+/* The structure unit's step on the ANCF models in C, on buffers allocated once (step_kernel.py): a whole
+ * generalized-alpha step (predictor, factorizations of the iteration matrix, Newton corrections and their control) in
+ * one call, and a whole RK4 step with its constraint projection in one call. The reference is the numpy path of model.StructureModel (force_q, mass_product,
  * constraint_*, iteration_matrix), iteration_lu.IterationLU and integrators.RK4 ($WINGSIM_KERNELS=numpy); the tests
  * compare both (tests/units/test_step_kernel.py).
  *
