@@ -2,6 +2,9 @@
 the cross-product matrix, a rotation about an axis (Rodrigues)."""
 import numpy as np
 
+_IDENTITY = np.eye(3)
+_IDENTITY.flags.writeable = False
+
 
 def unit(vector) -> np.ndarray:
     """The unit vector v / |v| of a direction given with any finite, non-zero length.
@@ -77,8 +80,6 @@ def rotation_about(axis, angle):
 def rodrigues(k, k2, sine, cosine):
     """R = I + sin(theta) K + (1 - cos(theta)) K^2 of a unit axis.
 
-    The rotation about a fixed axis whose K, K^2 are built once (motion.py).
-
     Args:
         k: (3, 3) K = [axis]x.
         k2: (3, 3) K^2.
@@ -88,7 +89,7 @@ def rodrigues(k, k2, sine, cosine):
     Returns:
         (3, 3).
     """
-    return np.eye(3) + sine * k + (1 - cosine) * k2
+    return _IDENTITY + sine * k + (1 - cosine) * k2
 
 
 def perpendiculars(axis):

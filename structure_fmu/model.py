@@ -119,23 +119,28 @@ class StructureModel:
     def prescribed(self, t):
         """The stacked prescribed vectors and rates at time t.
 
+        A point x = pivot + R (x0 - pivot) + h and a gradient g = R g0 of their motion law (structure_fmu.motion),
+        with the rates from dR/dt = spin R and d2R/dt2 = turn R.
+
         Args:
             t: time, s.
 
         Returns:
-            (p, p', p''), each (3 n_prescribed,), global frame.
+            (p, p', p''), each (3 n_prescribed,), global frame; new arrays.
         """
-        p, dp, ddp = (a.copy() for a in self._fixed)
-        for motion, rows, arms, is_pos in self._moving:
+        out = self._at_rest.copy()     # (3, n_prescribed, 3): p, p', p''; the clamps' rows stay as they are
+        for motion, rows, arms, at_points in self._moving:
             k = motion.kinematics(t)
-            u = arms @ k.rotation.T                      # the vectors from the pivot, turned
-            p[rows] = u + is_pos * (motion.pivot + k.translation)
-            dp[rows] = u @ k.spin.T + is_pos * k.velocity
-            ddp[rows] = u @ k.turn.T + is_pos * k.acceleration
-        return p.ravel(), dp.ravel(), ddp.ravel()
+            block = out[:, rows]        # a view: the rows are consecutive
+            block[0] = u = np.dot(arms, k.rotation.T)       # the vectors from the pivot, turned
+            block[1] = np.dot(u, k.spin.T)
+            block[2] = np.dot(u, k.turn.T)
+            block += at_points * np.array((motion.pivot + k.translation, k.velocity, k.acceleration))[:, None]
+        return out[0].ravel(), out[1].ravel(), out[2].ravel()
 
     def _group_prescribed(self):
-        """Prescribed vectors grouped by motion; the fixed ones (clamps) are computed once."""
+        """Prescribed vectors grouped by motion, in runs of consecutive rows (a body's root, topology.py); the fixed
+        ones (clamps) are computed once."""
         top = self.top
         p0 = np.array(top.prescribed_initial).reshape(-1, 3)
         is_pos = np.array(top.prescribed_is_position, dtype=float).reshape(-1, 1)
@@ -143,9 +148,13 @@ class StructureModel:
         self._moving = []
         for m, motion in enumerate(top.motions):
             rows = np.flatnonzero(which == m)
-            if len(rows) and not isinstance(motion, Fixed):   # position vectors from the pivot; gradients as they are
-                self._moving.append((motion, rows, p0[rows] - is_pos[rows] * motion.pivot, is_pos[rows]))
-        self._fixed = (p0, np.zeros_like(p0), np.zeros_like(p0))
+            if not len(rows) or isinstance(motion, Fixed):
+                continue
+            for run in np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1):
+                run = slice(int(run[0]), int(run[-1]) + 1)
+                arms = p0[run] - is_pos[run] * motion.pivot     # position vectors from the pivot; gradients as they are
+                self._moving.append((motion, run, arms, is_pos[run]))
+        self._at_rest = np.stack([p0, np.zeros_like(p0), np.zeros_like(p0)])
         # without moving prescribed vectors, P p(t) is constant and P p' = p'' = 0
         self._fixed_offset = None if self._moving else self.P @ p0.ravel()
         self._motion_at = (None, None)         # (t, (P p, P p', p'')) of the last t asked
