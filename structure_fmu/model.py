@@ -521,8 +521,7 @@ class StructureModel:
         """
         if self._fixed_offset is not None:          # p'' = 0
             return self.map.apply(ddq)
-        _, _, ddp = self.coordinates(q, dq, t)
-        return self.map.apply(ddq, self.P @ ddp if ddp is not None else None)
+        return self.map.apply(ddq, self.P @ self.motion_offsets(t)[2])
 
     def velocity_map(self, q, t):
         """dE/dq: T, constant here.
