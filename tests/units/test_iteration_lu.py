@@ -80,12 +80,9 @@ def test_the_reduced_tangent_is_the_product_with_T(scene):
 
 
 def test_ending_newton_on_the_estimated_error_keeps_the_solution_within_the_tolerance(monkeypatch):
-    """The spin-up over 6 s with the contraction-rate estimate and with every step iterated until the plain
-    correction test passes: the same to well inside the Newton tolerance, for fewer iterations. The estimate
-    judges steps whose matrix is factorized at their predictor (where Newton converges quadratically, most end
-    after one correction): with SAME_STEP = 0 every step of the spin-up is one, since its two steps per
-    communication step differ by round-off."""
-    monkeypatch.setattr(integrators, "SAME_STEP", 0.0)
+    """The spin-up over 6 s with the contraction-rate estimate (most steps end after one correction) and
+    with every step iterated until the plain correction test passes: the same to well inside the Newton
+    tolerance, for fewer iterations."""
     def run():                                    # in communication steps, as the FMU steps it
         solver = StructureSolver(StructureUnitSpec.from_scene(load_scene(SCENES / "spin_up.toml", ["time.stop=6.0"])))
         for k in range(600):
