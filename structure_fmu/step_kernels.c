@@ -1,8 +1,8 @@
 /* The structure unit's step on the ANCF models in C, on buffers allocated once (step_kernel.py): a whole
  * generalized-alpha step (predictor, factorizations of the iteration matrix, Newton corrections and their control) in
- * one call, and a whole RK4 step with its constraint projection in one call. The reference is the numpy path of model.StructureModel (force_q, mass_product,
- * constraint_*, iteration_matrix), iteration_lu.IterationLU and integrators.RK4 ($WINGSIM_KERNELS=numpy); the tests
- * compare both (tests/units/test_step_kernel.py).
+ * one call, and a whole RK4 step with its constraint projection in one call. The reference is the numpy path of
+ * model.StructureModel (force_q, mass_product, constraint_*, iteration_matrix), iteration_lu.IterationLU and
+ * integrators.RK4 ($WINGSIM_KERNELS=numpy); the tests compare both (tests/units/test_step_kernel.py).
  *
  * The model (Otsuka et al. 2019, Eqs. 4-5):
  *   E = T q + P p, E' = T q' + P p' (T by its nonzero entries, CSR by rows of E; the prescribed parts per stage)
@@ -567,6 +567,23 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
     return info;
 }
 
+void alpha_predictor(long n, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
+                     const double *c, int displacement, double *q, double *dq, double *ddq, double *a_known,
+                     double *largest);
+
+/* alpha_step's factorization of the iteration matrix at (q, q', lambda) into the spare, which is then the matrix
+ * (*lu, *pivots) where it succeeds; newton_factor's status. */
+static int factor_into_spare(const StepKernel *s, const double *q, const double *dq, const double *lam, double beta_p,
+                             double gamma_p, double *spare_lu, int *spare_pivots, const double **lu,
+                             const int **pivots) {
+    const int status = newton_factor(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots);
+    if (!status) {
+        *lu = spare_lu;
+        *pivots = spare_pivots;
+    }
+    return status;
+}
+
 /* One generalized-alpha step (integrators.GeneralizedAlpha._newton, the same arithmetic and tests in the same order):
  * the predictor (alpha_predictor, from q0, q0', q0'', a0 with its coefficients c) into x = [q, q', q'', a, a_known,
  * lambda] (5 n_q + m; lambda from lambda0), the iteration matrix factorized at the predictor where asked, then Newton
@@ -581,10 +598,6 @@ int newton_factor(const StepKernel *s, const double *q, const double *dq, const 
  * kernel refuses its Gauss points; 3 when LAPACK's solve fails; 4 when the iteration diverges; 5 when it has not
  * converged within the iterations allowed (x holds the predictor where none is allowed); 6 when a factorization
  * fails (its status in out[5], newton_factor's). */
-void alpha_predictor(long n, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
-                     const double *c, int displacement, double *q, double *dq, double *ddq, double *a_known,
-                     double *largest);
-
 int alpha_step(const StepKernel *s, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
                const double *lam0, const double *c, const double *control, const double *lu, const int *pivots,
                double *spare_lu, int *spare_pivots, double *x, double *out) {
@@ -603,13 +616,11 @@ int alpha_step(const StepKernel *s, const double *q0, const double *dq0, const d
     const double velocity_scale = control[3] * dq_scale / gamma_p;
     const double tol = control[2] * (velocity_scale < q_scale ? velocity_scale : q_scale);
     if (factorized_here) {
-        const int factored = newton_factor(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots);
+        const int factored = factor_into_spare(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots, &lu, &pivots);
         if (factored) {
             out[5] = factored;
             status = 6;
         } else {
-            lu = spare_lu;
-            pivots = spare_pivots;
             factorized++;
         }
         eta = pow(eta > DBL_EPSILON ? eta : DBL_EPSILON, 0.8);
@@ -628,10 +639,9 @@ int alpha_step(const StepKernel *s, const double *q0, const double *dq0, const d
         if (!isfinite(size) || size > 100.0 * (tol > first ? tol : first)) { status = 4; break; }
         fresh++;
         if (fresh >= 2 && size > 0.3 * previous) {       /* the matrix is no longer the tangent at the iterate */
-            const int factored = newton_factor(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots);
+            const int factored = factor_into_spare(s, q, dq, lam, beta_p, gamma_p, spare_lu, spare_pivots, &lu,
+                                                   &pivots);
             if (factored) { out[5] = factored; status = 6; break; }
-            lu = spare_lu;
-            pivots = spare_pivots;
             factorized++;
             fresh = 0;
         }
