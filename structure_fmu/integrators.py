@@ -133,6 +133,14 @@ class RK4:
     def reset(self):
         """Nothing to forget: every step starts from the state alone."""
 
+    def takes_steps(self, model):
+        """False: RK4 takes its steps one call each (`Integrator.takes_steps`).
+
+        Args:
+            model: the StructuralModel.
+        """
+        return False
+
     def initialize(self, model, state, Q):
         """The state's accelerations and multipliers at its start, from the index-1 equations.
 
@@ -269,6 +277,7 @@ class GeneralizedAlpha:
         self._lu = None              # (model, IterationLU): how that model's iteration matrix is factorized on the
                                      # numpy path (the compiled step has its own, step_kernel.py)
         self._eta = 1.0              # error estimate factor of a first correction (`_newton`)
+        self._coefficients = (math.nan, None)   # (h, `coefficients(h)`) of the last h asked
         self.newton_iterations = 0   # total, for monitoring
 
     def reset(self):
@@ -367,10 +376,75 @@ class GeneralizedAlpha:
         q = state.q + h * state.dq + h * h * (0.5 - b) * state.accel + h * h * b * a_new
         return q, dq, ddq, a_known
 
+    def coefficients(self, h):
+        """(beta' (1/s^2), gamma' (1/s), the predictor's 11 coefficients of `step_kernel.StepKernel.alpha_step`) of a
+        step: Peng et al. 2019, Eqs. 23-25. The last is kept: the steps of a communication step share h.
+
+        Args:
+            h: the step, s.
+        """
+        if self._coefficients[0] != h:
+            am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
+            self._coefficients = (h, ((1 - am) / (h * h * b * (1 - af)), g / (h * b),
+                                      (af, am, 1 - am, (1 - af) / (1 - am), h * (1 - g), h * g, h, h * h * (0.5 - b),
+                                       h * h * b, -(0.5 - b) / b, 1 - af)))
+        return self._coefficients[1]
+
+    def takes_steps(self, model):
+        """Whether `steps` can take the model's next steps: past the start-up, on the compiled kernels.
+
+        Args:
+            model: the StructuralModel.
+        """
+        return self._start == 0 and step_kernel.kernel_for(model) is not None
+
+    def steps(self, model, state, hs, times, Q, force, power, stops, angles):
+        """Steps of hs (s) from `state` in one compiled call (step_kernel.StepKernel.alpha_steps), each as `step`
+        takes it and checked as StructureSolver.advance checks it, where `takes_steps`. The call stops before a step
+        that needs the per-step path: a Newton iteration that fails, a check that may fail, a latch.
+
+        Args:
+            model: the StructuralModel.
+            state: the State at the start (not modified).
+            hs: the steps, s.
+            times: their end times, s (state.t + hs[0], then each the last plus the next h).
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            force: the external force whose power the work integrates (StructureModel.external_force_E), N and N m:
+                (n,) for a model that does not vary in time, else (len(hs), n) at `times`.
+            power: its power at the start, W.
+            stops: (n_hinges,) each hinge's stop angle, rad, NaN where it has none or is latched.
+            angles: (n_hinges,) the fold angles at the start, rad.
+
+        Returns:
+            (the step_kernel.Steps taken, the State at the last committed step or None).
+        """
+        kernel = step_kernel.kernel_for(model)
+        terms = None                 # where the model does not vary in time, the first step's terms hold for all
+        if model.varies_in_time:
+            terms = kernel.step_terms(times, Q, state.latched)
+        else:
+            kernel.prepare((times[0],), Q, state.latched)
+        rows = [self.coefficients(h) for h in hs]
+        factorization = self._matrix[1] if self._matrix is not None else None
+        if not isinstance(factorization, step_kernel.Factorization):    # none, or the numpy path's
+            factorization = None
+        control = (self.tol, VELOCITY_TOLERANCE / self.tol, self._eta, self.max_iterations,
+                   self._matrix[0] if factorization is not None else math.nan, power, state.work)
+        taken = kernel.alpha_steps(state, np.array(hs), np.array([row[2] for row in rows]),
+                                   np.array([row[:2] for row in rows]), terms, control, factorization, force, stops,
+                                   angles)
+        if not taken.committed:
+            return taken, None
+        self._matrix = None if taken.factorization is None else (taken.matrix_h, taken.factorization)
+        self._eta = taken.eta
+        self.newton_iterations += taken.corrections
+        q, dq, ddq, accel, lam = taken.state
+        return taken, replace(state, t=times[taken.committed - 1], q=q, dq=dq, ddq=ddq, accel=accel, multipliers=lam,
+                              work=taken.work)
+
     def _newton(self, model, state, h, Q, predictor):
-        am, af, g, b = self.alpha_m, self.alpha_f, self.gamma, self.beta
-        beta_p = (1 - am) / (h * h * b * (1 - af))
-        gamma_p = g / (h * b)
+        am, af = self.alpha_m, self.alpha_f
+        beta_p, gamma_p, coefficients = self.coefficients(h)
         t = state.t + h
         kernel = step_kernel.kernel_for(model)
         # The matrix of an earlier step serves while it contracts fast enough (`_iterate`) and h is the same. h is
@@ -385,8 +459,6 @@ class GeneralizedAlpha:
                            or not isinstance(self._matrix[1], kind))
         if kernel is not None:        # the same step in one compiled call (step_kernel.py)
             kernel.prepare((t,), Q, state.latched)
-            coefficients = (af, am, 1 - am, (1 - af) / (1 - am), h * (1 - g), h * g, h, h * h * (0.5 - b), h * h * b,
-                            -(0.5 - b) / b, 1 - af)
             control = (beta_p, gamma_p, self.tol, VELOCITY_TOLERANCE / self.tol, self._eta, float(factorized_here),
                        self.max_iterations, float(predictor == "displacement"))
             status, (q, dq, ddq, accel, lam), iterations, size, first, self._eta, matrix = kernel.alpha_step(
@@ -484,7 +556,7 @@ class Integrator(Protocol):
     for the generalized force Q (n,), take one `step` of h (s) from a state to a new State, `reset` what it
     carries between steps (a latch changes the forces), and that carried `memory` read and restored with the
     solver's state, so that a rolled-back step repeats bit for bit; `divergence_hint` tells the user what to
-    change when a step diverges."""
+    change when a step diverges; `takes_steps` says whether it takes several steps in one compiled call."""
 
     name: str
     divergence_hint: str
@@ -511,6 +583,14 @@ class Integrator(Protocol):
 
     def reset(self) -> None:
         """Forget what is carried between steps (a latch changes the forces)."""
+
+    def takes_steps(self, model) -> bool:
+        """Whether the integrator's `steps` can take the model's next steps in one compiled call, each checked as
+        StructureSolver checks a step (GeneralizedAlpha.steps); False where it takes them one `step` each.
+
+        Args:
+            model: the StructuralModel (structure_fmu.fidelities).
+        """
 
 
 INTEGRATORS = {"rk4": lambda structure: RK4(),

@@ -172,6 +172,12 @@ class StructureModel:
         Pp, Pdp, ddp = self.motion_offsets(t)
         return self.map.apply(q, Pp), self.map.apply(dq, Pdp), ddp
 
+    @property
+    def varies_in_time(self) -> bool:
+        """Whether the equations change with time at a given state: a prescribed motion moves or a point load ramps
+        (otherwise what `motion_offsets` and `constant_force_E` return is the same at every t)."""
+        return self._fixed_offset is None or any(load.ramp_time is not None for load in self.loads)
+
     def motion_offsets(self, t):
         """The prescribed parts of E and dE/dt at time t, P p and P p' (n,), and p'' (3 n_prescribed,); (P p, None,
         None) when nothing prescribed moves.

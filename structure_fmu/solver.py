@@ -22,10 +22,16 @@ from .topology import StructureTopology
 class StructureSolver:
     """The structural solver of one scene. See docs/solver_api.md.
 
+    Attributes:
+        steps_in_one_call: True (default): the internal steps of a communication step that the integrator can take in
+            one compiled call are taken so (`Integrator.steps`); False: one call each (the tests compare both).
+
     Args:
         spec: the structure unit's spec (fmu_common.specs.StructureUnitSpec).
         parameters: {name: value} of tunable parameters (`tunable_parameters`), SI units; None: the defaults.
     """
+
+    steps_in_one_call = True
 
     def __init__(self, spec: StructureUnitSpec, parameters: dict | None = None):
         self.topology = StructureTopology.from_spec(spec.structure)
@@ -142,10 +148,14 @@ class StructureSolver:
         if not self._initialized:
             self._initialize(Q)
         power = None                      # of the step's start, the previous step's end
+        one_call = self.steps_in_one_call
         while self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
-            h = min(self.step_size, t_end - self.state.t)
-            if t_end - (self.state.t + h) < 1e-9 * self.step_size:
-                h = t_end - self.state.t
+            one_call = one_call and self.integrator.takes_steps(self.model)
+            if one_call:
+                power = self._steps_in_one_call(t_end, Q, power)
+                if not self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
+                    break
+            h = self._next_step(self.state.t, t_end)
             previous = self.state
             try:
                 new = self.integrator.step(self.model, previous, h, Q)
@@ -158,6 +168,37 @@ class StructureSolver:
             power = self._power(new, Q)
             new.work = previous.work + 0.5 * h * (start + power)
             self.state = new
+
+    def _next_step(self, t, t_end):
+        """The internal step (s) from t towards t_end: structure.step, or what is left where that is shorter or would
+        leave less than a billionth of it."""
+        h = min(self.step_size, t_end - t)
+        return t_end - t if t_end - (t + h) < 1e-9 * self.step_size else h
+
+    def _steps_in_one_call(self, t_end, Q, power):
+        """The internal steps towards t_end that the integrator takes in one compiled call (Integrator.steps), with
+        the checks, the latch detection and the external work of the per-step loop of `advance`: up to the first step
+        that needs that loop, where `Integrator.takes_steps`. Returns the power of the external force at the state
+        reached (W), as the loop carries it (None: not computed yet)."""
+        hs, times, t = [], [], self.state.t
+        while t < t_end - 1e-12 * max(1.0, abs(t_end)):
+            hs.append(self._next_step(t, t_end))
+            t = t + hs[-1]                 # as the integrator's step sets its end time
+            times.append(t)
+        previous, model = self.state, self.model
+        start = self._power(previous, Q) if power is None else power
+        angles = self._evaluated(previous)[2]
+        stops = np.array([math.nan if h.stop_angle is None or previous.latched.get(h.name) else h.stop_angle
+                          for h in model.hinges])
+        force = (np.array([model.external_force_E(t, Q) for t in times]) if model.varies_in_time else
+                 model.external_force_E(times[0], Q))
+        taken, new = self.integrator.steps(model, previous, hs, times, Q, force, start, stops, list(angles.values()))
+        if new is None:                    # not one step: the per-step loop takes the next
+            return power
+        E, dE, fold, residual = taken.evaluation
+        self._cache = ((new, (E, dE, dict(zip(angles, fold.tolist())), residual)), self._cache[0])
+        self.state = new
+        return taken.power
 
     def _check(self, state):
         hint = self.integrator.divergence_hint

@@ -19,6 +19,7 @@ import ctypes
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse
@@ -84,6 +85,7 @@ def c_kernels():
         "newton_factor": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, ctypes.c_double,
                                          ctypes.c_double, pointer, pointer]),
         "alpha_step": (ctypes.c_int, [ctypes.POINTER(_Struct)] + [pointer] * 13),
+        "alpha_steps": (ctypes.c_int, [ctypes.POINTER(_Struct)] + [pointer] * 24),
         "rk4_step": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, ctypes.c_double, pointer, pointer,
                                     pointer, pointer]),
         "index1_accelerations": (ctypes.c_int, [ctypes.POINTER(_Struct), pointer, pointer, pointer, pointer]),
@@ -174,6 +176,24 @@ class Factorization:
     addresses: tuple
 
 
+class Steps(NamedTuple):
+    """What `StepKernel.alpha_steps` took: the steps committed, whether it stopped before a step the per-step path
+    must take, and at the last committed state (meaningless where none was committed): (q, q', q'', a, lambda), its
+    evaluation (E (n,), dE (n,), the fold angles (n_hinges,) in rad, max |Phi|), then the corrections taken, eta, the
+    Factorization of the iteration matrix and its h (s), the power of the external force (W) and the work (J)."""
+
+    committed: int
+    stopped: bool
+    state: tuple
+    evaluation: tuple
+    corrections: int
+    eta: float
+    factorization: "Factorization | None"
+    matrix_h: float
+    power: float
+    work: float
+
+
 class StepKernel:
     """The compiled step of one model (module docstring). Build it with `for_model`.
 
@@ -192,6 +212,10 @@ class StepKernel:
         self._coefficients, self._control, self._out = np.zeros(11), np.zeros(8), np.zeros(6)
         self._addresses = tuple(address(a) for a in (self._coefficients, self._control, self._out))
         self._spare = None       # (lu, pivots) where alpha_step factorizes, made when needed
+        self._alpha_steps = kernels.alpha_steps
+        self._owned = [None, None]  # alpha_steps' two (lu, pivots) buffers, made when needed
+        self._loop_control, self._loop_out = np.zeros(8), np.zeros(8)
+        self._loop_scratch = None
         self._accelerations = kernels.index1_accelerations
         self._evaluate = kernels.evaluate_state
         self._hinge_names = [h.name for h in model.hinges]
@@ -316,7 +340,7 @@ class StepKernel:
             return None
         return cls(model, lu, kernels, elements)
 
-    def prepare(self, times, Q, latched):
+    def prepare(self, times, Q, latched, rows=None):
         """Set what depends on time only, at each stage's time: the prescribed motion, the force that does not depend
         on E, the inertia of the prescribed motion; and the hinges' springs.
 
@@ -324,21 +348,39 @@ class StepKernel:
             times: the stages' times, s: (t,) for generalized-alpha (the step's end), (t, t + h/2, t + h) for RK4.
             Q: (n,) generalized external force on E, N and N m, global frame.
             latched: {hinge: latched}.
+            rows: where the time-dependent terms go, one row per time: `step_terms`' views; None: the stages.
         """
         model = self._model
+        offset, rate_offset, accel_offset, f_constant, r_constant = rows or (
+            self.offset, self.rate_offset, self.accel_offset, self.f_constant, self.r_constant)
         for stage, t in enumerate(times):
             Pp, Pdp, ddp = model.motion_offsets(t)
-            self.offset[stage] = Pp
-            self.f_constant[stage] = model.constant_force_E(t, Q)
+            offset[stage] = Pp
+            f_constant[stage] = model.constant_force_E(t, Q)
             if self._moving:      # model.force_q's -T^T M_E P p'' and force_E's damping -C_E P p'
-                self.rate_offset[stage] = Pdp
-                self.accel_offset[stage] = model.P @ ddp
-                self.r_constant[stage] = model.mass_prescribed @ ddp
+                rate_offset[stage] = Pdp
+                accel_offset[stage] = model.P @ ddp
+                r_constant[stage] = model.mass_prescribed @ ddp
                 if model.mass_damping is not None:
-                    self.f_constant[stage] -= model.mass_damping @ Pdp
+                    f_constant[stage] -= model.mass_damping @ Pdp
         for k, h in enumerate(self._hinges):
             stiffness, neutral = actuator_spring(h, latched.get(h.name, False))
             self.hinge_parameters[k] = stiffness, neutral, h.damping, h.torque
+
+    def step_terms(self, times, Q, latched):
+        """`prepare`'s time-dependent terms at each of `times` (s), one row per time in `alpha_steps`' layout: (k,
+        4 n + n_q) of P p, P p', P p'', the force on E that does not depend on E, the reduced force's terms that
+        depend on time only.
+
+        Args:
+            times: the steps' end times, s.
+            Q: (n,) generalized external force on E, N and N m, global frame.
+            latched: {hinge: latched}.
+        """
+        n = self._model.n
+        terms = np.zeros((len(times), 4 * n + self.n_q))
+        self.prepare(times, Q, latched, tuple(terms[:, k * n:(k + 1) * n] for k in range(4)) + (terms[:, 4 * n:],))
+        return terms
 
     def factor(self, q, dq, lam, beta_p, gamma_p):
         """The factorized iteration matrix at (q, q', lambda) and the first stage's time (model.StructureModel.
@@ -415,6 +457,60 @@ class StepKernel:
                                         f"{int(factor_status)})")
         values = (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q], x[5 * n_q:])
         return status, values, int(iterations), size, first, eta, factorization
+
+    def alpha_steps(self, state, h, coefficients, beta_gamma, terms, control, factorization, force, stops, angles):
+        """Generalized-alpha steps in one call (step_kernels.c, alpha_steps): `alpha_step` with the acceleration
+        predictor for each step at its time-dependent terms, each end state evaluated (`evaluate`), checked and its
+        external work integrated as solver.StructureSolver.advance does; the loop stops before a step that needs the
+        per-step path (a Newton failure, a check that may fail, a latch).
+
+        Args:
+            state: the integrators.State at the start (not modified).
+            h: (k,) the steps, s.
+            coefficients: (k, 11) each step's predictor coefficients (`alpha_step`).
+            beta_gamma: (k, 2) each step's beta' (1/s^2) and gamma' (1/s).
+            terms: each step's time-dependent terms (`step_terms`), or None: those `prepare` set for the first hold
+                for every step (a model that does not vary in time).
+            control: (7,) the Newton tolerance, the velocity tolerance over it, eta, the iterations allowed, the h of
+                `factorization` (s), the power of `force` at the start (W), the work so far (J).
+            factorization: the Factorization to start with, or None.
+            force: the external force whose power the work integrates, N and N m: (n,), or (k, n) with terms.
+            stops: (n_hinges,) each hinge's stop angle, rad, NaN where it has none or is latched.
+            angles: (n_hinges,) the fold angles at the start, rad.
+
+        Returns:
+            the Steps taken.
+        """
+        n_q, m, n = self.n_q, self.m, self._model.n
+        size = 5 * n_q + m
+        if self._loop_scratch is None:
+            self._loop_scratch = np.empty(2 * size + 2 * n + max(len(self._hinge_names), 1))
+        owned = self._owned
+        for k in (0, 1):
+            if owned[k] is None:
+                owned[k] = (np.empty(self._storage[0]), np.empty(self._storage[1], dtype=np.intc))
+        x, E, dE = np.empty(size), np.empty(n), np.empty(n)
+        angles = np.array(angles if len(angles) else [0.0])
+        self._loop_control[:7] = control
+        self._loop_control[7] = len(h)
+        given = factorization.addresses if factorization is not None else (None, None)
+        stopped = self._alpha_steps(self._pointer, address(h), address(coefficients), address(beta_gamma),
+                                    address(self._loop_control), None if terms is None else address(terms),
+                                    address(state.q), address(state.dq),
+                                    address(state.ddq), address(state.accel),
+                                    address(state.multipliers) if self.m else None, *given,
+                                    address(owned[0][0]), address(owned[0][1]), address(owned[1][0]),
+                                    address(owned[1][1]), address(force), address(stops) if stops.size else None,
+                                    address(angles), address(self._loop_scratch), address(x), address(E), address(dE),
+                                    address(self._loop_out))
+        committed, corrections, eta, current, matrix_h, power, work, residual = self._loop_out.tolist()
+        if current:        # the matrix is now an owned buffer: it becomes a Factorization, and a new buffer its place
+            lu, pivots = owned[int(current) - 1]
+            factorization, owned[int(current) - 1] = Factorization(lu, pivots, (address(lu), address(pivots))), None
+        return Steps(int(committed), bool(stopped), (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q],
+                                                     x[5 * n_q:]),
+                     (E, dE, angles[:len(self._hinge_names)], residual), int(corrections), eta, factorization,
+                     matrix_h, power, work)
 
     def correct(self, q, dq, ddq, lam, beta_p, gamma_p, factorization):
         """One Newton correction at the first stage's time, in place on q, q', q'' and lambda; the largest correction

@@ -51,6 +51,7 @@ typedef void (*getrs_t)(char *trans, int *n, int *nrhs, double *a, int *lda, int
 #define VECTOR_CLONES
 #endif
 
+#define PI 3.141592653589793        /* math.pi */
 #define STAGES 3                     /* the times a step evaluates: t, t + h/2, t + h */
 #define PROJECTIONS 4                /* integrators.project: Newton projections of q at most */
 #define PROJECTION_TOLERANCE 1e-13   /* integrators.project: |Phi_i| below which q is on the constraints */
@@ -869,4 +870,104 @@ double evaluate_state(const StepKernel *s, const double *q, const double *dq, do
         angles[h] = atan2(p0 * x[6] + p1 * x[7] + p2 * x[8], x[0] * x[3] + x[1] * x[4] + x[2] * x[5]);
     }
     return nan ? NAN : largest;
+}
+
+/* Generalized-alpha steps of one communication step in one call: for each step k, of h[k], alpha_step with the
+ * acceleration predictor (its coefficients c + 11 k, beta' and gamma' in bg[2 k], bg[2 k + 1]) at that step's
+ * time-dependent terms (terms: per step a row [P p, P p', P p'', f_constant, r_constant] of 4 n + n_q, `prepare`'s at
+ * the step's end; NULL: stage 0's, which then hold for every step), the iteration matrix factorized at the predictor
+ * where none is given yet or its h differs from h[k] (integrators.GeneralizedAlpha._newton's rule), then the end
+ * state evaluated (evaluate_state) and checked, and the external work integrated, as solver.StructureSolver.advance
+ * does per step. A step is committed only when it needs nothing of the per-step path: the loop stops before a step
+ * whose Newton iteration fails (the per-step path then retries it from the displacement predictor or reports it),
+ * whose state may fail the solver's checks (any q or q' not finite, max |Phi| not <= 1e-4, a gradient entry not
+ * <= 1e3), or in which a hinge with a stop reaches it (the per-step path records the latch). The state, the matrix
+ * and eta are then those at that step's start, so that the per-step path takes the step as if the loop had not.
+ * control: the Newton tolerance, the velocity tolerance over it, eta at the start, the iterations allowed, the h of
+ * the given matrix (lu, pivots; NULL: none), the power of the external force at the start (W), the work so far (J),
+ * the number of steps. q0, q0', q0'', a0, lambda0: the state at the start. Factorizations go into the two owned
+ * buffers (lu_a, piv_a) and (lu_b, piv_b), never into the given matrix (a saved solver state may hold it).
+ * force: the external force whose power on dE the work integrates (StructureModel.external_force_E), N and N m: one
+ * row (n,), or one per step with terms. stops: (n_hinges,) each hinge's stop angle (rad), NaN where it has none or
+ * is latched. angles: (n_hinges,) the fold angles at the start on entry, at the last committed state on return.
+ * scratch: 2 (5 n_q + m) + 2 n + n_hinges. On return x = [q, q', q'', a, a_known, lambda], E, dE hold the last
+ * committed state (where one was committed) and out: the steps committed, the corrections taken in them, eta, the
+ * matrix (0 the given, 1 lu_a, 2 lu_b), its h, the power at the last committed state, the work there, max |Phi|
+ * there. Returns 0 when every step is committed, 1 when the loop stopped before a step. */
+int alpha_steps(const StepKernel *s, const double *h, const double *c, const double *bg, const double *control,
+                const double *terms, const double *q0, const double *dq0, const double *ddq0, const double *accel0,
+                const double *lam0, const double *lu, const int *pivots, double *lu_a, int *piv_a, double *lu_b,
+                int *piv_b, const double *force, const double *stops, double *angles, double *scratch, double *x,
+                double *E, double *dE, double *out) {
+    const long n = s->n_q, m = s->m, size = 5 * n + m, n_steps = (long)control[7], row = 4 * s->n + n;
+    double *states[2] = {scratch, scratch + size}, *E_new = scratch + 2 * size, *dE_new = E_new + s->n,
+           *angles_new = dE_new + s->n;
+    StepKernel at = *s;                            /* the model at step k's terms */
+    const double *current_lu = lu;
+    const int *current_pivots = pivots;
+    int current = 0;                               /* 0: the given matrix, 1: lu_a, 2: lu_b */
+    double eta = control[2], matrix_h = lu ? control[4] : NAN, power = control[5], work = control[6];
+    double residual = NAN, step_out[6];
+    long committed = 0, corrections = 0;
+    int stopped = 0;
+    for (long k = 0; k < n_steps; k++) {
+        double *y = states[k % 2];
+        const double *f = force;
+        if (terms) {
+            const double *t = terms + k * row;
+            at.offset = t;
+            at.rate_offset = t + s->n;
+            at.accel_offset = t + 2 * s->n;
+            at.f_constant = t + 3 * s->n;
+            at.r_constant = t + 4 * s->n;
+            f = force + k * s->n;
+        }
+        /* the spare: an owned buffer that is not the matrix */
+        double *spare_lu = current == 1 ? lu_b : lu_a;
+        int *spare_pivots = current == 1 ? piv_b : piv_a;
+        const double step_control[8] = {bg[2 * k], bg[2 * k + 1], control[0], control[1], eta,
+                                         current_lu == NULL || matrix_h != h[k] ? 1.0 : 0.0, control[3], 0.0};
+        if (alpha_step(&at, q0, dq0, ddq0, accel0, m ? lam0 : NULL, c + 11 * k, step_control, current_lu,
+                       current_pivots, spare_lu, spare_pivots, y, step_out)) { stopped = 1; break; }
+        const double *q = y, *dq = y + n;
+        int ok = 1;
+        for (long i = 0; i < n && ok; i++) ok = isfinite(q[i]) && isfinite(dq[i]);
+        const double phi = ok ? evaluate_state(&at, q, dq, E_new, dE_new, angles_new) : NAN;
+        ok = ok && phi <= 1e-4;
+        for (long i = 0; i < s->n && ok; i++) ok = i % 9 < 3 || fabs(E_new[i]) <= 1e3;
+        for (long j = 0; j < s->n_hinges && ok; j++) {
+            const double a = angles[j] - stops[j], b = angles_new[j] - stops[j];
+            ok = !(a * b <= 0.0 && fabs(a - b) < PI);
+        }
+        if (!ok) { stopped = 1; break; }
+        /* committed: the step's matrix, eta, power and work (StructureSolver.advance: the trapezoidal rule) */
+        if (step_out[4] > 0.0) {
+            current = spare_lu == lu_a ? 1 : 2;
+            current_lu = spare_lu;
+            current_pivots = spare_pivots;
+            matrix_h = h[k];
+        }
+        eta = step_out[3];
+        double p = 0.0;
+        for (long i = 0; i < s->n; i++) p += f[i] * dE_new[i];
+        work = work + 0.5 * h[k] * (power + p);
+        power = p;
+        residual = phi;
+        corrections += (long)step_out[0];
+        for (long j = 0; j < s->n_hinges; j++) angles[j] = angles_new[j];
+        memcpy(E, E_new, s->n * sizeof(double));
+        memcpy(dE, dE_new, s->n * sizeof(double));
+        q0 = y; dq0 = y + n; ddq0 = y + 2 * n; accel0 = y + 3 * n; lam0 = y + 5 * n;
+        committed++;
+    }
+    if (committed) memcpy(x, states[(committed - 1) % 2], size * sizeof(double));
+    out[0] = (double)committed;
+    out[1] = (double)corrections;
+    out[2] = eta;
+    out[3] = (double)current;
+    out[4] = matrix_h;
+    out[5] = power;
+    out[6] = work;
+    out[7] = residual;
+    return stopped;
 }
