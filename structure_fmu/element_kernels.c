@@ -36,6 +36,14 @@
  */
 #include <math.h>
 
+/* the force's and tangent's loops built for AVX-512, AVX2 and plain x86-64, as in step_kernels.c (without fused
+ * multiply-add, -ffp-contract=off: every build gives the same bits) */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
+#define VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define VECTOR_CLONES
+#endif
+
 #define MAX_GAUSS 8                          /* Gauss points per element the scratch arrays hold */
 #define INLINE static inline __attribute__((always_inline))
 
@@ -131,7 +139,7 @@ int elastic_energy(long n, long g, const double *table, const double *e, double 
 
 /* out (n, 18) = -dU/de per element (header): per Gauss point the gradients by the fields r', r'', r_y of the arc
  * stretch and the two bendings, back to the slots by basis^T; then the nodal stretches and torsion. */
-int elastic_force(long n, long g, const double *table, const double *e, double *out) {
+VECTOR_CLONES int elastic_force(long n, long g, const double *table, const double *e, double *out) {
     if (g < 1 || g > MAX_GAUSS) return -1;
     const double *weights = table, *length = weights + g, *grams = length + n, *bending = grams + 9 * n,
                  *torsions = bending + 2 * g * n, *basis = torsions + n;
@@ -216,7 +224,7 @@ INLINE void add_levi_civita(double *h, int stride, int row, int col, double coef
  * r_y) (bending outer products, the flap's Levi-Civita blocks, the chordwise identity blocks, the arc-stretch
  * projector) is mapped to the 15 slot components by kron(basis rows, I_3); then the axial Gram coupling of the
  * stretches' gradients, the nodal stretches' curvature and torsion; last the slots are spread to e (r^A = -d). */
-int elastic_jacobian(long n, long g, const double *table, const double *e, double *out) {
+VECTOR_CLONES int elastic_jacobian(long n, long g, const double *table, const double *e, double *out) {
     if (g < 1 || g > MAX_GAUSS) return -1;
     const double *weights = table, *length = weights + g, *grams = length + n, *bending = grams + 9 * n,
                  *torsions = bending + 2 * g * n, *basis = torsions + n;
