@@ -188,7 +188,7 @@ class Steps(NamedTuple):
     evaluation: tuple
     corrections: int
     eta: float
-    factorization: "Factorization | None"
+    factorization: Factorization | None
     matrix_h: float
     power: float
     work: float
