@@ -3,10 +3,11 @@
 For generalized-alpha, `StepKernel.alpha_step` takes a whole step in one C call: the predictor, the iteration matrix
 formed and factorized where the step asks, the Newton corrections (the residual of the equations of motion and of the
 scaled constraints, its solve with the factorized matrix, the update of q, q', q'' and lambda) with the convergence
-test and the refactorizations of integrators.GeneralizedAlpha's control; `StepKernel.correct` and `StepKernel.factor`
-are one correction and one factorization alone (the tests check each against the reference). For RK4,
-`StepKernel.rk4_step` takes the whole step (four stages of the index-1 accelerations and the projection onto the
-constraints) in one call. The numpy path of model.StructureModel, iteration_lu.IterationLU and integrators.RK4 stays
+test and the refactorizations of integrators.GeneralizedAlpha's control; `StepKernel.alpha_steps` takes the steps of
+a communication step in one call, each checked as the solver checks a step, up to one the per-step path must take;
+`StepKernel.correct` and `StepKernel.factor` are one correction and one factorization alone (the tests check each
+against the reference). For RK4, `StepKernel.rk4_step` takes the whole step (four stages of the index-1
+accelerations and the projection onto the constraints) in one call. The numpy path of model.StructureModel, iteration_lu.IterationLU and integrators.RK4 stays
 the reference ($WINGSIM_KERNELS=numpy): the iteration matrix is the same bit for bit, the residual, the
 accelerations and the states equal to round-off, and the Newton iterations the same
 (tests/units/test_step_kernel.py).

@@ -1,6 +1,7 @@
 /* The structure unit's step on the ANCF models in C, on buffers allocated once (step_kernel.py): a whole
  * generalized-alpha step (predictor, factorizations of the iteration matrix, Newton corrections and their control) in
- * one call, and a whole RK4 step with its constraint projection in one call. The reference is the numpy path of
+ * one call, the steps of a communication step with the solver's checks in one call (alpha_steps), and a whole RK4
+ * step with its constraint projection in one call. The reference is the numpy path of
  * model.StructureModel (force_q, mass_product, constraint_*, iteration_matrix), iteration_lu.IterationLU and
  * integrators.RK4 ($WINGSIM_KERNELS=numpy); the tests compare both (tests/units/test_step_kernel.py).
  *
