@@ -19,6 +19,11 @@ from .joint_monitors import joint_monitors, monitor_names
 from .sensors import Sensors
 from .topology import StructureTopology
 
+def _short_of(t, t_end) -> bool:
+    """Whether time t (s) is short of t_end (s) by more than round-off: another internal step is due."""
+    return t < t_end - 1e-12 * max(1.0, abs(t_end))
+
+
 class StructureSolver:
     """The structural solver of one scene. See docs/solver_api.md.
 
@@ -149,11 +154,11 @@ class StructureSolver:
             self._initialize(Q)
         power = None                      # of the step's start, the previous step's end
         one_call = self.steps_in_one_call
-        while self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
+        while _short_of(self.state.t, t_end):
             one_call = one_call and self.integrator.takes_steps(self.model)
             if one_call:
                 power = self._steps_in_one_call(t_end, Q, power)
-                if not self.state.t < t_end - 1e-12 * max(1.0, abs(t_end)):
+                if not _short_of(self.state.t, t_end):
                     break
             h = self._next_step(self.state.t, t_end)
             previous = self.state
@@ -181,7 +186,7 @@ class StructureSolver:
         that needs that loop, where `Integrator.takes_steps`. Returns the power of the external force at the state
         reached (W), as the loop carries it (None: not computed yet)."""
         hs, times, t = [], [], self.state.t
-        while t < t_end - 1e-12 * max(1.0, abs(t_end)):
+        while _short_of(t, t_end):
             hs.append(self._next_step(t, t_end))
             t = t + hs[-1]                 # as the integrator's step sets its end time
             times.append(t)

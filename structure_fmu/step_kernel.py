@@ -1,16 +1,16 @@
 """The structure unit's step on the ANCF models in compiled calls: step_kernels.c on buffers allocated once per model.
 
 For generalized-alpha, `StepKernel.alpha_step` takes a whole step in one C call: the predictor, the iteration matrix
-formed and factorized where the step asks, the Newton corrections (the residual of the equations of motion and of the
-scaled constraints, its solve with the factorized matrix, the update of q, q', q'' and lambda) with the convergence
-test and the refactorizations of integrators.GeneralizedAlpha's control; `StepKernel.alpha_steps` takes the steps of
-a communication step in one call, each checked as the solver checks a step, up to one the per-step path must take;
-`StepKernel.correct` and `StepKernel.factor` are one correction and one factorization alone (the tests check each
-against the reference). For RK4, `StepKernel.rk4_step` takes the whole step (four stages of the index-1
-accelerations and the projection onto the constraints) in one call. The numpy path of model.StructureModel, iteration_lu.IterationLU and integrators.RK4 stays
-the reference ($WINGSIM_KERNELS=numpy): the iteration matrix is the same bit for bit, the residual, the
-accelerations and the states equal to round-off, and the Newton iterations the same
-(tests/units/test_step_kernel.py).
+formed and factorized where the step asks, the Newton corrections (the residual of the equations of motion and of
+the scaled constraints, its solve with the factorized matrix, the update of q, q', q'' and lambda) with the
+convergence test and the refactorizations of integrators.GeneralizedAlpha's control; `StepKernel.alpha_steps` takes
+the steps of a communication step in one call, each checked as the solver checks a step, up to one the per-step path
+must take; `StepKernel.correct` and `StepKernel.factor` are one correction and one factorization alone (the tests
+check each against the reference). For RK4, `StepKernel.rk4_step` takes the whole step (four stages of the index-1
+accelerations and the projection onto the constraints) in one call. The numpy path of model.StructureModel,
+iteration_lu.IterationLU and integrators.RK4 stays the reference ($WINGSIM_KERNELS=numpy): the iteration matrix is
+the same bit for bit, the residual, the accelerations and the states equal to round-off, and the Newton iterations
+the same (tests/units/test_step_kernel.py).
 
 The kernel covers the rigid and flexible ANCF bodies with prescribed motions, unit-length, orthogonality and linear
 constraint rows, chord-axis hinges, and damping of either model (`unsupported` names what else a model has); any
@@ -178,13 +178,13 @@ class Factorization:
 
 
 class Steps(NamedTuple):
-    """What `StepKernel.alpha_steps` took: the steps committed, whether it stopped before a step the per-step path
-    must take, and at the last committed state (meaningless where none was committed): (q, q', q'', a, lambda), its
-    evaluation (E (n,), dE (n,), the fold angles (n_hinges,) in rad, max |Phi|), then the corrections taken, eta, the
-    Factorization of the iteration matrix and its h (s), the power of the external force (W) and the work (J)."""
+    """What `StepKernel.alpha_steps` took: the steps committed (fewer than asked where it stopped before a step the
+    per-step path must take), and at the last committed state (meaningless where none was committed): (q, q', q'',
+    a, lambda), its evaluation (E (n,), dE (n,), the fold angles (n_hinges,) in rad, max |Phi|), then the
+    corrections taken, eta, the Factorization of the iteration matrix and its h (s), the power of the external force
+    (W) and the work (J)."""
 
     committed: int
-    stopped: bool
     state: tuple
     evaluation: tuple
     corrections: int
@@ -495,7 +495,7 @@ class StepKernel:
         self._loop_control[:7] = control
         self._loop_control[7] = len(h)
         given = factorization.addresses if factorization is not None else (None, None)
-        stopped = self._alpha_steps(self._pointer, address(h), address(coefficients), address(beta_gamma),
+        self._alpha_steps(self._pointer, address(h), address(coefficients), address(beta_gamma),
                                     address(self._loop_control), None if terms is None else address(terms),
                                     address(state.q), address(state.dq),
                                     address(state.ddq), address(state.accel),
@@ -508,7 +508,7 @@ class StepKernel:
         if current:        # the matrix is now an owned buffer: it becomes a Factorization, and a new buffer its place
             lu, pivots = owned[int(current) - 1]
             factorization, owned[int(current) - 1] = Factorization(lu, pivots, (address(lu), address(pivots))), None
-        return Steps(int(committed), bool(stopped), (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q],
+        return Steps(int(committed), (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q],
                                                      x[5 * n_q:]),
                      (E, dE, angles[:len(self._hinge_names)], residual), int(corrections), eta, factorization,
                      matrix_h, power, work)
