@@ -416,7 +416,7 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
     """`wingsim run` once `out` is held: run.json, the summary before the run, the run, the results and plots,
     run.json completed last."""
     from orchestrator.files import WriteError
-    from orchestrator.output.plots import write_plots
+    from orchestrator.output.plots import plot_workers, write_plots
     from orchestrator.output.results import deployment_time, latching_hinges, write_results, write_started
     from orchestrator.output.run_record import finish_record, start_record
     from orchestrator.run.master import RunResult, new_series, run_scene
@@ -447,7 +447,7 @@ def _run_into(args: argparse.Namespace, scene: dict, out: Path, holder: dict) ->
         return interrupt_exit_code() or 1
     plotted = True
     try:
-        written += write_plots(result, out)
+        written += write_plots(result, out, plot_workers())
     except Exception as err:  # the data are written; a plotting problem must not hide them
         if _debug():
             raise
