@@ -255,6 +255,7 @@ def test_the_animation_and_the_vtk_files_of_one_run_replay_the_aero_unit_once(tm
         return original(*args, **kwargs)
 
     monkeypatch.setattr(wake_view, "replay", counted)
+    monkeypatch.setattr(plots, "plot_workers", lambda: 1)   # the wake picture's replay counted here, not in a fork
     out = tmp_path / "both"
     code = cli.main(["run", str(SCENES / "heaving_wing.toml"), "--backend", "direct", "--out", str(out),
                      "--set", scene[0], "--set", scene[1], "--animate", "--vtk"])
