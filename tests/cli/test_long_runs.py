@@ -87,7 +87,8 @@ def test_flow_values_outside_the_plausible_range_get_a_note_and_the_run_goes_ahe
     assert plausibility_notes(load_scene(RIGID, ["flow.speed=102"])) == []
     assert plausibility_notes(load_scene(RIGID, ["flow.speed=1000", "aero.model=none"])) == []
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])   # the note is the point
+    # the note is the point
+    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])
     assert main(["run", str(RIGID), "--set", "flow.speed=1000", "--set", "time.stop=0.002", "--backend", "direct",
                  "--out", "out"]) == 0
     assert "note: flow.speed = 1000 m/s is outside the plausible range [0, 102.1] m/s" in capsys.readouterr().err

@@ -42,7 +42,8 @@ def test_scenes_lists_every_shipped_scene_with_its_headline(capsys):
 
 
 def test_a_shipped_scene_runs_by_name_from_an_empty_folder(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])   # the folder is the point
+    # the folder is the point
+    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])
     monkeypatch.chdir(tmp_path)
     assert main(["run", "deploy_rigid", *STILL]) == 0
     out = tmp_path / "results" / "deploy_rigid" / "aero.model=none,time.stop=0.02"

@@ -27,7 +27,8 @@ def sets(overrides):
 def test_the_readmes_five_deploy_flexible_variants_leave_five_folders_listed_then_cleaned(tmp_path, capsys,
                                                                                           monkeypatch):
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])   # the folders are the point
+    # the folders are the point
+    monkeypatch.setattr(orchestrator.output.plots, "write_plots", lambda result, out, workers=1: [])
     for overrides in README_VARIANTS:
         assert main(["run", "deploy_flexible", *SHORT, *sets(overrides), "--backend", "direct"]) == 0
     capsys.readouterr()
