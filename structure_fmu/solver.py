@@ -19,6 +19,7 @@ from .joint_monitors import joint_monitors, monitor_names
 from .sensors import Sensors
 from .topology import StructureTopology
 
+
 def _short_of(t, t_end) -> bool:
     """Whether time t (s) is short of t_end (s) by more than round-off: another internal step is due."""
     return t < t_end - 1e-12 * max(1.0, abs(t_end))

@@ -496,20 +496,17 @@ class StepKernel:
         self._loop_control[7] = len(h)
         given = factorization.addresses if factorization is not None else (None, None)
         self._alpha_steps(self._pointer, address(h), address(coefficients), address(beta_gamma),
-                                    address(self._loop_control), None if terms is None else address(terms),
-                                    address(state.q), address(state.dq),
-                                    address(state.ddq), address(state.accel),
-                                    address(state.multipliers) if self.m else None, *given,
-                                    address(owned[0][0]), address(owned[0][1]), address(owned[1][0]),
-                                    address(owned[1][1]), address(force), address(stops) if stops.size else None,
-                                    address(angles), address(self._loop_scratch), address(x), address(E), address(dE),
-                                    address(self._loop_out))
+                          address(self._loop_control), None if terms is None else address(terms),
+                          address(state.q), address(state.dq), address(state.ddq), address(state.accel),
+                          address(state.multipliers) if self.m else None, *given,
+                          address(owned[0][0]), address(owned[0][1]), address(owned[1][0]), address(owned[1][1]),
+                          address(force), address(stops) if stops.size else None, address(angles),
+                          address(self._loop_scratch), address(x), address(E), address(dE), address(self._loop_out))
         committed, corrections, eta, current, matrix_h, power, work, residual = self._loop_out.tolist()
         if current:        # the matrix is now an owned buffer: it becomes a Factorization, and a new buffer its place
             lu, pivots = owned[int(current) - 1]
             factorization, owned[int(current) - 1] = Factorization(lu, pivots, (address(lu), address(pivots))), None
-        return Steps(int(committed), (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q],
-                                                     x[5 * n_q:]),
+        return Steps(int(committed), (x[:n_q], x[n_q:2 * n_q], x[2 * n_q:3 * n_q], x[3 * n_q:4 * n_q], x[5 * n_q:]),
                      (E, dE, angles[:len(self._hinge_names)], residual), int(corrections), eta, factorization,
                      matrix_h, power, work)
 

@@ -225,6 +225,8 @@ def lift_figure(result: RunResult) -> Figure | None:
 PICTURES = (("wake_view", "wake_3d.png", "wake"), ("mechanism_view", "mechanism.png", "mechanism"),
             ("planform_view", "planform.png", "planform"))
 """The pictures of `write_plots` beside the figures of PLOT_FILES: (module of orchestrator.output, file, what)."""
+FORKS = sys.platform.startswith("linux")
+"""Whether `write_plots` may draw in forked workers here (`plot_workers`)."""
 FIGURES = (fold_angles_figure, probe_displacements_figure, probe_velocities_figure, probe_accelerations_figure,
            strain_figure, monitors_figure, lift_figure)
 """The figure of each of PLOT_FILES, in its order."""
@@ -234,9 +236,7 @@ def plot_workers() -> int:
     """Processes `write_plots` may draw in at once here: the CPUs this process may run on, on Linux (where a worker
     is a fork, which starts in milliseconds with everything imported); 1 elsewhere (a spawned worker would import
     matplotlib again, about as long as it draws, and a forked one is unsafe where system libraries hold threads)."""
-    if not sys.platform.startswith("linux"):
-        return 1
-    return len(os.sched_getaffinity(0))
+    return len(os.sched_getaffinity(0)) if FORKS else 1
 
 
 def write_plots(result: RunResult, out_dir: Path, workers: int = 1) -> list[Path]:
@@ -257,14 +257,14 @@ def write_plots(result: RunResult, out_dir: Path, workers: int = 1) -> list[Path
     tasks = [(_write_figure, index) for index in range(len(PLOT_FILES))]
     tasks += [(_write_picture, index) for index in range(len(PICTURES))]
     if workers > 1:
-        if not sys.platform.startswith("linux"):
+        if not FORKS:
             raise ValueError(f"write_plots: workers={workers} needs Linux's fork; 1 draws here in turn")
         # the workers are forks: they hold the result and the imports already; only an index crosses to them
         pool = ProcessPoolExecutor(min(workers, len(tasks)), mp_context=multiprocessing.get_context("fork"),
                                    initializer=_hold, initargs=(result, out_dir))
         try:
-            # the pictures first (the slowest: 0.3-0.6 s), so that no worker is left alone with one at the end
-            order = sorted(range(len(tasks)), key=lambda k: (tasks[k][0] is not _write_picture, k))
+            # the pictures (the last tasks) first, the slowest (0.3-0.6 s): no worker is left alone with one at the end
+            order = [*range(len(PLOT_FILES), len(tasks)), *range(len(PLOT_FILES))]
             futures = {k: pool.submit(_task, *tasks[k]) for k in order}
             outcomes = [futures[k].result() for k in range(len(tasks))]
         finally:        # a failed figure or an interrupt: the files not begun are not drawn
